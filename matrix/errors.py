@@ -1,0 +1,48 @@
+"""One root exception for everything the engine (and the domain on top of it) raises on purpose.
+
+The CLI catches `MatrixError`, prints its one-line message and exits non-zero; anything else is a bug
+and gets a traceback.
+"""
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable
+
+
+class MatrixError(Exception):
+    """Root of every error a user can cause: bad recipe, bad input file, failed job, unknown name."""
+
+
+class RecipeError(MatrixError):
+    """A recipe is malformed. The message starts with `file:line: key.path:`."""
+
+    def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
+                 path: Iterable[object] = ()):
+        self.file, self.line, self.path = file, line, tuple(path)
+        where = ":".join(str(p) for p in (file, line) if p is not None)
+        key = ".".join(str(p) for p in self.path)
+        prefix = ": ".join(p for p in (where, key) if p)
+        super().__init__(f"{prefix}: {message}" if prefix else message)
+
+
+class CycleError(MatrixError):
+    """The job graph has a cycle; `path` lists the jobs on it, first == last."""
+
+    def __init__(self, path: list[str]):
+        self.path = path
+        super().__init__("dependency cycle: " + " -> ".join(path))
+
+
+class UnknownNameError(MatrixError):
+    """A name is not in a registry; the message lists the known names and the closest one."""
+
+    def __init__(self, what: str, name: str, known: Iterable[str]):
+        known = sorted(known)
+        self.name, self.known = name, known
+        super().__init__(f"unknown {what} {name!r}{did_you_mean(name, known)}; known: {', '.join(known) or '(none)'}")
+
+
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """' (did you mean 'x'?)' for the closest known name, or '' when nothing is close."""
+    close = difflib.get_close_matches(str(name), [str(k) for k in known], n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""

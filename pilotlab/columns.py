@@ -1,0 +1,55 @@
+"""The names of every metric a job result may carry, with units and meaning.
+
+Job results, `results.csv` and the report tables all use these names, so they are defined once here.
+A value that could not be measured is absent (or None), never 0.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Column:
+    name: str
+    unit: str
+    doc: str
+    better: str = ""  # "lower" | "higher" | "" (no preference)
+
+
+OFFLINE = (
+    Column("size_mb", "MB", "artifact size on disk", "lower"),
+    Column("params", "", "number of parameters (non-zero for pruned models: see nonzero_params)"),
+    Column("nonzero_params", "", "parameters that are not zero"),
+    Column("sparsity", "", "fraction of prunable weights that are exactly zero"),
+    Column("mse", "", "MSE over v and w, on normalised labels (as the 2022 study reports)", "lower"),
+    Column("mse_v", "", "MSE of v, normalised", "lower"),
+    Column("mse_w", "", "MSE of w, normalised", "lower"),
+    Column("mse_v_phys", "(m/s)^2", "MSE of v in physical units", "lower"),
+    Column("mse_w_phys", "(rad/s)^2", "MSE of w in physical units", "lower"),
+    Column("latency_ms", "ms", "batch-1 latency, median", "lower"),
+    Column("latency_p90_ms", "ms", "batch-1 latency, 90th percentile", "lower"),
+    Column("latency_p99_ms", "ms", "batch-1 latency, 99th percentile", "lower"),
+    Column("throughput_ips", "images/s", "throughput at the larger batch", "higher"),
+    Column("throughput_batch", "", "batch size of the throughput measurement"),
+    Column("peak_mem_mb", "MB", "peak resident memory while predicting", "lower"),
+    Column("threads", "", "CPU threads used"),
+    Column("test_frames", "", "frames in the test set"),
+)
+
+ONLINE = (
+    Column("lap_completed", "", "the car completed the lap"),
+    Column("completed_distance_m", "m", "distance driven along the centreline", "higher"),
+    Column("percentage_completed", "%", "completed distance over circuit length", "higher"),
+    Column("lap_seconds", "s", "simulated time of the lap (if completed)", "lower"),
+    Column("average_speed", "m/s", "completed distance over simulated time", "higher"),
+    Column("position_deviation_mae_m", "m", "mean distance from the red line", "lower"),
+    Column("position_deviation_total_m", "m", "sum of distances from the red line over iterations", "lower"),
+    Column("brain_frequency_sim_hz", "Hz", "brain iterations per simulated second", "higher"),
+    Column("brain_frequency_real_hz", "Hz", "brain iterations per wall-clock second", "higher"),
+    Column("mean_inference_ms", "ms", "mean time of one brain inference", "lower"),
+    Column("real_time_factor", "", "simulated seconds per wall-clock second", "higher"),
+    Column("suddenness", "", "mean change between consecutive commands", "lower"),
+    Column("off_road_events", "", "times the car left the road", "lower"),
+)
+
+BY_NAME = {c.name: c for c in OFFLINE + ONLINE}

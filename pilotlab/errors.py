@@ -1,0 +1,10 @@
+"""pilotlab's errors all derive from the engine's single root, `matrix.errors.MatrixError`."""
+from matrix.errors import MatrixError, RecipeError, UnknownNameError  # noqa: F401  (re-exported)
+
+
+class PilotlabError(MatrixError):
+    """Something the user can fix: a bad bag, a missing topic, an unusable checkpoint..."""
+
+
+class BagError(PilotlabError):
+    """A rosbag (or dataset folder) cannot be read as asked; the message names the bag and topic."""

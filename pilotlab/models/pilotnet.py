@@ -1,0 +1,57 @@
+"""PilotNet, as DeepLearningStudio's PyTorch version (Bojarski et al. 2016, NVIDIA).
+
+BatchNorm on the input; convs 24, 36, 48 (5×5, stride 2) and 64, 64 (3×3); FC 1164, 100, 50, 10, 2.
+About 1.6 M parameters, 1.34 M of them in the first fully connected layer.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+
+from pilotlab.models.registry import register_model
+
+
+@dataclass(frozen=True)
+class PilotNetConfig:
+    version: int = 1
+    height: int = 66
+    width: int = 200
+    channels: int = 3
+    outputs: int = 2
+    dropout: float = 0.5
+
+
+def _conv_out(size: int, kernel: int, stride: int) -> int:
+    return (size - kernel) // stride + 1
+
+
+@register_model("pilotnet", PilotNetConfig)
+class PilotNet(nn.Module):
+    def __init__(self, config: PilotNetConfig):
+        super().__init__()
+        self.config = config
+        self.input_norm = nn.BatchNorm2d(config.channels, eps=1e-3)
+        self.features = nn.Sequential(
+            nn.Conv2d(config.channels, 24, 5, stride=2), nn.ReLU(),  # [N, 24, 31, 98]
+            nn.Conv2d(24, 36, 5, stride=2), nn.ReLU(),                # [N, 36, 14, 47]
+            nn.Conv2d(36, 48, 5, stride=2), nn.ReLU(),                # [N, 48, 5, 22]
+            nn.Conv2d(48, 64, 3), nn.ReLU(),                          # [N, 64, 3, 20]
+            nn.Conv2d(64, 64, 3), nn.ReLU(),                          # [N, 64, 1, 18]
+            nn.Dropout(config.dropout),
+        )
+        height, width = config.height, config.width
+        for kernel, stride in ((5, 2), (5, 2), (5, 2), (3, 1), (3, 1)):
+            height, width = _conv_out(height, kernel, stride), _conv_out(width, kernel, stride)
+        self.head = nn.Sequential(
+            nn.Flatten(),                                  # [N, 1152]
+            nn.Linear(64 * height * width, 1164), nn.ReLU(),
+            nn.Linear(1164, 100), nn.ReLU(),
+            nn.Linear(100, 50), nn.ReLU(),
+            nn.Linear(50, 10), nn.ReLU(),
+            nn.Linear(10, config.outputs),                 # [N, 2]: normalised v, w
+        )
+
+    def forward(self, images: torch.Tensor) -> torch.Tensor:  # images: [N, 3, 66, 200] in [0, 1]
+        return self.head(self.features(self.input_norm(images)))
