@@ -1,0 +1,1 @@
+"""Datasets: rosbags and dataset folders -> preprocessed frames with (v, w) labels."""
