@@ -56,7 +56,7 @@ def fit(model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfi
             loss = nn.functional.mse_loss(model(inputs), targets[index])
             loss.backward()
             optimizer.step()
-            losses.append(float(loss))
+            losses.append(loss.item())
         row = {"epoch": epoch + 1, "train_loss": float(np.mean(losses))}
         if val is not None and len(val):
             row["val_loss"] = evaluate_mse(model, val, ranges, frames=config.frames)
