@@ -46,6 +46,7 @@ class JobContext:
     name: str
     params: Mapping[str, Any]
     deps: Mapping[str, DepResult | tuple[DepResult, ...]]
+    inputs: Mapping[str, Path]     # the user's input files, by role (their content is in the key)
     out: Path                      # the job's artifact folder (empty, writable)
     cache: Path                    # a store-wide scratch folder for caches shared between jobs
     log: logging.Logger
