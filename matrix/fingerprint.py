@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
-import inspect
 import os
 from collections.abc import Iterable
 from pathlib import Path
@@ -23,7 +22,8 @@ CHUNK = 1 << 20
 
 
 def code_fingerprint(sources: Iterable[Any]) -> str:
-    """sha256 over the source text of modules, packages, functions, classes or module names."""
+    """sha256 over the source text of the modules (or packages) that define `sources`: modules,
+    module names, functions or classes."""
     digest = hashlib.sha256()
     for ident, text_hash in sorted(_source_hash(source) for source in sources):
         digest.update(f"{ident}:{text_hash}\n".encode())
@@ -31,29 +31,20 @@ def code_fingerprint(sources: Iterable[Any]) -> str:
 
 
 def _ident(source: Any) -> str:
+    """The module a source lives in: code is fingerprinted a whole module at a time (one job kind,
+    one strategy, one model per module keeps that precise)."""
     if isinstance(source, str):
         return source
     if isinstance(source, ModuleType):
         return source.__name__
-    return f"{source.__module__}.{source.__qualname__}"
+    return source.__module__
 
 
 def _source_hash(source: Any) -> tuple[str, str]:
     ident = _ident(source)
     if ident not in _SOURCE_HASHES:
-        _SOURCE_HASHES[ident] = hashlib.sha256(_source_text(source).encode()).hexdigest()
+        _SOURCE_HASHES[ident] = hashlib.sha256(_module_files_text(_module_origin(ident)).encode()).hexdigest()
     return ident, _SOURCE_HASHES[ident]
-
-
-def _source_text(source: Any) -> str:
-    if isinstance(source, str):
-        return _module_files_text(_module_origin(source))
-    if isinstance(source, ModuleType):
-        return _module_files_text(Path(source.__file__))
-    try:
-        return inspect.getsource(source)
-    except (OSError, TypeError) as error:
-        raise MatrixError(f"cannot read the source of {source!r} to fingerprint it: {error}") from None
 
 
 def _module_origin(name: str) -> Path:

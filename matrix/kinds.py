@@ -34,6 +34,9 @@ class DepResult:
     params: Mapping[str, Any]
     result: Mapping[str, Any]
     artifacts: Path
+    name: str = ""
+    status: str = "ok"             # ok | not_applicable
+    reason: str = ""
 
 
 ProgressFn = Callable[..., None]
