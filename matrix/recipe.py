@@ -93,7 +93,8 @@ def _validate(data: dict, lines: Lines, file: str, domain: Domain) -> Any:
 
 def _recipe_error(error: pydantic.ValidationError, data: Any, lines: Lines, file: str,
                   model: type) -> RecipeError:
-    first = error.errors(include_url=False)[0]
+    # A typo'd key also makes the key it meant "missing": report the typo, it is the cause.
+    first = min(error.errors(include_url=False), key=lambda e: e["type"] != "extra_forbidden")
     path = _data_path(data, first["loc"])
     message = _message(first, path, model)
     more = error.error_count() - 1
@@ -170,8 +171,9 @@ def _check_combinations(recipe: Recipe, domain: Domain) -> None:
     valid = {axis: values(recipe.config) for axis, values in domain.axes.items()}
     for path, key, value in _declared_values(matrix):
         if key not in domain.axes:
+            key_path = path if path[1] in RESERVED else path[:2]
             raise recipe.error(f"unknown axis {key!r}{did_you_mean(key, domain.axes)}; "
-                               f"known axes: {', '.join(domain.axes)}", path)
+                               f"known axes: {', '.join(domain.axes)}", key_path)
         if not isinstance(value, (str, int, float, bool)):
             raise recipe.error(f"axis values are plain names or numbers, got {value!r}", path)
         known = valid[key]

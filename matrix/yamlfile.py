@@ -16,8 +16,9 @@ Lines = dict[tuple, int]
 
 def load_yaml(text: str, file: str = "<recipe>") -> tuple[Any, Lines]:
     """(data, lines) where lines maps a key path such as ("models", "pilotnet", "lr") to its line."""
-    loader = yaml.SafeLoader(text)
+    loader = None
     try:
+        loader = yaml.SafeLoader(text)  # the reader already rejects unprintable characters
         node = loader.get_single_node()
         lines: Lines = {}
         data = _build(loader, node, (), lines, file) if node is not None else None
@@ -30,7 +31,8 @@ def load_yaml(text: str, file: str = "<recipe>") -> tuple[Any, Lines]:
     except RecursionError:
         raise RecipeError("not valid YAML here: an alias refers to itself", file=file) from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
     return data, lines
 
 

@@ -27,8 +27,15 @@ class SourceConfig(pydantic.BaseModel):
     not_applicable: bool = False
 
 
+def count_execution(ctx) -> None:
+    """Append the job's name to a store-wide file, so tests can count executions across runs."""
+    with open(ctx.cache / "executions.log", "a") as log:
+        log.write(ctx.name + "\n")
+
+
 @job_kind("source")
 def run_source(ctx) -> dict[str, Any]:
+    count_execution(ctx)
     time.sleep(ctx.params["sleep"])
     if ctx.params["fail"]:
         raise RuntimeError(f"source {ctx.name} was told to fail")
@@ -41,6 +48,7 @@ def run_source(ctx) -> dict[str, Any]:
 
 @job_kind("power")
 def run_power(ctx) -> dict[str, Any]:
+    count_execution(ctx)
     source = ctx.dep("source")
     value = json.loads((source.artifacts / "value.json").read_text())
     time.sleep(ctx.params.get("sleep", 0.0))
@@ -49,6 +57,7 @@ def run_power(ctx) -> dict[str, Any]:
 
 @job_kind("total", exclusive=True)
 def run_total(ctx) -> dict[str, Any]:
+    count_execution(ctx)
     return {"value": sum(dep.result["value"] for dep in ctx.dep_group("parts"))}
 
 
