@@ -39,6 +39,11 @@ def add_engine_commands(subparsers, get_domain: GetDomain) -> None:
     run.add_argument("-j", "--jobs", type=int, default=1, help="jobs at once (worker processes)")
     run.add_argument("--keep-going", action="store_true", help="after a failure, run what does not depend on it")
     run.add_argument("--force", action="append", default=[], metavar="KIND", help="rerun every job of KIND")
+    run.add_argument("--executor", choices=["local", "dask", "dask-local"], default="local",
+                     help="local process pool (default), a Dask cluster (--scheduler), or a local Dask cluster")
+    run.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address, e.g. tcp://host:8786")
+    run.add_argument("--timing-resource", metavar="NAME",
+                     help="with Dask: run timing jobs only on workers started with --resources NAME=1")
     plan = add("plan", cmd_plan, "show what `run` would do: each job fresh / stale / new, and why")
     plan.add_argument("recipe")
     plan.add_argument("--json", action="store_true", help="print a JSON list instead of a table")
@@ -92,11 +97,14 @@ def cmd_run(args, domain: Domain) -> int:
         out.print(f"nothing to do: all {len(plan.statuses)} jobs of {escape(recipe.name)!s} are fresh")
         summary = engine.RunSummary(fresh=len(plan.statuses))
     else:
+        where = args.scheduler if args.executor == "dask" else \
+            f"{args.jobs} {'Dask ' if args.executor == 'dask-local' else ''}worker{'s' if args.jobs > 1 else ''}"
         out.print(f"{escape(recipe.name)}: {len(plan.stale)} of {len(plan.statuses)} jobs to run "
-                  f"on {args.jobs} worker{'s' if args.jobs > 1 else ''} (store {store.root})")
+                  f"on {where} (store {store.root})")
         display = RichDisplay(store, title=escape(recipe.name))
-        summary = engine.run_plan(plan, domain, store, jobs=args.jobs, keep_going=args.keep_going,
-                                  display=display)
+        executor = engine.Executor(args.executor, args.jobs, args.scheduler, args.timing_resource)
+        summary = engine.run_plan(plan, domain, store, keep_going=args.keep_going, display=display,
+                                  executor=executor)
         out.print(_summary_line(summary))
     if domain.after_run is not None:
         domain.after_run(recipe, summary, store)

@@ -80,20 +80,45 @@ def _check_forced(kinds: Iterable[str]) -> set[str]:
     return kinds
 
 
+@dataclass(frozen=True)
+class Executor:
+    """Where jobs run: "local" (a process pool), "dask" (a running scheduler) or "dask-local"."""
+    kind: str = "local"
+    jobs: int = 1
+    scheduler: str | None = None
+    timing_resource: str | None = None
+
+
 def run_plan(plan: Plan, domain: Domain, store: Store, *, jobs: int = 1, keep_going: bool = False,
-             display=None) -> RunSummary:
+             display=None, executor: Executor | None = None) -> RunSummary:
     """Record the recipe's jobs (for reasons and gc), then run the stale ones."""
+    executor = executor or Executor("local", jobs)
     write_json_atomic(store.recipe_path(slug(plan.recipe.name)),
                       {"recipe": plan.recipe.name, "file": plan.recipe.file, "written_at": time.time(),
                        "jobs": {s.job.name: s.job.spec() for s in plan.statuses}})
     if display is not None:
         display.start(s.job for s in plan.stale)
     try:
-        return run_local(plan.statuses, store, jobs=jobs, keep_going=keep_going,
-                         kind_modules=domain.kind_modules, display=display)
+        if executor.kind == "local":
+            return run_local(plan.statuses, store, jobs=executor.jobs, keep_going=keep_going,
+                             kind_modules=domain.kind_modules, display=display)
+        return _run_on_dask(plan, domain, store, executor, keep_going, display)
     finally:
         if display is not None:
             display.stop()
+
+
+def _run_on_dask(plan: Plan, domain: Domain, store: Store, executor: Executor, keep_going: bool,
+                 display) -> RunSummary:
+    from matrix import dask_executor
+    if executor.kind not in ("dask", "dask-local"):
+        raise MatrixError(f"unknown executor {executor.kind!r}; use local, dask or dask-local")
+    if executor.kind == "dask" and not executor.scheduler:
+        raise MatrixError("--executor dask needs --scheduler ADDRESS (or use --executor dask-local -j N)")
+    with dask_executor.connect(executor.scheduler if executor.kind == "dask" else None, executor.jobs) as client:
+        return dask_executor.run_dask(plan.statuses, store, client, keep_going=keep_going,
+                                      kind_modules=domain.kind_modules,
+                                      timing_resource=executor.timing_resource, display=display)
 
 
 @dataclass(frozen=True)
