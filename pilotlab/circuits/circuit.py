@@ -47,11 +47,13 @@ class Circuit:
     """An evenly spaced closed centreline, its road width and the direction it is driven in."""
 
     def __init__(self, name: str, points: np.ndarray, *, road_width: float, timeout_s: float,
-                 direction: str = "cw", source: str = ""):
+                 direction: str = "cw", source: str = "", canonical: Circuit | None = None):
         if road_width <= 0:
             raise PilotlabError(f"circuit {name!r}: road width must be positive, got {road_width}")
         self.name, self.road_width, self.timeout_s = name, float(road_width), float(timeout_s)
         self.direction, self.source = check_direction(direction), source
+        self.canonical = canonical or self  # the clockwise circuit this one reverses (or itself)
+        self._reversed: Circuit | None = None
         self.points = np.ascontiguousarray(points, dtype=np.float64)
         segments = np.roll(self.points, -1, axis=0) - self.points
         self._seg_len = np.linalg.norm(segments, axis=1)
@@ -81,9 +83,13 @@ class Circuit:
         """This circuit driven in `direction` (same start point)."""
         if check_direction(direction) == self.direction:
             return self
-        reverse = np.roll(self.points[::-1], 1, axis=0)
-        return Circuit(self.name, reverse, road_width=self.road_width, timeout_s=self.timeout_s,
-                       direction=direction, source=self.source)
+        if self.canonical is not self:
+            return self.canonical
+        if self._reversed is None:
+            reverse = np.roll(self.points[::-1], 1, axis=0)
+            self._reversed = Circuit(self.name, reverse, road_width=self.road_width, timeout_s=self.timeout_s,
+                                     direction=direction, source=self.source, canonical=self)
+        return self._reversed
 
     # -- lookups along the arc ----------------------------------------------------------------
     def _locate(self, s):

@@ -94,7 +94,7 @@ class CarSpec:
 class Car:
     """A car loaded in a pybullet world, driven by (v, w) commands."""
 
-    def __init__(self, client: int, spec: CarSpec, pose: tuple[float, float, float]):
+    def __init__(self, client: int, spec: CarSpec, pose: tuple[float, float, float], speed: float = 0.0):
         self.client, self.spec = client, spec
         x, y, yaw = pose
         with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as handle:
@@ -110,8 +110,13 @@ class Car:
         self.drive = (joints["rear_left_axle"], joints["rear_right_axle"])
         self.free = (joints["front_left_axle"], joints["front_right_axle"])
         self._set_dynamics()
+        if speed:
+            p.resetBaseVelocity(self.body, [speed * math.cos(yaw), speed * math.sin(yaw), 0], [0, 0, 0],
+                                physicsClientId=client)
+            for joint in self.drive + self.free:
+                p.resetJointState(self.body, joint, 0.0, speed / spec.wheel_radius, physicsClientId=client)
         self.command = (0.0, 0.0)
-        self.apply(0.0, 0.0)
+        self.apply(speed, 0.0)
 
     def _set_dynamics(self) -> None:
         client, body = self.client, self.body

@@ -15,6 +15,10 @@ from pilotlab.circuits import Circuit
 from pilotlab.sim.camera import LINE, LINE_WIDTH_M, ROAD, WALL
 
 GROUND_FRICTION = 1.0
+# 240 Hz with pybullet's 50 solver iterations costs ~0.3 ms per 1/240 s here; 120 Hz with 20 iterations
+# drives the same laps (the expert's mean distance to the line changes by < 1 cm) at a third of the cost.
+PHYSICS_HZ = 120.0
+SOLVER_ITERATIONS = 20
 CHUNK_POINTS = 400          # centreline points per mesh (pybullet limits the vertices of one mesh)
 # The line lies exactly on the ground (as the ground renderer draws it); the road 3 mm below it, so
 # that the line is never hidden by the road, even where two stretches of road overlap.
@@ -41,15 +45,17 @@ def strip_mesh(left: np.ndarray, right: np.ndarray, z: float) -> tuple[list, lis
 class World:
     """A pybullet physics client holding the ground, one circuit's road, and optionally walls."""
 
-    def __init__(self, circuit: Circuit, *, walls: bool = False, physics_hz: float = 240.0):
+    def __init__(self, circuit: Circuit, *, walls: bool = False, physics_hz: float = PHYSICS_HZ,
+                 solver_iterations: int = SOLVER_ITERATIONS, road_meshes: bool = True):
         self.circuit, self.walls, self.physics_hz = circuit, walls, physics_hz
         self.client = p.connect(p.DIRECT)
         p.resetSimulation(physicsClientId=self.client)
         p.setPhysicsEngineParameter(fixedTimeStep=1.0 / physics_hz, numSubSteps=0, deterministicOverlappingPairs=1,
-                                    physicsClientId=self.client)
+                                    numSolverIterations=solver_iterations, physicsClientId=self.client)
         p.setGravity(0, 0, -9.81, physicsClientId=self.client)
         self._add_ground()
-        self._add_road()
+        if road_meshes:  # only pybullet's renderer needs them
+            self._add_road()
         if walls:
             self._add_walls()
 
@@ -57,6 +63,9 @@ class World:
         if self.client is not None:
             p.disconnect(physicsClientId=self.client)
             self.client = None
+
+    def remove(self, body: int) -> None:
+        p.removeBody(body, physicsClientId=self.client)
 
     def step(self, count: int) -> None:
         for _ in range(count):
