@@ -3,8 +3,9 @@
     augment: {flip: true, oversample_curves: 2, color_jitter: 0.2, blur: 0.3, affine: 0.3}
 
 - flip: half the images mirrored left-right, with w negated (as DeepLearningStudio's flip_images);
-- oversample_curves: each frame whose |w| exceeds `curve_threshold` × the largest |w| of the label
-  ranges appears 1 + oversample_curves times per epoch (DeepLearningStudio's add_extreme_data);
+- oversample_curves: the extra weight of curve frames (DeepLearningStudio's add_extreme_data): each
+  frame whose |w| exceeds `curve_threshold` × the largest |w| of the label ranges appears
+  1 + oversample_curves times per epoch on average (2.5: two or three extra copies, half each);
 - color_jitter: brightness, contrast and saturation each scaled by a factor in [1 - s, 1 + s];
 - blur: the probability of a Gaussian blur (5×5, sigma in [0.1, 2]), as DLS's GaussianBlur(5, (0.1, 2));
 - affine: the probability of a small rotation (±3°), shift (±4 %) and zoom (±5 %).
@@ -29,7 +30,7 @@ from pilotlab.errors import PilotlabError
 class AugmentConfig:
     version: int = 1
     flip: bool = False
-    oversample_curves: int = 0
+    oversample_curves: float = 0.0
     curve_threshold: float = 0.3
     color_jitter: float = 0.0
     blur: float = 0.0
@@ -40,7 +41,7 @@ class AugmentConfig:
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise PilotlabError(f"augment.{name} = {getattr(self, name)} must be between 0 and 1")
         if self.oversample_curves < 0:
-            raise PilotlabError(f"augment.oversample_curves = {self.oversample_curves} must be >= 0 (extra copies)")
+            raise PilotlabError(f"augment.oversample_curves = {self.oversample_curves} must be >= 0 (extra weight)")
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any] | None) -> AugmentConfig:
@@ -61,7 +62,9 @@ def epoch_order(labels_w: np.ndarray, w_limit: float, config: AugmentConfig, rng
     index = np.arange(len(labels_w))
     if config.oversample_curves:
         curves = index[np.abs(labels_w) > config.curve_threshold * w_limit]
-        index = np.concatenate([index] + [curves] * config.oversample_curves)
+        whole, part = divmod(config.oversample_curves, 1.0)
+        extra = [curves] * int(whole) + [curves[rng.random(len(curves)) < part]]
+        index = np.concatenate([index, *extra])
     return rng.permutation(index)
 
 

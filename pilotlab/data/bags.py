@@ -85,7 +85,7 @@ def _describe(error: Exception) -> str:
 
 
 def topic_listing(reader: AnyReader) -> str:
-    return ", ".join(f"{name} ({info.msgtype}, {info.msgcount} messages)"
+    return ", ".join(f"{name} ({info.msgtype}, {info.msgcount} message{'' if info.msgcount == 1 else 's'})"
                      for name, info in sorted(reader.topics.items()))
 
 
@@ -95,9 +95,9 @@ def find_topic(reader: AnyReader, path: Path, topic: str | None, key: str,
     topics = reader.topics
     candidates = [topic] if topic else [t for t in defaults if t in topics]
     if not candidates or candidates[0] not in topics:
-        wanted = (f"no topic {topic!r}" if topic else
-                  f"none of the default {key.replace('_', ' ')}s ({', '.join(defaults)})")
-        raise BagError(f"{path}: {wanted} in the bag; topics present: {topic_listing(reader)}; "
+        lacks = (f"no topic {topic!r}" if topic else
+                 f"none of the default {key.replace('_', ' ')}s ({', '.join(defaults)})")
+        raise BagError(f"{path}: the bag has {lacks}; topics present: {topic_listing(reader)}; "
                        f"set {key} to one of them")
     name = candidates[0]
     info = topics[name]

@@ -100,6 +100,8 @@ def read_folder(folder: Path | str, config: PreprocessConfig,
         preprocess(image, config, out=frames[i])
         if progress and i % 32 == 0:
             progress(i, len(rows))
+    if progress:
+        progress(len(rows), len(rows))
     labels = np.array([(r.v, r.w) for r in rows], np.float32)
     meta = {"source": str(folder), "format": "folder", "encoding": "png", "image_size": size,
             "frames": len(rows), "dropped": 0, "start_ns": rows[0].stamp_ns, "end_ns": rows[-1].stamp_ns,
