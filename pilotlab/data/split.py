@@ -29,7 +29,7 @@ def split_validation(recording: np.ndarray, fraction: float, by: str = "recordin
     if by not in SPLITS:
         raise PilotlabError(f"validation split {by!r} is not one of {', '.join(SPLITS)}")
     if not 0.0 <= fraction < 1.0:
-        raise PilotlabError(f"val_split = {fraction} must be at least 0 and below 1 (a fraction of the frames)")
+        raise PilotlabError(f"val_fraction = {fraction} must be at least 0 and below 1 (a fraction of the frames)")
     everything = np.arange(len(recording))
     if fraction == 0.0:
         return Split(everything, everything[:0], "none", [])
