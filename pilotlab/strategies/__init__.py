@@ -15,7 +15,8 @@ from pilotlab.strategies.registry import (  # noqa: F401
     STRATEGIES, StrategySource, apply_strategy, make_strategy_config, register_strategy,
 )
 
-SHARED = ("pilotlab.strategies.registry", "pilotlab.strategies.artifact", "pilotlab.strategies.common")
+SHARED = ("pilotlab.strategies.registry", "pilotlab.strategies.artifact", "pilotlab.strategies.common",
+          "pilotlab.strategies.fold")
 
 
 def strategy_modules(name: str) -> list[ModuleType]:

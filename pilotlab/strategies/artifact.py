@@ -103,6 +103,8 @@ def example_batch(input_shape: tuple, batch: int = 2, dtype=torch.float32) -> to
 def export_onnx(model: nn.Module, path: Path, input_shape: tuple) -> None:
     """ONNX via the torch.export-based exporter (the TorchScript one is deprecated in torch 2.x),
     with a dynamic batch dimension and the weights inside the one file (external_data=False)."""
+    from pilotlab.strategies.fold import fold_input_norm
+    model = fold_input_norm(model)
     batch = torch.export.Dim("batch", min=1)
     with warnings.catch_warnings(), _quiet_onnx_exporter():
         warnings.simplefilter("ignore")
@@ -136,7 +138,8 @@ def save_torchscript(model: nn.Module, path: Path, input_shape: tuple, dtype=tor
                      device: str = "cpu") -> None:
     """Traced and frozen (weights folded in as constants, conv+relu fused): graph-level
     optimisation without Python at run time."""
-    model = model.eval()
+    from pilotlab.strategies.fold import fold_input_norm
+    model = fold_input_norm(model.eval())
     with torch.no_grad(), warnings.catch_warnings():
         warnings.simplefilter("ignore")
         traced = torch.jit.trace(model, example_batch(input_shape, 1, dtype).to(device))

@@ -71,6 +71,8 @@ def quantization_aware_finetune(model: nn.Module, source: StrategySource, config
 def export_graph(model: nn.Module, input_shape: tuple) -> torch.fx.GraphModule:
     # A batch-2 example: torch.export specialises a batch of 1, and we want any batch size.
     from pilotlab.strategies.artifact import example_batch
+    from pilotlab.strategies.fold import fold_input_norm
+    model = fold_input_norm(model)
     batch = torch.export.Dim("batch", min=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
