@@ -98,8 +98,9 @@ class ReportRow(_Frozen):
         """Accept metrics at the top level (as job results carry them) as well as under "metrics"."""
         if not isinstance(value, Mapping):
             return value
-        row = {k: v for k, v in value.items() if k not in BY_NAME}
-        flat = {k: v for k, v in value.items() if k in BY_NAME}
+        fields = cls.model_fields
+        row = {k: v for k, v in value.items() if k in fields}
+        flat = {k: v for k, v in value.items() if k not in fields}   # unknown names are reported as metrics
         row["metrics"] = {**dict(value.get("metrics") or {}), **flat}
         return row
 
@@ -108,7 +109,8 @@ class ReportRow(_Frozen):
     def _known_measured_metrics(cls, metrics: Mapping[str, Any]) -> dict[str, Any]:
         for name in metrics:
             if name not in BY_NAME:
-                raise ValueError(f"unknown metric {name!r}{did_you_mean(name, BY_NAME)}; "
+                known = [*BY_NAME, *cls.model_fields]
+                raise ValueError(f"unknown metric or field {name!r}{did_you_mean(name, known)}; "
                                  f"metric names are those of pilotlab/columns.py")
         return {k: v for k, v in metrics.items() if not _unmeasured(v)}
 
@@ -137,7 +139,7 @@ class ReportRow(_Frozen):
     def flat(self) -> dict[str, Any]:
         """The tidy row as written to results.csv / results.json (metrics None when unmeasured)."""
         base = {name: getattr(self, name) for name in ROW_FIELDS}
-        return {**base, **{name: self.metrics.get(name) for name in BY_NAME}}
+        return {**base, **{name: self.get(name) for name in BY_NAME}}
 
 
 class ReportData(_Frozen):

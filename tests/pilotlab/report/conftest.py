@@ -99,3 +99,22 @@ def study(tmp_path: Path) -> ReportData:
     pictures = tmp_path / "pictures"
     pictures.mkdir()
     return ReportData.from_dict(study_dict(pictures))
+
+
+@pytest.fixture(scope="session")
+def study_report(tmp_path_factory) -> tuple[ReportData, "ReportPaths"]:
+    """The study-like report written once per test session (tests only read it)."""
+    from pilotlab.report import write_report
+    root = tmp_path_factory.mktemp("study")
+    (root / "pictures").mkdir()
+    data = ReportData.from_dict(study_dict(root / "pictures"))
+    return data, write_report(data, root / "report")
+
+
+def offline_row(strategy: str = "baseline", hardware: str = "cpu1", **fields) -> dict:
+    return {"model": "pilotnet", "strategy": strategy, "hardware": hardware, "kind": "offline",
+            "test_set": "simple_circuit", **fields}
+
+
+def small_dict(rows: list[dict], **fields) -> dict:
+    return {"recipe_name": "small", "date": "2025-06-01T10:30:00", "rows": rows, **fields}
