@@ -3,7 +3,7 @@ import math
 import pytest
 
 from pilotlab.report import Host, ReportData, ReportDataError, package_versions
-from tests.pilotlab.report.conftest import offline_row, small_dict
+from tests.pilotlab.report.toy import offline_row, small_dict
 
 
 def test_metrics_may_be_flat_or_nested_and_unmeasured_ones_are_absent():

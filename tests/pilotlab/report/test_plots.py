@@ -1,6 +1,6 @@
 from pilotlab.report import ReportData
 from pilotlab.report.plots import draw_closed_loop, draw_pareto, draw_ratios, draw_training, pareto_front
-from tests.pilotlab.report.conftest import offline_row, small_dict
+from tests.pilotlab.report.toy import offline_row, small_dict
 
 
 def test_pareto_front_keeps_the_points_nothing_beats():

@@ -1,7 +1,7 @@
 from pilotlab.report import ReportData
 from pilotlab.report.render import code_block, markdown_escape
 from pilotlab.report.tables import build_tables, format_value, significant
-from tests.pilotlab.report.conftest import offline_row, small_dict
+from tests.pilotlab.report.toy import offline_row, small_dict
 
 
 def test_values_read_as_a_person_expects():

@@ -6,7 +6,7 @@ from PIL import Image
 
 from pilotlab.columns import BY_NAME
 from pilotlab.report import ReportData, write_report
-from tests.pilotlab.report.conftest import offline_row, small_dict, study_dict
+from tests.pilotlab.report.toy import offline_row, small_dict, study_dict
 
 OFFLINE_HEADER = "| Method | Model size (MB) | MSE | Inference time (ms) | Throughput (images/s) | Size × | Speed-up × | MSE Δ |"
 ONLINE_HEADER = ("| Method | Lap | Average speed (m/s) | Position deviation MAE (m) | Brain iteration frequency (Hz) "
@@ -123,3 +123,10 @@ def test_recipe_text_cannot_inject_markup(tmp_path):
     assert "| base\\|line | 1.00 |" in readme and "\\# &lt;script&gt;" in readme
     assert "````yaml\nname: x<script>alert(1)</script>\n```\n````" in readme      # verbatim inside the fence
     assert page.count("<script") == 1 and "x&lt;script&gt;alert(1)&lt;/script&gt;" in page
+
+
+def test_a_recipe_with_no_cells_still_gets_a_report(tmp_path):
+    paths = write_report(ReportData.from_dict(small_dict([])), tmp_path / "report")
+    assert "No offline evaluation in this recipe." in paths.readme.read_text()
+    assert "- **No results**: no cell produced a measurement" in paths.readme.read_text()
+    assert read_csv(paths.csv) == [] and json.loads(paths.json.read_text())["rows"] == []
