@@ -2,6 +2,7 @@ import csv
 import json
 import re
 
+from markdown_it import MarkdownIt      # CommonMark + GFM tables, the way GitHub reads README.md (comes with rich)
 from PIL import Image
 
 from pilotlab.columns import BY_NAME
@@ -11,6 +12,16 @@ from tests.pilotlab.report.toy import offline_row, small_dict, study_dict
 OFFLINE_HEADER = "| Method | Model size (MB) | MSE | Inference time (ms) | Throughput (images/s) | Size × | Speed-up × | MSE Δ |"
 ONLINE_HEADER = ("| Method | Lap | Average speed (m/s) | Position deviation MAE (m) | Brain iteration frequency (Hz) "
                  "| Mean inference time (ms) | Real-time factor |")
+
+
+def render_markdown(text: str) -> str:
+    return MarkdownIt("commonmark", {"html": True}).enable(["table", "strikethrough"]).render(text)
+
+
+def table_shapes(html: str) -> list[list[int]]:
+    """Cells per row of every rendered table."""
+    return [[row.count("<td") + row.count("<th") for row in re.findall(r"<tr>(.*?)</tr>", table, re.S)]
+            for table in re.findall(r"<table>(.*?)</table>", html, re.S)]
 
 
 def read_csv(path):
@@ -73,9 +84,9 @@ def test_readme_has_the_study_shaped_tables_summary_and_plots(study_report):
     assert "pilotlab 0.1.0, torch 2.13.0, onnxruntime 1.22.0" in readme
     assert "```yaml\nname: study-2022\n" in readme
     assert "![trajectory of local_prune](trajectories/pilotnet_local_prune_cpu1_montreal_cw.png)" in readme
-    for line in readme.splitlines():                    # every table row has as many cells as its header
-        if line.startswith("| local_prune |") or line.startswith("| static_quant |"):
-            assert len(re.findall(r"(?<!\\)\|", line)) in (OFFLINE_HEADER.count("|"), ONLINE_HEADER.count("|"))
+    shapes = table_shapes(render_markdown(readme))
+    assert [shape[0] for shape in shapes[:4]] == [8, 8, 7, 7] and len(shapes) == 4 + 4     # + trajectory tables
+    assert all(len(set(shape)) == 1 for shape in shapes)     # n/a and failed rows keep the table's shape
 
 
 def test_html_is_self_contained(study_report):
@@ -123,6 +134,10 @@ def test_recipe_text_cannot_inject_markup(tmp_path):
     assert "| base\\|line | 1.00 |" in readme and "\\# &lt;script&gt;" in readme
     assert "````yaml\nname: x<script>alert(1)</script>\n```\n````" in readme      # verbatim inside the fence
     assert page.count("<script") == 1 and "x&lt;script&gt;alert(1)&lt;/script&gt;" in page
+    rendered = render_markdown(readme)
+    assert "<script" not in rendered and "<code class=\"language-yaml\">name: x&lt;script&gt;" in rendered
+    assert "<h1>x&lt;script&gt;alert(1)&lt;/script&gt; — pilotlab report</h1>" in rendered
+    assert all(len(set(shape)) == 1 for shape in table_shapes(rendered))
 
 
 def test_a_recipe_with_no_cells_still_gets_a_report(tmp_path):
