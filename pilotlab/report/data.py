@@ -40,7 +40,8 @@ from matrix.errors import did_you_mean
 Kind = Literal["offline", "online"]
 Status = Literal["ok", "not_applicable", "failed"]
 MetricValue = StrictBool | int | float
-DEFAULT_PACKAGES = ("pilotlab", "torch", "torchao", "onnxruntime", "onnx", "numpy", "pybullet", "opencv-python-headless")
+DEFAULT_PACKAGES = ("pilotlab", "torch", "torchao", "onnxruntime", "onnx", "numpy", "pybullet",
+                    "opencv-python-headless")
 ROW_FIELDS = ("model", "strategy", "hardware", "circuit", "direction", "test_set", "kind", "status", "reason")
 
 

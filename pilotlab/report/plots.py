@@ -100,8 +100,9 @@ def draw_pareto(data: ReportData) -> Figure | None:
         ax.margins(0.15)
         ax.grid(alpha=0.3)
     sizes = sorted({round(r.get("size_mb"), 2) for r in rows if r.get("size_mb")})
+    shown = dict.fromkeys(sizes[i] for i in (0, len(sizes) // 2, -1)) if sizes else {}     # smallest, middle, largest
     size_handles = [Line2D([], [], ls="", marker="o", markersize=math.sqrt(area(s)), color="0.75",
-                           markeredgecolor="black", label=f"{s:g} MB") for s in sizes[:: max(1, len(sizes) // 3)]]
+                           markeredgecolor="black", label=f"{s:g} MB") for s in shown]
     front_handle = Line2D([], [], color="0.35", ls="--", label="Pareto front")
     _legend(figure, _identity_handles(data, rows) + [front_handle] + size_handles)
     figure.suptitle("Latency vs MSE (lower left is better; marker area ∝ model size)")

@@ -47,7 +47,8 @@ def _smallest(data: ReportData, rows: list[ReportRow]) -> list[Finding]:
     row = best(rows, "size_mb")
     if row is None:
         return []
-    text = f"{method_label(row, data)}{_ties(data, rows, row, 'size_mb')} — {format_value('size_mb', row.get('size_mb'))} MB"
+    size = format_value("size_mb", row.get("size_mb"))
+    text = f"{method_label(row, data)}{_ties(data, rows, row, 'size_mb')} — {size} MB"
     return [Finding("Smallest model", text + _versus(data, row, "size_mb", "smaller"))]
 
 

@@ -51,7 +51,8 @@ def test_page_opens_without_console_errors_and_shows_tables_and_plots(study_repo
     with open_page(paths.html.as_uri()) as page:
         assert page.problems() == []
         assert page.evaluate("document.querySelectorAll('section table tbody tr').length") >= 20
-        assert page.evaluate("[...document.querySelectorAll('#plots img')].filter(i => i.complete && i.naturalWidth > 400).length") == 4
+        plots = "[...document.querySelectorAll('#plots img')]"
+        assert page.evaluate(plots + ".filter(i => i.complete && i.naturalWidth > 400).length") == 4
         assert page.evaluate("[...document.images].every(i => i.complete && i.naturalWidth > 0)")
         assert page.evaluate("document.querySelector('#offline table').getBoundingClientRect().height") > 200
         screenshot = page.screenshot(tmp_path / "report.png")

@@ -9,7 +9,8 @@ from pilotlab.columns import BY_NAME
 from pilotlab.report import ReportData, write_report
 from tests.pilotlab.report.toy import offline_row, small_dict, study_dict
 
-OFFLINE_HEADER = "| Method | Model size (MB) | MSE | Inference time (ms) | Throughput (images/s) | Size × | Speed-up × | MSE Δ |"
+OFFLINE_HEADER = ("| Method | Model size (MB) | MSE | Inference time (ms) | Throughput (images/s) "
+                  "| Size × | Speed-up × | MSE Δ |")
 ONLINE_HEADER = ("| Method | Lap | Average speed (m/s) | Position deviation MAE (m) | Brain iteration frequency (Hz) "
                  "| Mean inference time (ms) | Real-time factor |")
 
