@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import pilotlab
 from pilotlab.columns import BY_NAME
 from pilotlab.report import render
 from pilotlab.report.data import ROW_FIELDS, ReportData, ReportRow
@@ -68,6 +69,7 @@ def build_context(data: ReportData, out_dir: Path, plots: dict[str, tuple[Path, 
     counts = {status: sum(r.status == status for r in data.rows) for status in ("ok", "not_applicable", "failed")}
     return {
         "data": data,
+        "writer_version": pilotlab.__version__,
         "description": [" ".join(p.split()) for p in re.split(r"\n\s*\n", data.description.strip()) if p.strip()],
         "counts": counts,
         "offline": build_tables(data, "offline"),
