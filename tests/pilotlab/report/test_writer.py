@@ -146,3 +146,13 @@ def test_a_recipe_with_no_cells_still_gets_a_report(tmp_path):
     assert "No offline evaluation in this recipe." in paths.readme.read_text()
     assert "- **No results**: no cell produced a measurement" in paths.readme.read_text()
     assert read_csv(paths.csv) == [] and json.loads(paths.json.read_text())["rows"] == []
+
+
+def test_the_same_data_gives_byte_identical_files(tmp_path):
+    """So that a committed example report changes only where the results change."""
+    rows = [offline_row("baseline", size_mb=6.1, mse=0.07, latency_ms=2.0), offline_row("qat", size_mb=1.6, mse=0.06)]
+    data = ReportData.from_dict(small_dict(rows))
+    first, second = write_report(data, tmp_path / "a"), write_report(data, tmp_path / "b")
+    files = sorted(p.relative_to(first.folder) for p in first.folder.rglob("*") if p.is_file())
+    assert len(files) == 4 + 2 * 2
+    assert all((first.folder / f).read_bytes() == (second.folder / f).read_bytes() for f in files)
