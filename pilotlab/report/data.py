@@ -17,7 +17,7 @@
     })
 
 Metric names are exactly those of `pilotlab.columns`; an unknown name is an error that names the
-closest known one. A metric that was not measured is left out (None and NaN count as left out):
+closest known one (`pick_metrics(job_result)` keeps only the metric keys of a job's result dict). A metric that was not measured is left out (None and NaN count as left out):
 the report shows it as missing, never as 0.
 """
 from __future__ import annotations
@@ -179,6 +179,11 @@ class ReportData(_Frozen):
 
     def of_kind(self, kind: Kind) -> list[ReportRow]:
         return [row for row in self.rows if row.kind == kind]
+
+
+def pick_metrics(result: Mapping[str, Any]) -> dict[str, Any]:
+    """The metrics of pilotlab/columns.py found in a job's result dict (other keys are left behind)."""
+    return {name: value for name, value in result.items() if name in BY_NAME}
 
 
 def package_versions(packages: Iterable[str] = DEFAULT_PACKAGES) -> dict[str, str]:

@@ -2,7 +2,7 @@ import math
 
 import pytest
 
-from pilotlab.report import Host, ReportData, ReportDataError, package_versions
+from pilotlab.report import Host, ReportData, ReportDataError, package_versions, pick_metrics
 from tests.pilotlab.report.toy import offline_row, small_dict
 
 
@@ -66,3 +66,10 @@ def test_host_and_versions_describe_this_machine():
     assert "GPU" in host.describe()
     versions = package_versions()
     assert versions["torch"].startswith("2.") and "python" in versions and "no-such-package" not in versions
+
+
+def test_pick_metrics_keeps_only_metric_names_of_a_job_result():
+    result = {"mse": 0.07, "latency_ms": 2.0, "artifact": "model.pt", "history": [1, 2]}
+    assert pick_metrics(result) == {"mse": 0.07, "latency_ms": 2.0}
+    row = ReportData.from_dict(small_dict([offline_row(**pick_metrics(result))])).rows[0]
+    assert row.metrics == {"mse": 0.07, "latency_ms": 2.0}
