@@ -17,8 +17,10 @@
     })
 
 Metric names are exactly those of `pilotlab.columns`; an unknown name is an error that names the
-closest known one (`pick_metrics(job_result)` keeps only the metric keys of a job's result dict). A metric that was not measured is left out (None and NaN count as left out):
-the report shows it as missing, never as 0.
+closest known one (`pick_metrics(job_result)` keeps only the metric keys of a job's result dict).
+A metric that was not measured is left out (None and NaN count as left out): the report shows it as
+missing, never as 0. A row whose status is not "ok" needs a one-line reason and shows no numbers.
+`baseline` (default "baseline") names the strategy the ratios are taken against.
 """
 from __future__ import annotations
 
