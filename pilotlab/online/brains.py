@@ -1,0 +1,201 @@
+"""Brains: what turns the car's camera image (or, for the expert, the ground truth) into (v, w).
+
+    brain = NetworkBrain(load_predictor(artifact_dir, "cpu1"))     # any optimized artifact
+    brain = make_reference_brain("explicit")                      # the OpenCV line follower
+    brain = make_reference_brain("expert")                        # the ground-truth driver
+    brain.reset(env.circuit); v, w = brain.act(image, info)
+
+A network brain feeds the network exactly what training saw: `pilotlab.data.preprocess` on the
+camera image with the artifact's preprocessing settings, `to_input` to the float tensor, and the
+artifact's label ranges to de-normalise the output. Temporal models get their stacked frames, picked
+`frame_interval_s` apart in simulated time (the spacing of consecutive recorded frames in training).
+
+Every brain sets `last_inference_s` after each `act`: the time of the decision itself (the network's
+predict call; a reference brain's whole computation), which the metrics report.
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+import pydantic
+
+from matrix.registry import Registry
+from pilotlab.circuits import Circuit
+from pilotlab.data.frames import LabelRanges
+from pilotlab.data.preprocess import PreprocessConfig, preprocess, to_input
+from pilotlab.errors import PilotlabError
+from pilotlab.sim.expert import Expert, ExpertConfig
+from pilotlab.sim.explicit import ExplicitBrain, ExplicitBrainConfig
+
+# The record job's default camera rate is 10 Hz: consecutive training frames are 0.1 s apart.
+DEFAULT_FRAME_INTERVAL_S = 0.1
+
+
+class Brain(Protocol):
+    name: str
+    needs_camera: bool
+    last_inference_s: float
+
+    def reset(self, circuit: Circuit) -> None: ...
+
+    def act(self, image: np.ndarray | None, info: dict[str, Any]) -> tuple[float, float]: ...
+
+    def warm_up(self) -> None: ...
+
+
+class FrameStack:
+    """The frames a temporal model sees: the newest and its predecessors `interval_s` apart in
+    simulated time (oldest first). Before enough history exists, the earliest frame is repeated, as
+    `FrameSet.stack_index` does at the start of a recording."""
+
+    def __init__(self, frames: int, interval_s: float):
+        if frames < 1 or interval_s <= 0:
+            raise PilotlabError(f"a frame stack needs frames >= 1 and a positive interval, got {frames}, {interval_s}")
+        self.frames, self.interval_s = frames, interval_s
+        self.reset()
+
+    def reset(self) -> None:
+        self.times: list[float] = []
+        self.images: list[np.ndarray] = []
+
+    def push(self, frame: np.ndarray, t: float) -> np.ndarray:
+        """Add the frame seen at simulated time `t`; returns [frames, H, W, 3] (oldest first)."""
+        self.times.append(t)
+        self.images.append(frame)
+        horizon = t - self.frames * self.interval_s
+        while len(self.times) > 1 and self.times[1] <= horizon:
+            self.times.pop(0)
+            self.images.pop(0)
+        targets = t - self.interval_s * np.arange(self.frames - 1, -1, -1)
+        times = np.asarray(self.times)
+        # The nearest frame to each target time (ties go to the later one).
+        picks = [len(times) - 1 - int(np.argmin(np.abs(times[::-1] - target))) for target in targets]
+        return np.stack([self.images[i] for i in picks])
+
+
+class NetworkBrain:
+    """Runs an optimized artifact through the uniform predictor on the camera image."""
+    needs_camera = True
+
+    def __init__(self, predictor, frame_interval_s: float | None = None):
+        meta = predictor.meta
+        self.predictor, self.name = predictor, meta.strategy
+        if not meta.labels:
+            raise PilotlabError(f"artifact {meta.strategy}: its artifact.json has no label ranges; "
+                                "rerun the optimize job on a checkpoint written by the train job")
+        self.ranges = LabelRanges.from_dict(meta.labels)
+        self.config = PreprocessConfig.from_params(meta.preprocess)
+        self.frames = self._check_input(meta)
+        interval = frame_interval_s or meta.preprocess.get("frame_interval_s") or DEFAULT_FRAME_INTERVAL_S
+        self.stack = FrameStack(self.frames, float(interval))
+        self.last_inference_s = 0.0
+
+    def _check_input(self, meta) -> int:
+        channels, height, width = meta.input_shape[1:]
+        frames = int(meta.preprocess.get("frames", channels // 3))
+        if (height, width) != (self.config.height, self.config.width) or channels != 3 * frames:
+            raise PilotlabError(
+                f"artifact {meta.strategy}: the network takes [N, {channels}, {height}, {width}] but its preprocessing "
+                f"makes {frames} frame(s) of {self.config.height}x{self.config.width}; the checkpoint's 'preprocess' "
+                "does not match its model; retrain it with the train job")
+        return frames
+
+    def reset(self, circuit: Circuit) -> None:
+        self.stack.reset()
+
+    def warm_up(self, runs: int = 5) -> None:
+        """A few predictions on a blank input: the first calls allocate and pick kernels."""
+        blank = np.zeros((1, 3 * self.frames, self.config.height, self.config.width), np.float32)
+        for _ in range(runs):
+            self.predictor.predict(blank)
+
+    def inputs(self, image: np.ndarray, t: float) -> np.ndarray:
+        """The network's input for the camera image seen at simulated time `t`."""
+        stack = self.stack.push(preprocess(image, self.config), t)
+        return np.ascontiguousarray(to_input(stack[None]).numpy())
+
+    def act(self, image: np.ndarray | None, info: dict[str, Any]) -> tuple[float, float]:
+        if image is None:
+            raise PilotlabError("a network brain needs the camera image; the env was made without a camera")
+        inputs = self.inputs(image, info["sim_time"])
+        started = time.perf_counter()
+        output = self.predictor.predict(inputs)
+        self.last_inference_s = time.perf_counter() - started
+        v, w = self.ranges.denormalise(np.asarray(output, np.float32).reshape(-1, 2))[0]
+        return float(v), float(w)
+
+
+class ExplicitReference:
+    """The OpenCV red-line follower (pilotlab.sim.explicit), timed as a brain."""
+    needs_camera = True
+
+    def __init__(self, config: ExplicitBrainConfig):
+        self.name, self.brain, self.last_inference_s = "explicit", ExplicitBrain(config), 0.0
+
+    def reset(self, circuit: Circuit) -> None:
+        self.brain.reset()
+
+    def warm_up(self) -> None:
+        pass
+
+    def act(self, image: np.ndarray | None, info: dict[str, Any]) -> tuple[float, float]:
+        started = time.perf_counter()
+        command = self.brain.act(image)
+        self.last_inference_s = time.perf_counter() - started
+        return command
+
+
+class ExpertReference:
+    """The ground-truth expert (pilotlab.sim.expert): the best a driver of this car can do."""
+    needs_camera = False
+
+    def __init__(self, config: ExpertConfig):
+        self.name, self.config, self.expert, self.last_inference_s = "expert", config, None, 0.0
+
+    def reset(self, circuit: Circuit) -> None:
+        self.expert = Expert(circuit, self.config)
+
+    def warm_up(self) -> None:
+        pass
+
+    def act(self, image: np.ndarray | None, info: dict[str, Any]) -> tuple[float, float]:
+        started = time.perf_counter()
+        command = self.expert.act(info)
+        self.last_inference_s = time.perf_counter() - started
+        return command
+
+
+@dataclass(frozen=True)
+class ReferenceEntry:
+    name: str
+    config_cls: type
+    factory: Callable[[Any], Brain]
+    doc: str
+
+
+REFERENCE_BRAINS: Registry[ReferenceEntry] = Registry("reference brain")
+REFERENCE_BRAINS.add("explicit", ReferenceEntry("explicit", ExplicitBrainConfig, ExplicitReference,
+                                                "follows the red line in the camera image with OpenCV"))
+REFERENCE_BRAINS.add("expert", ReferenceEntry("expert", ExpertConfig, ExpertReference,
+                                              "drives from the ground truth (pure pursuit + speed profile)"))
+
+
+def make_reference_brain(name: str, options: dict[str, Any] | None = None) -> Brain:
+    """A reference brain by name, its config fields overridden by `options`."""
+    entry = REFERENCE_BRAINS.get(name)
+    known = [f.name for f in dataclasses.fields(entry.config_cls) if f.name != "version"]
+    unknown = sorted(set(options or {}) - set(known))
+    if unknown:
+        raise PilotlabError(f"brain_options: the {name} brain has no option(s) {', '.join(unknown)}; "
+                            f"it takes: {', '.join(known)}")
+    try:
+        config = pydantic.TypeAdapter(entry.config_cls).validate_python(dict(options or {}))
+    except pydantic.ValidationError as error:
+        problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors())
+        raise PilotlabError(f"brain_options for the {name} brain: {problems}") from None
+    return entry.factory(config)

@@ -1,0 +1,173 @@
+"""The closed loop: a brain drives the car in a DrivingEnv under one of three timing modes.
+
+    trajectory = drive(env, brain, DriveSettings(timing="latency", control_hz=20), start=0.0)
+
+Each brain iteration takes the camera image at the current simulated time, asks the brain for a
+command, and advances the world. How far the world moves on, and with which command, is the timing
+mode (`physics steps` are the env's 1/120 s):
+
+- `latency` (default): an iteration costs max(control period, brain time) of simulated time, and
+  the previous command stays in force for the brain time before the new one reaches the car, as on a
+  real car: a slow network sees less often and reacts later. The brain time is the measured wall-clock
+  time of the iteration (preprocessing + inference), plus `extra_latency_ms`, rounded up to whole
+  physics steps (a command ready mid-step applies from the next one). Deterministic given the brain
+  times: whenever the brain takes less than one physics step (8.3 ms) every iteration is charged the
+  same, so the run is exactly reproducible; otherwise it depends only on the measured times (kept in
+  the trajectory). `fixed_inference_ms` replaces the measurement with a constant, which makes a run
+  exactly reproducible (tests pin it so) or asks "what if this network took X ms".
+- `lockstep`: the world waits for the brain: every iteration lasts one control period and the new
+  command applies at once, whatever the brain costs (BehaviorMetrics with a paused Gazebo). Fully
+  deterministic; latency has no effect on the driving.
+- `realtime`: simulated time follows the wall clock, as Gazebo does: while the brain computes (and
+  sleeps `extra_latency_ms`), the world moves on with the previous command; then the loop waits for
+  the rest of the control period (BehaviorMetrics' 50 ms cycle) with the new command in force. Not
+  reproducible, by nature.
+"""
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from pilotlab.errors import PilotlabError
+from pilotlab.online.brains import Brain
+from pilotlab.online.trajectory import Trajectory, TrajectoryBuilder
+from pilotlab.sim.env import DrivingEnv
+
+TIMINGS = ("latency", "lockstep", "realtime")
+FrameFn = Callable[[np.ndarray | None, dict[str, Any], tuple[float, float] | None], None]
+ProgressFn = Callable[[float, float], None]   # (metres driven, metres to drive)
+
+
+@dataclass(frozen=True)
+class DriveSettings:
+    timing: str = "latency"
+    control_hz: float = 20.0
+    extra_latency_ms: float = 0.0
+    fixed_inference_ms: float | None = None
+    version: int = 1
+
+    def __post_init__(self):
+        if self.timing not in TIMINGS:
+            raise PilotlabError(f"timing {self.timing!r} is not one of {', '.join(TIMINGS)}")
+        if not self.control_hz > 0:
+            raise PilotlabError(f"control_hz must be positive, got {self.control_hz}")
+        if self.extra_latency_ms < 0 or (self.fixed_inference_ms is not None and self.fixed_inference_ms < 0):
+            raise PilotlabError("extra_latency_ms and fixed_inference_ms must be >= 0 milliseconds")
+        if self.fixed_inference_ms is not None and self.timing != "latency":
+            raise PilotlabError(f"fixed_inference_ms only means something in the latency timing mode, "
+                                f"not {self.timing!r}")
+
+    @property
+    def period_s(self) -> float:
+        return 1.0 / self.control_hz
+
+
+def _run_segments(env: DrivingEnv, segments: list[tuple[tuple[float, float], int]], render: bool):
+    """Apply each (command, physics steps) in turn; the image is rendered after the last one only.
+    Returns (obs, info, done); stops early when the episode ends."""
+    segments = [(command, steps) for command, steps in segments if steps > 0]
+    obs = info = None
+    for i, (command, steps) in enumerate(segments):
+        obs, _, terminated, truncated, info = env.step(command, duration=steps / env.physics_hz,
+                                                       render=render and i == len(segments) - 1)
+        if terminated or truncated:
+            return obs, info, True
+    return obs, info, False
+
+
+class LatencyClock:
+    def __init__(self, env: DrivingEnv, settings: DriveSettings):
+        self.env, self.settings = env, settings
+        self.period_steps = max(1, round(settings.period_s * env.physics_hz))
+
+    def advance(self, previous, command, brain_s: float, render: bool):
+        """(obs, info, done, simulated seconds before the command reached the car)."""
+        settings = self.settings
+        if settings.fixed_inference_ms is not None:
+            brain_s = settings.fixed_inference_ms / 1000 + settings.extra_latency_ms / 1000
+        # A command ready in the middle of a physics step applies from the next one (never earlier).
+        late = math.ceil(brain_s * self.env.physics_hz - 1e-6)
+        total = max(self.period_steps, late)
+        obs, info, done = _run_segments(self.env, [(previous, late), (command, total - late)], render)
+        return obs, info, done, late / self.env.physics_hz
+
+
+class LockstepClock(LatencyClock):
+    def advance(self, previous, command, brain_s: float, render: bool):
+        obs, info, done = _run_segments(self.env, [(command, self.period_steps)], render)
+        return obs, info, done, 0.0
+
+
+class RealtimeClock(LatencyClock):
+    """A cycle starts when the world is asked for the next camera image (rendering counts: it takes
+    real time here, as a camera does on the car) and lasts at least one control period."""
+    wall0 = cycle_start = 0.0
+
+    def _catch_up(self, command, render: bool, minimum: int):
+        """Step the world until simulated time has caught up with the wall clock."""
+        behind = time.perf_counter() - self.wall0 - self.env.sim_time
+        steps = max(minimum, round(behind * self.env.physics_hz))
+        return _run_segments(self.env, [(command, steps)], render) + (steps,)
+
+    def advance(self, previous, command, brain_s: float, render: bool):
+        obs, info, done, late = self._catch_up(previous, False, 0)
+        if done:
+            return obs, info, done, late / self.env.physics_hz
+        wait = self.cycle_start + self.settings.period_s - time.perf_counter()
+        if wait > 0:
+            time.sleep(wait)
+        self.cycle_start = time.perf_counter()
+        obs, info, done, _ = self._catch_up(command, render, 1)
+        return obs, info, done, late / self.env.physics_hz
+
+
+CLOCKS = {"latency": LatencyClock, "lockstep": LockstepClock, "realtime": RealtimeClock}
+
+
+def drive(env: DrivingEnv, brain: Brain, settings: DriveSettings, *, start: float = 0.0, seed: int = 0,
+          render: bool | None = None, on_frame: FrameFn | None = None,
+          progress: ProgressFn | None = None) -> Trajectory:
+    """One run from `start` (metres along the lap) until the env stops it (lap completed, off the
+    road, trapped, timeout). `render` (default: the brain needs the camera) renders the camera image
+    every iteration; `on_frame(image, info, command)` sees each image with the command decided on it."""
+    render = brain.needs_camera if render is None else render
+    obs, info = env.reset(seed=seed, options={"start": start, "control_period": settings.period_s})
+    if render and obs is None:
+        raise PilotlabError(f"the {brain.name} brain needs the camera; make the DrivingEnv with a camera")
+    brain.reset(env.circuit)
+    clock = CLOCKS[settings.timing](env, settings)
+    extra_s = settings.extra_latency_ms / 1000
+    builder = TrajectoryBuilder(env.circuit.length, {
+        "circuit": env.circuit.name, "direction": env.circuit.direction, "start_m": float(start),
+        "brain": brain.name, "timing": settings.timing, "control_hz": settings.control_hz,
+        "extra_latency_ms": settings.extra_latency_ms, "fixed_inference_ms": settings.fixed_inference_ms})
+    measured, previous, total = [], tuple(info["command"]), env.laps * env.circuit.length
+    wall0 = clock.wall0 = clock.cycle_start = time.perf_counter()
+    builder.sample(info, 0.0)
+    while True:
+        started = time.perf_counter()
+        command = brain.act(obs, info)
+        if settings.timing == "realtime" and extra_s:
+            time.sleep(extra_s)  # the world moves on meanwhile
+        brain_s = time.perf_counter() - started + (0.0 if settings.timing == "realtime" else extra_s)
+        measured.append(brain.last_inference_s)
+        decision_s = (settings.fixed_inference_ms / 1000 if settings.fixed_inference_ms is not None
+                      else brain.last_inference_s) + extra_s
+        if on_frame is not None:
+            on_frame(obs, info, command)
+        obs, info, done, charged = clock.advance(previous, command, brain_s, render)
+        builder.decide(command, brain_s, decision_s, charged)
+        builder.sample(info, time.perf_counter() - wall0)
+        if progress is not None:
+            progress(max(info["progress"], 0.0), total)
+        previous = command
+        if done:
+            break
+    return builder.build(termination=info["termination"], laps=env.laps, timeout_s=env.timeout_s,
+                         measured_inference_ms=1000 * float(np.mean(measured)),
+                         wall_seconds=time.perf_counter() - wall0, sim_seconds=info["sim_time"])
