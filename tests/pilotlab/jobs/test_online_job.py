@@ -1,0 +1,101 @@
+"""The `online` job kind through its registered handler, with hand-made JobContexts as the engine makes
+them: an optimized artifact's brain, the reference brains, the files, and the report row it feeds."""
+import json
+
+import pytest
+
+import pilotlab.jobs.online  # noqa: F401  (registers the kind)
+from matrix.kinds import KINDS, DepResult, NotApplicable
+from pilotlab.columns import ONLINE
+from pilotlab.errors import PilotlabError
+from pilotlab.hardware import host_fingerprint
+from pilotlab.online.trajectory import load_npz
+from pilotlab.report import ReportRow, pick_metrics
+from tests.pilotlab.jobs.context import context
+from tests.pilotlab.online.conftest import baseline_artifact
+
+SHORT = {"circuit": "simple_circuit", "timeout_s": 2.0, "hardware": {"name": "cpu1", "threads": 1},
+         "camera_frames": 0}
+
+
+@pytest.fixture(scope="module")
+def artifact_dep(tmp_path_factory, trained) -> DepResult:
+    folder = baseline_artifact(trained / "model.pt", tmp_path_factory.mktemp("artifact"))
+    return DepResult(key="optimize-key", kind="optimize", params={"strategy": "baseline"},
+                     result={"strategy": "baseline"}, artifacts=folder, name="optimize:baseline")
+
+
+def run(tmp_path, name, params, deps=None):
+    ctx = context(tmp_path, "online", name, params, deps=deps)
+    return ctx, KINDS.get("online").handler(ctx)
+
+
+def test_an_artifact_drives_from_two_start_points(tmp_path, artifact_dep):
+    progress = []
+    ctx = context(tmp_path, "online", "online-net", {**SHORT, "repetitions": 2, "host": host_fingerprint(),
+                                                    "fixed_inference_ms": 5.0},
+                  deps={"artifact": artifact_dep}, progress=lambda **kw: progress.append(kw))
+    result = KINDS.get("online").handler(ctx)
+    json.dumps(result)
+    assert result["strategy"] == "baseline" and result["brain"] == "baseline" and result["repetitions"] == 2
+    assert result["hardware"] == {"name": "cpu1", "device": "cpu", "threads": 1} and result["timing"] == "latency"
+    starts = [run["start_m"] for run in result["runs"]]
+    assert starts[0] == 0.0 and starts[1] == pytest.approx(result["circuit_length_m"] / 2, abs=1e-3)
+    measured = set(pick_metrics(result))
+    assert {"completed_distance_m", "position_deviation_mae_m", "brain_frequency_sim_hz", "mean_inference_ms",
+            "real_time_factor", "off_road_events"} <= measured <= {c.name for c in ONLINE}
+    assert result["mean_inference_ms"] == pytest.approx(5.0) and result["measured_inference_ms"] > 0
+    assert result["spread"]["completed_distance_m"]["runs"] == 2
+    assert (ctx.out / result["trajectory"]).stat().st_size > 10_000
+    runs = load_npz(ctx.out / result["trajectory_data"])
+    assert [len(r.decisions) for r in runs] == [run["iterations"] for run in result["runs"]]
+    assert (ctx.out / result["trajectory_csv"]).read_text().startswith("run,t,wall")
+    assert "run 2/2" in progress[-1]["description"]
+    row = ReportRow.model_validate({"model": "pilotnet", "strategy": result["strategy"], "hardware": "cpu1",
+                                    "kind": "online", "circuit": result["circuit"], **pick_metrics(result),
+                                    "trajectory": ctx.out / result["trajectory"]})
+    assert row.get("mean_inference_ms") == pytest.approx(5.0)
+
+
+def test_reference_brains_with_video_and_stills(tmp_path):
+    _, expert = run(tmp_path, "online-expert", {**SHORT, "brain": "expert", "starts": [100.0, 300.0]})
+    assert expert["strategy"] == "expert" and expert["repetitions"] == 2 and expert["lap_completed"] is False
+    assert [r["start_m"] for r in expert["runs"]] == [100.0, 300.0] and "video" not in expert
+    ctx, explicit = run(tmp_path, "online-explicit", {**SHORT, "brain": "explicit", "video": True,
+                                                     "video_seconds": 1.0, "camera_frames": 2,
+                                                     "camera": {"width": 320, "height": 240}})
+    assert explicit["position_deviation_mae_m"] < 0.5 and explicit["off_road_events"] == 0
+    assert (ctx.out / explicit["video"]).stat().st_size > 0 and len(explicit["camera_frames"]) == 2
+
+
+def test_a_cuda_profile_on_a_host_without_a_gpu_is_not_applicable(tmp_path):
+    import torch
+    if torch.cuda.is_available():
+        pytest.skip("this host has a GPU")
+    with pytest.raises(NotApplicable, match="needs a CUDA GPU"):
+        run(tmp_path, "online-cuda", {**SHORT, "brain": "explicit", "hardware": {"name": "cuda", "device": "cuda"}})
+
+
+def test_the_kind_runs_alone_and_asks_for_a_gpu_only_for_cuda():
+    kind = KINDS.get("online")
+    assert kind.exclusive
+    assert kind.resources_for({"hardware": {"name": "cuda", "device": "cuda"}}) == {"GPU": 1}
+    assert kind.resources_for({"hardware": {"name": "cpu1", "device": "cpu", "threads": 1}}) == {}
+    names = {m.__name__ for m in kind.code}
+    assert {"pilotlab.online.metrics", "pilotlab.online.drive", "pilotlab.sim.env", "pilotlab.predictor"} <= names
+
+
+@pytest.mark.parametrize("params, deps, message", [
+    ({"circuit": "simple_circuit", "brain": "expert", "timout_s": 3}, False, "has no param.s. timout_s"),
+    ({"brain": "expert"}, False, "needs a 'circuit' param"),
+    ({"circuit": "simple_circuit"}, False, "an 'artifact' dependency .an optimize job. or brain: one of explicit"),
+    ({"circuit": "simple_circuit", "brain": "explicit"}, True, "has an artifact dependency and brain='explicit'"),
+    ({"circuit": "simple_circuit", "brain": "expert", "starts": [0.0, 10.0], "repetitions": 3}, False,
+     "starts lists 2 point.s. but repetitions is 3"),
+    ({"circuit": "simple_circuit", "brain": "expert", "timing": "lockstep", "fixed_inference_ms": 3}, False,
+     "only means something in the latency timing mode"),
+    ({"circuit": "simple_circut", "brain": "expert"}, False, "did you mean 'simple_circuit'"),
+])
+def test_params_are_checked(tmp_path, artifact_dep, params, deps, message):
+    with pytest.raises(PilotlabError, match=message):
+        run(tmp_path, "online-bad", params, deps={"artifact": artifact_dep} if deps else None)
