@@ -38,13 +38,13 @@ def _draw_road(axes, circuit: Circuit) -> None:
     quads = np.stack([left, np.roll(left, -1, axis=0), np.roll(right, -1, axis=0), right], axis=1)
     axes.add_collection(PolyCollection(quads, facecolors=_colour(ROAD), edgecolors=_colour(ROAD), linewidths=0.3))
     loop = np.vstack([circuit.points, circuit.points[:1]])
-    axes.plot(loop[:, 0], loop[:, 1], color=_colour(LINE), linewidth=1.2, label="red line")
+    axes.plot(loop[:, 0], loop[:, 1], color=_colour(LINE), linewidth=2.2, label="red line")
 
 
 def _draw_run(axes, trajectory: Trajectory, norm) -> LineCollection:
     xy = np.stack([trajectory.x, trajectory.y], axis=1)
     segments = np.stack([xy[:-1], xy[1:]], axis=1)
-    line = LineCollection(segments, cmap="plasma", norm=norm, linewidths=1.6)
+    line = LineCollection(segments, cmap="plasma", norm=norm, linewidths=1.1)
     line.set_array((trajectory.speed[:-1] + trajectory.speed[1:]) / 2)
     axes.add_collection(line)
     axes.plot(xy[0, 0], xy[0, 1], "o", color="white", markeredgecolor="black", markersize=6)
