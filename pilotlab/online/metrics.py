@@ -19,8 +19,8 @@ where we differ, so our numbers can be read next to the 2022 study's:
   metres: for every point of a "perfect lap" it finds the nearest point of a spline through the
   car's positions and adds `1000 ** distance`, so its MAE is an exponential score (0.1 m -> 2.0,
   0.5 m -> 31.6) that cannot be compared with ours.
-- brain_frequency_sim_hz: brain iterations per simulated second (BehaviorMetrics: 1 / the mean
-  simulated duration of an iteration, the same number).
+- brain_frequency_sim_hz: brain iterations per simulated second: 1 / the mean simulated time between
+  consecutive decisions, as BehaviorMetrics (1 / the mean simulated duration of an iteration).
 - brain_frequency_real_hz: 1 / the mean wall-clock time of one brain iteration (camera image in,
   command out), as BehaviorMetrics times `brain.execute()`; that is the rate the brain can sustain,
   independent of how fast the simulator renders. (BehaviorMetrics' pilot loop also sleeps up to its
@@ -95,8 +95,10 @@ def position_deviation_total_m(trajectory: Trajectory) -> float:
 
 
 def brain_frequency_sim_hz(trajectory: Trajectory) -> float | None:
-    seconds = duration_s(trajectory)
-    return len(trajectory.decisions) / seconds if seconds > 0 and len(trajectory.decisions) else None
+    """1 / the mean simulated time between consecutive decisions (the run's stop may cut the last
+    iteration short, so it is left out)."""
+    times = trajectory.t[trajectory.decisions]
+    return (len(times) - 1) / float(times[-1] - times[0]) if len(times) > 1 and times[-1] > times[0] else None
 
 
 def brain_frequency_real_hz(trajectory: Trajectory) -> float | None:
