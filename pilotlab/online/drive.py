@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -129,6 +129,20 @@ class RealtimeClock(LatencyClock):
 CLOCKS = {"latency": LatencyClock, "lockstep": LockstepClock, "realtime": RealtimeClock}
 
 
+def think(brain: Brain, obs, info: dict[str, Any], settings: DriveSettings) -> tuple[tuple[float, float], float, float]:
+    """(command, brain_s, decision_s) of one brain iteration: the wall-clock time of the whole iteration
+    and the time of the decision the metrics report, both with the artificial latency (slept in
+    realtime mode, where the world must move on meanwhile; added otherwise)."""
+    extra_s = settings.extra_latency_ms / 1000
+    started = time.perf_counter()
+    command = brain.act(obs, info)
+    if settings.timing == "realtime" and extra_s:
+        time.sleep(extra_s)
+    brain_s = time.perf_counter() - started + (0.0 if settings.timing == "realtime" else extra_s)
+    decision = brain.last_inference_s if settings.fixed_inference_ms is None else settings.fixed_inference_ms / 1000
+    return command, brain_s, decision + extra_s
+
+
 def drive(env: DrivingEnv, brain: Brain, settings: DriveSettings, *, start: float = 0.0, seed: int = 0,
           render: bool | None = None, on_frame: FrameFn | None = None,
           progress: ProgressFn | None = None) -> Trajectory:
@@ -141,23 +155,16 @@ def drive(env: DrivingEnv, brain: Brain, settings: DriveSettings, *, start: floa
         raise PilotlabError(f"the {brain.name} brain needs the camera; make the DrivingEnv with a camera")
     brain.reset(env.circuit)
     clock = CLOCKS[settings.timing](env, settings)
-    extra_s = settings.extra_latency_ms / 1000
     builder = TrajectoryBuilder(env.circuit.length, {
         "circuit": env.circuit.name, "direction": env.circuit.direction, "start_m": float(start),
-        "brain": brain.name, "timing": settings.timing, "control_hz": settings.control_hz,
-        "extra_latency_ms": settings.extra_latency_ms, "fixed_inference_ms": settings.fixed_inference_ms})
+        "brain": brain.name, **{k: v for k, v in asdict(settings).items() if k != "version"}})
     measured, previous, total = [], tuple(info["command"]), env.laps * env.circuit.length
     wall0 = clock.wall0 = clock.cycle_start = time.perf_counter()
     builder.sample(info, 0.0)
-    while True:
-        started = time.perf_counter()
-        command = brain.act(obs, info)
-        if settings.timing == "realtime" and extra_s:
-            time.sleep(extra_s)  # the world moves on meanwhile
-        brain_s = time.perf_counter() - started + (0.0 if settings.timing == "realtime" else extra_s)
+    done = False
+    while not done:
+        command, brain_s, decision_s = think(brain, obs, info, settings)
         measured.append(brain.last_inference_s)
-        decision_s = (settings.fixed_inference_ms / 1000 if settings.fixed_inference_ms is not None
-                      else brain.last_inference_s) + extra_s
         if on_frame is not None:
             on_frame(obs, info, command)
         obs, info, done, charged = clock.advance(previous, command, brain_s, render)
@@ -166,8 +173,6 @@ def drive(env: DrivingEnv, brain: Brain, settings: DriveSettings, *, start: floa
         if progress is not None:
             progress(max(info["progress"], 0.0), total)
         previous = command
-        if done:
-            break
     return builder.build(termination=info["termination"], laps=env.laps, timeout_s=env.timeout_s,
                          measured_inference_ms=1000 * float(np.mean(measured)),
                          wall_seconds=time.perf_counter() - wall0, sim_seconds=info["sim_time"])

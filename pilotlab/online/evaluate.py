@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from pilotlab.circuits import Circuit
 from pilotlab.errors import PilotlabError
 from pilotlab.online.brains import Brain
 from pilotlab.online.drive import DriveSettings, drive
@@ -75,8 +76,8 @@ def make_env(spec: OnlineSpec, camera: bool) -> DrivingEnv:
 
 
 def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None
-            ) -> tuple[list[Trajectory], dict[str, Any], DrivingEnv]:
-    """Drive every repetition; returns the trajectories, the media written and the (closed) env."""
+            ) -> tuple[list[Trajectory], dict[str, Any], Circuit]:
+    """Drive every repetition; returns the trajectories, the media written and the circuit driven."""
     media = spec.video_seconds or spec.camera_frames
     env = make_env(spec, camera=brain.needs_camera or bool(media))
     recorder = CameraRecorder(out, control_hz=spec.drive.control_hz, video_seconds=spec.video_seconds,
@@ -93,7 +94,7 @@ def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | No
                                       on_frame=recorder if i == 0 else None, progress=report))
     finally:
         env.close()
-    return trajectories, recorder.close() if recorder else {}, env
+    return trajectories, recorder.close() if recorder else {}, env.circuit
 
 
 def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None) -> dict[str, Any]:
@@ -101,15 +102,15 @@ def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: Progres
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    trajectories, media, env = run_all(brain, spec, out, progress)
+    trajectories, media, circuit = run_all(brain, spec, out, progress)
     runs = [run_metrics(t) for t in trajectories]
     means, spread = aggregate(runs)
     save_npz(trajectories, out / "trajectory.npz")
     save_csv(trajectories, out / "trajectory.csv")
-    plot_trajectories(env.circuit, trajectories, out / "trajectory.png", title=picture_title(brain.name, spec, means))
+    plot_trajectories(circuit, trajectories, out / "trajectory.png", title=picture_title(brain.name, spec, means, len(trajectories)))
     return {**means, "spread": spread, "runs": [run_summary(t, m) for t, m in zip(trajectories, runs)],
             "repetitions": len(trajectories), "brain": brain.name, "circuit": spec.circuit,
-            "direction": spec.direction, "circuit_length_m": round(env.circuit.length, 3), "laps": spec.laps,
+            "direction": spec.direction, "circuit_length_m": round(circuit.length, 3), "laps": spec.laps,
             "timeout_s": trajectories[0].meta["timeout_s"], **_drive_settings(spec.drive),
             "measured_inference_ms": float(np.mean([t.meta["measured_inference_ms"] for t in trajectories])),
             "trajectory": "trajectory.png", "trajectory_data": "trajectory.npz", "trajectory_csv": "trajectory.csv",
@@ -129,15 +130,16 @@ def _drive_settings(settings: DriveSettings) -> dict[str, Any]:
     return {k: v for k, v in values.items() if v is not None}
 
 
-def picture_title(name: str, spec: OnlineSpec, means: dict[str, Any]) -> str:
-    laps = means.get("lap_completed")
-    parts = [f"{name} on {spec.circuit} ({spec.direction}), {spec.drive.timing} timing at {spec.drive.control_hz:g} Hz"]
-    if spec.drive.extra_latency_ms:
-        parts[0] += f" +{spec.drive.extra_latency_ms:g} ms"
-    figures = [f"lap {'completed' if laps else 'not completed'}"]
+def picture_title(name: str, spec: OnlineSpec, means: dict[str, Any], runs: int) -> str:
+    settings = spec.drive
+    first = f"{name} on {spec.circuit} ({spec.direction}), {settings.timing} timing at {settings.control_hz:g} Hz"
+    if settings.extra_latency_ms:
+        first += f" +{settings.extra_latency_ms:g} ms"
+    laps = "lap completed" if means.get("lap_completed") else "lap not completed"
+    figures = [laps if runs == 1 else f"{runs} runs, {laps if means.get('lap_completed') else 'not all laps completed'}"]
     for key, label, unit in (("lap_seconds", "lap", " s"), ("percentage_completed", "done", " %"),
                              ("average_speed", "speed", " m/s"), ("position_deviation_mae_m", "MAE", " m"),
                              ("brain_frequency_sim_hz", "brain", " Hz")):
         if means.get(key) is not None:
             figures.append(f"{label} {means[key]:.3g}{unit}")
-    return parts[0] + "\n" + ", ".join(figures)
+    return first + "\n" + ", ".join(figures) + (" (means)" if runs > 1 else "")
