@@ -60,8 +60,8 @@ def run(args: argparse.Namespace) -> int:
     brain = (NetworkBrain(load_predictor(args.artifact, profile)) if args.artifact is not None
              else make_reference_brain(args.brain))
     spec = online_spec({**DEFAULTS, **params_of(args)})
-    columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:.0f} m"),
-               TimeElapsedColumn())
+    columns = (TextColumn("[bold]{task.description}"), BarColumn(),
+               TextColumn("{task.completed:.0f}/{task.total:.0f} m"), TimeElapsedColumn())
     with Progress(*columns) as progress:
         task = progress.add_task("starting", total=1.0)
         result = evaluate_online(brain, spec, args.out, lambda done, total, what: progress.update(

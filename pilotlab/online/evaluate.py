@@ -107,7 +107,8 @@ def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: Progres
     means, spread = aggregate(runs)
     save_npz(trajectories, out / "trajectory.npz")
     save_csv(trajectories, out / "trajectory.csv")
-    plot_trajectories(circuit, trajectories, out / "trajectory.png", title=picture_title(brain.name, spec, means, len(trajectories)))
+    title = picture_title(brain.name, spec, means, len(trajectories))
+    plot_trajectories(circuit, trajectories, out / "trajectory.png", title=title)
     return {**means, "spread": spread, "runs": [run_summary(t, m) for t, m in zip(trajectories, runs)],
             "repetitions": len(trajectories), "brain": brain.name, "circuit": spec.circuit,
             "direction": spec.direction, "circuit_length_m": round(circuit.length, 3), "laps": spec.laps,
@@ -136,7 +137,9 @@ def picture_title(name: str, spec: OnlineSpec, means: dict[str, Any], runs: int)
     if settings.extra_latency_ms:
         first += f" +{settings.extra_latency_ms:g} ms"
     laps = "lap completed" if means.get("lap_completed") else "lap not completed"
-    figures = [laps if runs == 1 else f"{runs} runs, {laps if means.get('lap_completed') else 'not all laps completed'}"]
+    if runs > 1:
+        laps = f"{runs} runs, " + ("every lap completed" if means.get("lap_completed") else "not every lap completed")
+    figures = [laps]
     for key, label, unit in (("lap_seconds", "lap", " s"), ("percentage_completed", "done", " %"),
                              ("average_speed", "speed", " m/s"), ("position_deviation_mae_m", "MAE", " m"),
                              ("brain_frequency_sim_hz", "brain", " Hz")):

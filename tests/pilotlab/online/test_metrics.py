@@ -14,7 +14,8 @@ def synthetic(t, progress, lateral, length, *, speed=None, off_road=None, v=None
     t = np.asarray(t, float)
     n = len(t)
     decided = lambda values, default: np.append(np.broadcast_to(default if values is None else values, n - 1), np.nan)
-    return Trajectory(t=t, wall=t * wall_factor, x=np.asarray(progress, float), y=np.asarray(lateral, float) + np.zeros(n),
+    return Trajectory(t=t, wall=t * wall_factor, x=np.asarray(progress, float),
+                      y=np.asarray(lateral, float) + np.zeros(n),
                       yaw=np.zeros(n), speed=np.zeros(n) if speed is None else speed, progress=progress,
                       lateral=np.broadcast_to(lateral, n), off_road=np.zeros(n, bool) if off_road is None else off_road,
                       v=decided(v, 5.0), w=decided(w, 0.0), brain_s=decided(None, brain_s),
@@ -101,7 +102,8 @@ def test_mean_and_spread_over_repetitions():
     means, spread = aggregate([near, far, lap])
     assert means["position_deviation_mae_m"] == pytest.approx(0.4)
     assert spread["position_deviation_mae_m"]["std"] == pytest.approx(0.2)   # sample std of 0.2, 0.6, 0.4
-    assert (spread["position_deviation_mae_m"]["min"], spread["position_deviation_mae_m"]["max"]) == pytest.approx((0.2, 0.6))
+    deviation = spread["position_deviation_mae_m"]
+    assert (deviation["min"], deviation["max"]) == pytest.approx((0.2, 0.6))
     assert means["lap_completed"] is False and spread["lap_completed"] == {"completed": 1, "runs": 3}
     assert means["lap_seconds"] == pytest.approx(10.0) and spread["lap_seconds"]["runs"] == 1
     alone, alone_spread = aggregate([lap])
