@@ -61,14 +61,15 @@ from matrix.kinds import JobContext, job_kind
 from pilotlab import predictor
 from pilotlab.circuits import circuit as circuit_module
 from pilotlab.circuits import geometry, registry
-from pilotlab.data import preprocess
+from pilotlab.data import frames, preprocess
 from pilotlab.errors import PilotlabError
 from pilotlab.hardware import check_available, describe_host, host_fingerprint, profile_from_dict
 from pilotlab.online import brains, drive, evaluate, media, metrics, trajectory
 from pilotlab.sim import camera, car, env, expert, explicit, render, world
+from pilotlab.strategies import artifact as artifact_format
 
-CODE = [brains, drive, evaluate, media, metrics, trajectory, predictor, preprocess, env, car, camera, render, world,
-        expert, explicit, circuit_module, geometry, registry]
+CODE = [brains, drive, evaluate, media, metrics, trajectory, predictor, artifact_format, preprocess, frames, env, car,
+        camera, render, world, expert, explicit, circuit_module, geometry, registry]
 DEFAULTS: dict[str, Any] = {
     "brain": None, "brain_options": {}, "hardware": {"name": "cpu"}, "host": None, "circuit": None, "direction": "cw",
     "laps": 1.0, "timing": "latency", "control_hz": 20.0, "timeout_s": None, "repetitions": None,
