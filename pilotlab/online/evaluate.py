@@ -94,7 +94,8 @@ def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | No
                                       on_frame=recorder if i == 0 else None, progress=report))
     finally:
         env.close()
-    return trajectories, recorder.close() if recorder else {}, env.circuit
+        media = recorder.close() if recorder else {}
+    return trajectories, media, env.circuit
 
 
 def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None) -> dict[str, Any]:
