@@ -78,10 +78,10 @@ def make_env(spec: OnlineSpec, camera: bool) -> DrivingEnv:
 def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None
             ) -> tuple[list[Trajectory], dict[str, Any], Circuit]:
     """Drive every repetition; returns the trajectories, the media written and the circuit driven."""
-    media = spec.video_seconds or spec.camera_frames
-    env = make_env(spec, camera=brain.needs_camera or bool(media))
+    wants_media = bool(spec.video_seconds or spec.camera_frames)
+    env = make_env(spec, camera=brain.needs_camera or wants_media)
     recorder = CameraRecorder(out, control_hz=spec.drive.control_hz, video_seconds=spec.video_seconds,
-                              stills=spec.camera_frames) if media else None
+                              stills=spec.camera_frames) if wants_media else None
     trajectories = []
     try:
         brain.warm_up()
@@ -90,7 +90,7 @@ def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | No
             what = f"{brain.name} on {spec.circuit} {spec.direction}, run {i + 1}/{len(starts)} from {start:.0f} m"
             report = None if progress is None else (lambda done, total, what=what: progress(done, total, what))
             trajectories.append(drive(env, brain, spec.drive, start=start, seed=spec.seed + i,
-                                      render=brain.needs_camera or (bool(media) and i == 0),
+                                      render=brain.needs_camera or (wants_media and i == 0),
                                       on_frame=recorder if i == 0 else None, progress=report))
     finally:
         env.close()
