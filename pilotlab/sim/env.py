@@ -19,7 +19,7 @@ reset options (all optional): `circuit` (name or CSV path; changing it rebuilds 
 
 Episodes end (terminated) when the laps are completed, when the car's centre leaves the road (unless
 `stop_off_road=False`), or when it is trapped (less than 1 m of progress in `trapped_s` seconds, or
-tipped over); they are truncated at the timeout (BehaviorMetrics' per-circuit timeout × laps). The
+tipped over); they are truncated at the timeout (BehaviorMetrics' per-circuit timeout × laps, at least one lap's). The
 reward is the progress along the red line during the step, in metres. `info` holds everything
 BehaviorMetrics' metrics need; see `INFO_KEYS`.
 """
@@ -95,7 +95,7 @@ class DrivingEnv:
         self.circuit = self._load_circuit(settings["circuit"], settings["direction"])
         self.control_period = float(settings["control_period"])
         self.laps = float(settings["laps"])
-        self.timeout_s = settings["timeout_s"] or self.circuit.timeout_s * self.laps
+        self.timeout_s = settings["timeout_s"] or self.circuit.timeout_s * max(self.laps, 1.0)
         self._build_world()
         self._place_car(options)
         return self._observe(True), self._info()

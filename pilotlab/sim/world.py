@@ -24,7 +24,7 @@ CHUNK_POINTS = 400          # centreline points per mesh (pybullet limits the ve
 # that the line is never hidden by the road, even where two stretches of road overlap.
 ROAD_SINK_M = 0.003
 WALL_HEIGHT_M, WALL_THICKNESS_M, WALL_GAP_M = 0.6, 0.3, 0.5
-WALL_BOXES_PER_BODY = 64
+WALL_BOXES_PER_BODY = 16  # pybullet crashes on shape arrays of more than about 20
 
 
 def _rgba(rgb) -> list[float]:
