@@ -14,7 +14,8 @@ Params (all JSON; only `circuit` is required):
     noise        float  fraction of time the expert swerves and recovers (default 0; 0.1 is a good dose)
     renderer     str    "ground" (default, fast) | "pybullet" (TinyRenderer, the reference, slow at 640x480)
     start        float|str  metres along the lap to start at, or "random" (default 0)
-    max_seconds  float|null stop after this much simulated time (default: the circuit's timeout × laps)
+    max_seconds  float|null stop after this much simulated time (default: the circuit's timeout × laps,
+                            at least one lap's)
 
 Result: the RecordSummary fields (frames, commands, odometry, sim_seconds, wall_seconds, distance_m,
 laps_completed, termination, bytes, mean/max_distance_to_line_m, average_speed, ...) with `path`

@@ -18,10 +18,11 @@ reset options (all optional): `circuit` (name or CSV path; changing it rebuilds 
 `control_period`. The same seed and options give the same run, step for step.
 
 Episodes end (terminated) when the laps are completed, when the car's centre leaves the road (unless
-`stop_off_road=False`), or when it is trapped (less than 1 m of progress in `trapped_s` seconds, or
-tipped over); they are truncated at the timeout (BehaviorMetrics' per-circuit timeout × laps, at least one lap's). The
-reward is the progress along the red line during the step, in metres. `info` holds everything
-BehaviorMetrics' metrics need; see `INFO_KEYS`.
+`stop_off_road=False`: then `info["off_road"]` just flags it), or when it is trapped (less than 1 m of
+progress in `trapped_s` seconds, or tipped over); they are truncated at the timeout (BehaviorMetrics'
+per-circuit timeout × laps, at least one lap's). The reward is the progress along the red line during
+the step, in metres. `info` holds everything BehaviorMetrics' metrics need; see `INFO_KEYS`.
+A reset with no options returns to the constructor's circuit, direction, laps and timeout.
 """
 from __future__ import annotations
 

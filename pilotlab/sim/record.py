@@ -47,7 +47,7 @@ class RecordSpec:
     noise: float = 0.0               # fraction of time the expert spends swerving
     renderer: str = "ground"         # ground (fast) | pybullet (reference, ~50x slower at 640x480)
     start: float | str = 0.0         # metres along the lap, or "random" (from the seed)
-    max_seconds: float | None = None  # stop after this much simulated time (default: the lap timeout)
+    max_seconds: float | None = None  # stop after this much simulated time (default: circuit timeout × laps)
     version: int = 1
 
     def check(self) -> None:

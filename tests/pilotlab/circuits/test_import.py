@@ -83,3 +83,14 @@ def test_cli_import_saves_under_circuits_and_the_name_then_works(tmp_path, monke
     assert "oval" in listing and "circuits/oval.csv" in listing and "1426.5" in listing
     assert main(["circuit", "show", "oval", "-o", "oval.png"]) == 0
     assert (tmp_path / "oval.png").read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("format", ["ros1", "ros2"])
+def test_simple_circuit_imported_from_a_recorded_lap_has_its_length(tmp_path, format):
+    summary = record_lap("simple_circuit", tmp_path / "lap", format)
+    _, circuit = import_circuit(summary.path, "/F1ROS/odom", "simple_copy", out_dir=tmp_path)
+    original = get_circuit("simple_circuit")
+    print(f"\nimported simple_circuit ({format}): {circuit.length:.2f} m vs {original.length:.2f} m "
+          f"({100 * (circuit.length / original.length - 1):+.2f} %)")
+    assert abs(circuit.length - original.length) < 0.01 * original.length

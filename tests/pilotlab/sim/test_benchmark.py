@@ -53,3 +53,14 @@ def test_montreal_lap_real_time_factor(renderer):
           f"in {wall:.1f} s wall ({steps} frames, {steps / wall:.0f} frames/s): real-time factor {sim / wall:.1f}x "
           f"(target >= 10x; BehaviorMetrics on Gazebo: ~0.5x)")
     assert termination == "lap_completed"
+
+
+@pytest.mark.benchmark
+@pytest.mark.parametrize("compressed", [None, "png", "jpeg"])
+def test_recording_a_lap_of_simple_circuit_at_640x480(tmp_path, compressed):
+    from pilotlab.sim.record import RecordSpec, record
+    summary = record(RecordSpec(circuit="simple_circuit", compressed=compressed), tmp_path / "lap")
+    print(f"\nrecording a lap of simple_circuit at 640x480, 10 Hz, {compressed or 'raw rgb8'}: "
+          f"{summary.frames} frames, {summary.sim_seconds:.1f} s simulated in {summary.wall_seconds:.1f} s wall, "
+          f"{summary.bytes / 1e6:.1f} MB")
+    assert summary.termination == "lap_completed"
