@@ -1,1 +1,2 @@
-"""pilotlab's job kinds: one thin handler per kind (record, train, optimize, offline, online, report)."""
+"""pilotlab's job kinds: one thin handler per module (record, frames, train, optimize, offline, online),
+registered with `matrix.kinds.job_kind`."""
