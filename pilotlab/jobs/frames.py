@@ -3,7 +3,7 @@
 Where the recording comes from (exactly one):
   inputs["bag"]      a user's ROS1 .bag, ROS2 bag folder (or its .db3 / .mcap) or DeepLearningStudio
                      dataset folder; an input file, so its content is in the job key;
-  deps["bag"]        a `record` job; its artifacts folder holds the bag at `result["bag"]`;
+  deps["bag"]        a `record` job; its artifacts folder holds the bag at `result["path"]`;
   params["path"]     the same as inputs["bag"], for jobs built by hand (not hashed: prefer inputs).
 
 params (all optional):
@@ -47,9 +47,9 @@ def recording_path(ctx: JobContext) -> Path:
         sources.append(Path(ctx.inputs["bag"]))
     if "bag" in ctx.deps:
         dep = ctx.dep("bag")
-        if "bag" not in dep.result:
-            raise PilotlabError(f"{ctx.name}: dependency {dep.name or dep.key} has no 'bag' in its result")
-        sources.append(Path(dep.artifacts) / dep.result["bag"])
+        if "path" not in dep.result:
+            raise PilotlabError(f"{ctx.name}: dependency {dep.name or dep.key} has no 'path' (the bag) in its result")
+        sources.append(Path(dep.artifacts) / dep.result["path"])
     if not sources and ctx.params.get("path"):
         sources.append(Path(ctx.params["path"]))
     if len(sources) != 1:
