@@ -47,9 +47,7 @@ def artifact(tmp_path_factory) -> DepResult:
     for direction, seed in RECORDINGS:
         bag = run_job(root, "record", f"record-{direction}", {"circuit": "simple_circuit", "direction": direction,
                                                                "seed": seed, "noise": 0.1, "compressed": "png"})
-        # The record job names its bag `path` in its result; the frames job reads it as an input file.
-        frames.append(run_job(root, "frames", f"frames-{direction}", {},
-                              inputs={"bag": bag.artifacts / bag.result["path"]}))
+        frames.append(run_job(root, "frames", f"frames-{direction}", {}, deps={"bag": bag}))
     model = run_job(root, "train", "train", TRAIN, deps={"frames": tuple(frames)})
     print(f"\ntrained PilotNet: val_mse {model.result['val_mse']:.4f} "
           f"(mean predictor {model.result['val_mse_mean_predictor']:.4f}) in {model.result['seconds']:.0f} s")
