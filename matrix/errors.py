@@ -18,7 +18,7 @@ class RecipeError(MatrixError):
 
     def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
                  path: Iterable[object] = ()):
-        self.file, self.line, self.path = file, line, tuple(path)
+        self.message, self.file, self.line, self.path = message, file, line, tuple(path)
         where = ":".join(str(p) for p in (file, line) if p is not None)
         key = ".".join(str(p) for p in self.path)
         prefix = ": ".join(p for p in (where, key) if p)

@@ -34,6 +34,9 @@ class DepResult:
     params: Mapping[str, Any]
     result: Mapping[str, Any]
     artifacts: Path
+    name: str = ""
+    status: str = "ok"             # ok | not_applicable
+    reason: str = ""
 
 
 ProgressFn = Callable[..., None]
@@ -49,6 +52,7 @@ class JobContext:
     out: Path                      # the job's artifact folder (empty, writable)
     cache: Path                    # a store-wide scratch folder for caches shared between jobs
     log: logging.Logger
+    inputs: Mapping[str, Path] = field(default_factory=dict)  # user files by role (content in the key)
     _progress: ProgressFn = field(default=lambda **_: None, repr=False)
 
     def progress(self, completed: float, total: float | None = None, description: str | None = None) -> None:
@@ -80,15 +84,17 @@ class JobKind:
     code_for: Callable[[Mapping[str, Any]], CodeSources] | None = None
     exclusive: bool = False        # run alone (timing jobs): nothing else runs beside it
     resources: Mapping[str, float] = field(default_factory=dict)  # e.g. {"GPU": 1} for Dask placement
+    resources_for: Callable[[Mapping[str, Any]], Mapping[str, float]] | None = None  # per job
 
 
 KINDS: Registry[JobKind] = Registry("job kind")
 
 
 def job_kind(name: str, *, code: CodeSources = (), code_for=None, exclusive: bool = False,
-             resources: Mapping[str, float] | None = None) -> Callable[[Handler], Handler]:
+             resources: Mapping[str, float] | None = None, resources_for=None) -> Callable[[Handler], Handler]:
     """Register `handler` as the implementation of job kind `name`."""
     def decorate(handler: Handler) -> Handler:
-        KINDS.add(name, JobKind(name, handler, tuple(code), code_for, exclusive, dict(resources or {})))
+        KINDS.add(name, JobKind(name, handler, tuple(code), code_for, exclusive, dict(resources or {}),
+                                resources_for))
         return handler
     return decorate

@@ -1,18 +1,23 @@
 """The training loop shared by the `train` job and by strategies that fine-tune (pruning, QAT).
 
-`fit` trains a model in place with Adam on the MSE of normalised labels and returns the history.
-(First version: the datasets/training issue extends it with augmentation, early stopping and
-progress; the signature stays.)
+`fit` trains a model in place with Adam on the MSE of normalised labels and returns the history, one
+dict per epoch. It augments batches as `FitConfig.augment` says, stops early when the validation loss
+has not improved for `patience` epochs (restoring the best weights), and reports progress through
+callbacks, so the engine (or `FitProgress`, a rich bar) can show it.
 """
 from __future__ import annotations
 
+import copy
+import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from torch import nn
 
+from pilotlab.data.augment import AugmentConfig, augment_batch, epoch_order
 from pilotlab.data.frames import FrameSet, LabelRanges
 
 
@@ -24,44 +29,144 @@ class FitConfig:
     seed: int = 0
     frames: int = 1                  # consecutive frames per input (temporal models)
     patience: int | None = None      # early stopping on validation loss (None: never stop early)
+    augment: AugmentConfig = field(default_factory=AugmentConfig)
 
 
 EpochCallback = Callable[[dict], None]
+BatchCallback = Callable[[int, int, int, float], None]   # (epoch, batch, batches, loss)
+
+
+def evaluate(model: nn.Module, data: FrameSet, ranges: LabelRanges, *, frames: int = 1,
+             batch_size: int = 256) -> dict[str, float]:
+    """MSE on normalised labels: over both outputs ("mse"), and of v and w alone."""
+    model.eval()
+    targets = torch.from_numpy(ranges.normalise(np.asarray(data.labels)))
+    squared = torch.zeros(2, dtype=torch.float64)
+    with torch.no_grad():
+        for inputs, index in data.batches(batch_size, frames=frames):
+            squared += ((model(inputs) - targets[index]) ** 2).sum(0).double()
+    mse_v, mse_w = (squared / max(len(data), 1)).tolist()
+    return {"mse": (mse_v + mse_w) / 2, "mse_v": mse_v, "mse_w": mse_w}
 
 
 def evaluate_mse(model: nn.Module, data: FrameSet, ranges: LabelRanges, *, frames: int = 1,
                  batch_size: int = 256) -> float:
     """Mean squared error on normalised labels."""
-    model.eval()
-    targets = ranges.normalise(np.asarray(data.labels))
-    total = 0.0
-    with torch.no_grad():
-        for inputs, index in data.batches(batch_size, frames=frames):
-            total += float(((model(inputs) - torch.from_numpy(targets[index])) ** 2).sum())
-    return total / (2 * len(data))
+    return evaluate(model, data, ranges, frames=frames, batch_size=batch_size)["mse"]
+
+
+def mean_predictor_mse(train: FrameSet, val: FrameSet, ranges: LabelRanges) -> dict[str, float]:
+    """MSE on `val` of always predicting the mean training label (the bar a network must beat)."""
+    mean = ranges.normalise(np.asarray(train.labels)).mean(0)
+    per_output = ((ranges.normalise(np.asarray(val.labels)) - mean) ** 2).mean(0).astype(float)
+    return {"mse": float(per_output.mean()), "mse_v": float(per_output[0]), "mse_w": float(per_output[1])}
+
+
+class _Epochs:
+    """One model's training state: runs an epoch over a given order of frames."""
+
+    def __init__(self, model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfig):
+        self.model, self.train, self.config = model, train, config
+        self.optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
+        self.generator = torch.Generator().manual_seed(config.seed)
+        self.labels = torch.from_numpy(np.asarray(train.labels, np.float32).copy())   # physical
+        self.lo = torch.tensor([ranges.v[0], ranges.w[0]], dtype=torch.float32)
+        self.span = torch.tensor([ranges.v[1], ranges.w[1]], dtype=torch.float32) - self.lo
+
+    def run(self, epoch: int, order: np.ndarray, on_batch: BatchCallback | None) -> float:
+        """Mean training loss of the epoch."""
+        self.model.train()
+        size, losses = self.config.batch_size, []
+        batches = max(1, -(-len(order) // size))
+        for b, start in enumerate(range(0, len(order), size)):
+            losses.append(self._step(order[start:start + size]))
+            if on_batch:
+                on_batch(epoch, b + 1, batches, losses[-1])
+        return float(np.mean(losses))
+
+    def _step(self, index: np.ndarray) -> float:
+        inputs, labels = augment_batch(self.train.inputs(index, self.config.frames), self.labels[index],
+                                       self.config.augment, self.generator)
+        self.optimizer.zero_grad()
+        loss = nn.functional.mse_loss(self.model(inputs), (labels - self.lo) / self.span)
+        loss.backward()
+        self.optimizer.step()
+        return loss.item()
+
+
+class _Best:
+    """The epoch with the lowest validation loss so far, and its weights."""
+
+    def __init__(self):
+        self.loss, self.state, self.row, self.stale = float("inf"), None, None, 0
+
+    def update(self, model: nn.Module, row: dict) -> None:
+        if row["val_loss"] < self.loss:
+            self.loss, self.state, self.row, self.stale = row["val_loss"], copy.deepcopy(model.state_dict()), row, 0
+        else:
+            self.stale += 1
+
+    def restore(self, model: nn.Module) -> None:
+        if self.state is not None:
+            model.load_state_dict(self.state)
+            self.row["best"] = True
 
 
 def fit(model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfig,
-        val: FrameSet | None = None, on_epoch: EpochCallback | None = None) -> list[dict]:
+        val: FrameSet | None = None, on_epoch: EpochCallback | None = None,
+        on_batch: BatchCallback | None = None) -> list[dict]:
+    """Train `model` in place; returns the history. With `val`, the weights of the epoch with the
+    lowest validation loss are restored at the end (that row has "best": True), and with `patience`
+    training stops once that many epochs in a row did not improve on it."""
     torch.manual_seed(config.seed)
-    optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
-    targets = torch.from_numpy(ranges.normalise(np.asarray(train.labels)))
-    history: list[dict] = []
-    for epoch in range(config.epochs):
-        model.train()
-        losses = []
-        for inputs, index in train.batches(config.batch_size, frames=config.frames,
-                                           shuffle=True, seed=config.seed + epoch):
-            optimizer.zero_grad()
-            loss = nn.functional.mse_loss(model(inputs), targets[index])
-            loss.backward()
-            optimizer.step()
-            losses.append(loss.item())
-        row = {"epoch": epoch + 1, "train_loss": float(np.mean(losses))}
+    epochs, best, history = _Epochs(model, train, ranges, config), _Best(), []
+    w_limit = max(abs(ranges.w[0]), abs(ranges.w[1]))
+    for epoch in range(1, config.epochs + 1):
+        started = time.perf_counter()
+        order = epoch_order(np.asarray(train.labels)[:, 1], w_limit, config.augment,
+                            np.random.default_rng(config.seed + epoch))
+        row = {"epoch": epoch, "train_loss": epochs.run(epoch, order, on_batch)}
         if val is not None and len(val):
-            row["val_loss"] = evaluate_mse(model, val, ranges, frames=config.frames)
+            scores = evaluate(model, val, ranges, frames=config.frames)
+            row.update(val_loss=scores["mse"], val_mse_v=scores["mse_v"], val_mse_w=scores["mse_w"])
+            best.update(model, row)
+        row["seconds"] = round(time.perf_counter() - started, 3)
         history.append(row)
         if on_epoch:
             on_epoch(row)
+        if config.patience is not None and best.stale >= config.patience:
+            break
+    best.restore(model)
     model.eval()
     return history
+
+
+class FitProgress:
+    """A rich progress bar for `fit` outside the engine:
+
+        with FitProgress(config.epochs) as bar:
+            fit(model, train, ranges, config, val, on_epoch=bar.on_epoch, on_batch=bar.on_batch)
+    """
+
+    def __init__(self, epochs: int, description: str = "training"):
+        self.epochs, self.description = epochs, description
+        self.bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                            TextColumn("{task.fields[loss]}"), TimeRemainingColumn())
+        self.task = self.bar.add_task(description, total=epochs, loss="")
+        self.last = ""
+
+    def __enter__(self) -> FitProgress:
+        self.bar.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.bar.stop()
+
+    def on_batch(self, epoch: int, batch: int, batches: int, loss: float) -> None:
+        self.bar.update(self.task, completed=epoch - 1 + batch / batches,
+                        description=f"{self.description} epoch {epoch}/{self.epochs}",
+                        loss=f"loss {loss:.4f}{self.last}")
+
+    def on_epoch(self, row: dict) -> None:
+        self.last = f"  val {row['val_loss']:.4f}" if "val_loss" in row else ""
+        self.bar.update(self.task, completed=row["epoch"], loss=f"loss {row['train_loss']:.4f}{self.last}")

@@ -30,6 +30,17 @@ class LabelRanges:
     def from_dict(cls, d: dict[str, Any]) -> LabelRanges:
         return cls(tuple(d["v"]), tuple(d["w"]))
 
+    @classmethod
+    def covering(cls, labels: np.ndarray) -> LabelRanges:
+        """Ranges that cover `labels` [N, 2]: v from its min to its max, w symmetric about 0 (so a
+        flipped image's label stays in range). A constant label gets a span of 1 around it."""
+        labels = np.asarray(labels, np.float64).reshape(-1, 2)
+        v_lo, v_hi = float(labels[:, 0].min()), float(labels[:, 0].max())
+        if v_hi - v_lo < 1e-6:
+            v_lo, v_hi = v_lo - 0.5, v_hi + 0.5
+        w_max = float(np.abs(labels[:, 1]).max()) or 0.5
+        return cls((v_lo, v_hi), (-w_max, w_max))
+
     def normalise(self, labels: np.ndarray) -> np.ndarray:
         lo, span = self._lo_span()
         return ((labels - lo) / span).astype(np.float32)

@@ -1,1 +1,2 @@
-"""Job kinds: one thin handler per kind, registered with matrix.kinds.job_kind on import."""
+"""pilotlab's job kinds: one thin handler per module (record, frames, train, optimize, offline, online),
+registered with `matrix.kinds.job_kind`."""

@@ -1,7 +1,9 @@
 """PilotNet, as DeepLearningStudio's PyTorch version (Bojarski et al. 2016, NVIDIA).
 
-BatchNorm on the input; convs 24, 36, 48 (5×5, stride 2) and 64, 64 (3×3); FC 1164, 100, 50, 10, 2.
-About 1.6 M parameters, 1.34 M of them in the first fully connected layer.
+BatchNorm on the input; convs 24, 36, 48 (5×5, stride 2) and 64, 64 (3×3); FC 1164, 100, 50, 10, 2;
+ReLU after every layer but the last. 1,595,528 parameters, 1.34 M of them in the first fully
+connected layer. DeepLearningStudio's PyTorch PilotNet has no dropout, so `dropout` defaults to 0
+(no Dropout module at all); set it to add one after the last convolution.
 """
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ class PilotNetConfig:
     width: int = 200
     channels: int = 3
     outputs: int = 2
-    dropout: float = 0.5
+    dropout: float = 0.0
 
 
 def _conv_out(size: int, kernel: int, stride: int) -> int:
@@ -39,7 +41,7 @@ class PilotNet(nn.Module):
             nn.Conv2d(36, 48, 5, stride=2), nn.ReLU(),                # [N, 48, 5, 22]
             nn.Conv2d(48, 64, 3), nn.ReLU(),                          # [N, 64, 3, 20]
             nn.Conv2d(64, 64, 3), nn.ReLU(),                          # [N, 64, 1, 18]
-            nn.Dropout(config.dropout),
+            *([nn.Dropout(config.dropout)] if config.dropout else []),
         )
         height, width = config.height, config.width
         for kernel, stride in ((5, 2), (5, 2), (5, 2), (3, 1), (3, 1)):
@@ -53,5 +55,5 @@ class PilotNet(nn.Module):
             nn.Linear(10, config.outputs),                 # [N, 2]: normalised v, w
         )
 
-    def forward(self, images: torch.Tensor) -> torch.Tensor:  # images: [N, 3, 66, 200] in [0, 1]
+    def forward(self, images: torch.Tensor) -> torch.Tensor:  # images: [N, C, 66, 200] in [0, 1]
         return self.head(self.features(self.input_norm(images)))

@@ -54,6 +54,11 @@ def make_config(arch: str, params: dict[str, Any] | None = None):
     return entry.config_cls(**(params or {}))
 
 
+def input_frames(config) -> int:
+    """Consecutive frames a model takes per input: its config's `frames` field, else 1."""
+    return int(getattr(config, "frames", 1))
+
+
 def build_model(arch: str, config=None) -> nn.Module:
     entry = MODELS.get(arch)
     return entry.module_cls(config if config is not None else entry.config_cls())

@@ -1,0 +1,196 @@
+"""Engine commands for a domain's command line: run, plan, status, show, gc.
+
+    add_engine_commands(subparsers, get_domain)
+
+`get_domain()` is called only when a command runs, so other commands stay quick to start.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections import Counter
+from collections.abc import Callable
+
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from matrix import engine
+from matrix.display import RichDisplay
+from matrix.recipe import Domain, load_recipe
+from matrix.store import ARTIFACTS, LOG, Store, read_json
+
+GetDomain = Callable[[], Domain]
+STATE_STYLE = {"fresh": "green", "stale": "yellow", "new": "cyan"}
+
+
+def add_engine_commands(subparsers, get_domain: GetDomain,
+                        store_help: str = "job store folder (default: the domain's default)") -> None:
+
+    def add(name: str, func, help: str) -> argparse.ArgumentParser:
+        parser = subparsers.add_parser(name, help=help, description=help)
+        parser.add_argument("--store", help=store_help)
+        parser.set_defaults(func=lambda args: func(args, get_domain()))
+        return parser
+
+    run = add("run", cmd_run, "run a recipe: every job that is not fresh, in dependency order")
+    run.add_argument("recipe")
+    run.add_argument("-j", "--jobs", type=int, default=1, help="jobs at once (worker processes)")
+    run.add_argument("--keep-going", action="store_true", help="after a failure, run what does not depend on it")
+    run.add_argument("--force", action="append", default=[], metavar="KIND", help="rerun every job of KIND")
+    run.add_argument("--executor", choices=["local", "dask", "dask-local"], default="local",
+                     help="local process pool (default), a Dask cluster (--scheduler), or a local Dask cluster")
+    run.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address, e.g. tcp://host:8786")
+    run.add_argument("--timing-resource", metavar="NAME",
+                     help="with Dask: run timing jobs only on workers started with --resources NAME=1")
+    plan = add("plan", cmd_plan, "show what `run` would do: each job fresh / stale / new, and why")
+    plan.add_argument("recipe")
+    plan.add_argument("--json", action="store_true", help="print a JSON list instead of a table")
+    plan.add_argument("--force", action="append", default=[], metavar="KIND")
+    add("status", cmd_status, "summarise the job store")
+    show = add("show", cmd_show, "show one stored job: spec, result, log and artifacts")
+    show.add_argument("key", help="a job key or its first characters")
+    gc = add("gc", cmd_gc, "remove stored jobs that none of the given recipes reaches")
+    gc.add_argument("recipes", nargs="+")
+    gc.add_argument("--dry-run", action="store_true", help="list what would be removed")
+
+
+def console() -> Console:
+    return Console(highlight=False, soft_wrap=True)
+
+
+def cmd_plan(args, domain: Domain) -> int:
+    store = engine.open_store(domain, args.store)
+    plan = engine.make_plan(load_recipe(args.recipe, domain), domain, store, args.force)
+    if args.json:
+        rows = [{"key": s.job.key, "kind": s.job.kind, "name": s.job.name, "status": s.state,
+                 "reason": s.reason} for s in plan.statuses]
+        print(json.dumps(rows, indent=1))
+        return 0
+    out = console()
+    table = Table("status", "kind", "job", "reason", "key", box=None, pad_edge=False)
+    for s in plan.statuses:
+        style = STATE_STYLE[s.state]
+        table.add_row(f"[{style}]{s.state}[/]", s.job.kind, escape(s.job.name), escape(s.reason), s.job.key[:10])
+    out.print(table)
+    out.print(_counts_line(plan))
+    return 0
+
+
+def _counts_line(plan: engine.Plan) -> str:
+    parts = []
+    for kind, counts in plan.counts().items():
+        states = ", ".join(f"{n} {state}" for state, n in sorted(counts.items()))
+        parts.append(f"{kind}: {states}")
+    total = Counter(s.state for s in plan.statuses)
+    summary = ", ".join(f"{n} {state}" for state, n in sorted(total.items()))
+    return f"[bold]{len(plan.statuses)} jobs[/] ({summary}) — " + "; ".join(parts)
+
+
+def cmd_run(args, domain: Domain) -> int:
+    store = engine.open_store(domain, args.store)
+    recipe = load_recipe(args.recipe, domain)
+    plan = engine.make_plan(recipe, domain, store, args.force)
+    out = console()
+    if not plan.stale:
+        out.print(f"nothing to do: all {len(plan.statuses)} jobs of {escape(recipe.name)!s} are fresh")
+        summary = engine.RunSummary(fresh=len(plan.statuses))
+    else:
+        where = args.scheduler if args.executor == "dask" else \
+            f"{args.jobs} {'Dask ' if args.executor == 'dask-local' else ''}worker{'s' if args.jobs > 1 else ''}"
+        out.print(f"{escape(recipe.name)}: {len(plan.stale)} of {len(plan.statuses)} jobs to run "
+                  f"on {where} (store {store.root})")
+        display = RichDisplay(store, title=escape(recipe.name))
+        executor = engine.Executor(args.executor, args.jobs, args.scheduler, args.timing_resource)
+        summary = engine.run_plan(plan, domain, store, keep_going=args.keep_going, display=display,
+                                  executor=executor)
+        out.print(_summary_line(summary))
+    if domain.after_run is not None:
+        domain.after_run(recipe, summary, store)
+    return 1 if summary.failed else 0
+
+
+def _summary_line(summary: engine.RunSummary) -> str:
+    counts = summary.counts()
+    parts = [f"{n} {status.replace('_', ' ')}" for status, n in sorted(counts.items())]
+    verdict = "[red]failed[/]" if summary.failed else "[green]done[/]"
+    return (f"{verdict}: {', '.join(parts)}; {summary.fresh} were fresh — {summary.wall_s:.1f} s"
+            + ("" if not summary.failed else "  (see `pilotlab show KEY` for a job's log)"))
+
+
+def cmd_status(args, domain: Domain) -> int:
+    store = engine.open_store(domain, args.store)
+    out = console()
+    out.print(f"store: {store.root.resolve()}")
+    kinds: dict[str, Counter] = {}
+    for key in store.keys():
+        spec, result = store.spec(key) or {}, store.result(key) or {}
+        kinds.setdefault(spec.get("kind", "?"), Counter())[result.get("status", "corrupt")] += 1
+    table = Table("kind", "ok", "not applicable", "corrupt", box=None)
+    for kind, counts in sorted(kinds.items()):
+        table.add_row(kind, str(counts["ok"]), str(counts["not_applicable"]), str(counts["corrupt"]))
+    out.print(table if kinds else "no finished jobs yet")
+    failed = sorted((store.root / "failed").glob("*.json"))
+    running = [p.stem for p in (store.root / "locks").glob("*.lock") if store.is_locked(p.stem)]
+    out.print(f"failed (will rerun): {len(failed)}; running now: {len(running)}")
+    for index in sorted((store.root / "recipes").glob("*.json")):
+        data = read_json(index) or {}
+        out.print(f"recipe {escape(data.get('recipe', index.stem))}: {len(data.get('jobs', {}))} jobs "
+                  f"({escape(str(data.get('file', '?')))})")
+    return 0
+
+
+def cmd_show(args, domain: Domain) -> int:
+    store = engine.open_store(domain, args.store)
+    key = store.find(args.key)
+    spec = store.spec(key) or (store.failure(key) or {}).get("spec", {})
+    result, failure = store.result(key), store.failure(key)
+    out = console()
+    out.print(f"[bold]{escape(spec.get('name', '?'))}[/] ({spec.get('kind', '?')}) {key}")
+    out.print("params: " + escape(json.dumps(spec.get("params", {}), sort_keys=True)))
+    for role, dep in spec.get("deps", {}).items():
+        names = spec.get("dep_names", {})
+        out.print(f"dependency {role}: " + ", ".join(escape(names.get(k, k[:10])) for k in
+                                                      (dep if isinstance(dep, list) else [dep])))
+    if result is not None:
+        out.print(f"status: {result['status']} {escape(result.get('reason', ''))} "
+                  f"({result.get('duration_s', 0):.1f} s, {result.get('finished_at', '')})")
+        out.print("result: " + escape(json.dumps(result.get("value", {}), indent=1, sort_keys=True)))
+        out.print(f"artifacts: {store.job_dir(key) / ARTIFACTS}")
+        out.print(f"log: {store.job_dir(key) / LOG}")
+    if failure is not None:
+        out.print(f"[red]failed last time:[/] {escape(failure.get('error', ''))}")
+        out.print(escape(failure.get("traceback", "")))
+    return 0
+
+
+def cmd_gc(args, domain: Domain) -> int:
+    store = engine.open_store(domain, args.store)
+    keep = {job.key for path in args.recipes for job in engine.plan_jobs(load_recipe(path, domain), domain)}
+    garbage = engine.find_garbage(store, keep)
+    verb = "would remove" if args.dry_run else "removed"
+    for key in garbage.keys:
+        spec = store.spec(key) or {}
+        print(f"{verb} {key[:12]} {spec.get('kind', '')} {spec.get('name', '')}".rstrip())
+    if not args.dry_run:
+        engine.collect_garbage(store, garbage)
+    print(f"{verb} {len(garbage.keys)} jobs and {len(garbage.temp)} leftovers of killed runs "
+          f"({garbage.bytes / 1e6:.1f} MB); kept {len(keep)} jobs", file=sys.stdout)
+    return 0
+
+
+def main(argv: list[str] | None, domain: Domain, prog: str = "matrix") -> int:
+    """A complete command line for a domain with only the engine commands (used by tests)."""
+    from matrix.errors import MatrixError
+    parser = argparse.ArgumentParser(prog=prog)
+    parser.add_argument("-v", "--verbose", action="store_true")
+    add_engine_commands(parser.add_subparsers(dest="command", required=True), lambda: domain)
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except MatrixError as error:
+        if args.verbose:
+            raise
+        print(f"{prog}: error: {error}", file=sys.stderr)
+        return 2

@@ -1,0 +1,106 @@
+"""Pure functions over a job graph given as `{node: [dependencies]}` (as in Dask's task graphs).
+
+`graph_of(jobs)` builds that mapping from Job objects (by key), pulling in every dependency.
+"""
+from __future__ import annotations
+
+from collections.abc import Hashable, Iterable, Mapping
+
+from matrix.errors import CycleError
+
+Graph = Mapping[Hashable, Iterable[Hashable]]
+
+
+def graph_of(jobs: Iterable) -> tuple[dict[str, list[str]], dict[str, object]]:
+    """({key: [dep keys]}, {key: job}) for `jobs` and everything they depend on."""
+    graph: dict[str, list[str]] = {}
+    by_key: dict[str, object] = {}
+    stack = list(reversed(list(jobs)))  # popped in the given order, so ties keep it
+    while stack:
+        job = stack.pop()
+        if job.key in by_key:
+            continue
+        by_key[job.key] = job
+        deps = job.dep_jobs()
+        graph[job.key] = list(dict.fromkeys(d.key for d in deps))
+        stack.extend(reversed(deps))
+    return graph, by_key
+
+
+def find_cycle(graph: Graph) -> list | None:
+    """One cycle as a path [a, b, ..., a], or None."""
+    state: dict = {}  # node -> "visiting" | "done"
+    for root in graph:
+        if root in state:
+            continue
+        path, iterators = [root], [iter(graph.get(root, ()))]
+        state[root] = "visiting"
+        while iterators:
+            child = next(iterators[-1], _END)
+            if child is _END:
+                state[path.pop()] = "done"
+                iterators.pop()
+            elif state.get(child) == "visiting":
+                return path[path.index(child):] + [child]
+            elif child not in state:
+                state[child] = "visiting"
+                path.append(child)
+                iterators.append(iter(graph.get(child, ())))
+    return None
+
+
+_END = object()
+
+
+def toposort(graph: Graph) -> list:
+    """Nodes with every dependency before its dependents; ties keep the graph's order.
+
+    Raises CycleError naming the path of a cycle."""
+    order, done = [], set()
+    for root in graph:
+        if root in done:
+            continue
+        stack = [(root, iter(graph.get(root, ())))]
+        on_stack = {root}
+        while stack:
+            node, children = stack[-1]
+            child = next(children, _END)
+            if child is _END:
+                stack.pop()
+                on_stack.discard(node)
+                done.add(node)
+                order.append(node)
+            elif child in on_stack:
+                raise CycleError([str(n) for n in find_cycle(graph) or [child, child]])
+            elif child not in done:
+                stack.append((child, iter(graph.get(child, ()))))
+                on_stack.add(child)
+    return order
+
+
+def dependents(graph: Graph, nodes: Iterable) -> set:
+    """Every node that depends, directly or not, on any of `nodes` (excluding them)."""
+    reverse: dict = {}
+    for node, deps in graph.items():
+        for dep in deps:
+            reverse.setdefault(dep, []).append(node)
+    seen, stack = set(), list(nodes)
+    while stack:
+        for parent in reverse.get(stack.pop(), ()):
+            if parent not in seen:
+                seen.add(parent)
+                stack.append(parent)
+    return seen - set(nodes)
+
+
+def subgraph(graph: Graph, targets: Iterable) -> dict:
+    """The part of `graph` that `targets` need: the targets and all their dependencies."""
+    result: dict = {}
+    stack = list(targets)
+    while stack:
+        node = stack.pop()
+        if node not in result:
+            result[node] = list(graph.get(node, ()))
+            stack.extend(result[node])
+    return {node: result[node] for node in graph if node in result} | \
+        {node: deps for node, deps in result.items() if node not in graph}

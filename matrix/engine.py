@@ -1,0 +1,162 @@
+"""The engine's operations: open a store, plan a recipe, run the plan, collect garbage."""
+from __future__ import annotations
+
+import importlib
+import os
+import re
+import shutil
+import time
+from collections import Counter
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from matrix.dag import graph_of, toposort
+from matrix.errors import MatrixError, did_you_mean
+from matrix.execute import RunSummary, run_local
+from matrix.kinds import KINDS
+from matrix.recipe import Domain, Recipe, load_recipe
+from matrix.stale import FRESH, JobStatus, job_status
+from matrix.store import Store, read_json, write_json_atomic
+
+
+def open_store(domain: Domain, root: str | Path | None = None) -> Store:
+    """The store at `root`, else $<domain.store_env>, else the domain's default folder."""
+    return Store(root or os.environ.get(domain.store_env) or domain.default_store)
+
+
+def register_kinds(domain: Domain) -> None:
+    for module in domain.kind_modules:
+        importlib.import_module(module)
+
+
+def slug(name: str) -> str:
+    """A file-name-safe form of a recipe name."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "recipe"
+
+
+@dataclass(frozen=True)
+class Plan:
+    recipe: Recipe
+    statuses: list[JobStatus]          # dependencies first
+
+    @property
+    def stale(self) -> list[JobStatus]:
+        return [s for s in self.statuses if s.state != FRESH]
+
+    def counts(self) -> dict[str, Counter]:
+        counts: dict[str, Counter] = {}
+        for status in self.statuses:
+            counts.setdefault(status.job.kind, Counter())[status.state] += 1
+        return counts
+
+
+def plan_jobs(recipe: Recipe, domain: Domain) -> list:
+    """Every job the recipe needs (dependencies first), with names checked to be unique."""
+    register_kinds(domain)
+    graph, by_key = graph_of(domain.plan(recipe))
+    jobs = [by_key[key] for key in toposort(graph)]
+    seen: dict[str, str] = {}
+    for job in jobs:
+        if seen.setdefault(job.name, job.key) != job.key:
+            raise MatrixError(f"two different jobs are both named {job.name!r}; job names must be unique "
+                              "within a recipe (a bug in the domain's planner)")
+    return jobs
+
+
+def make_plan(recipe: Recipe, domain: Domain, store: Store, force: Iterable[str] = ()) -> Plan:
+    jobs = plan_jobs(recipe, domain)
+    forced = _check_forced(force)
+    previous = (read_json(store.recipe_path(slug(recipe.name))) or {}).get("jobs", {})
+    return Plan(recipe, [job_status(job, store, previous, forced) for job in jobs])
+
+
+def _check_forced(kinds: Iterable[str]) -> set[str]:
+    kinds = set(kinds)
+    for kind in kinds:
+        if kind not in KINDS:
+            raise MatrixError(f"--force {kind}: unknown job kind{did_you_mean(kind, KINDS)}; "
+                              f"kinds: {', '.join(KINDS)}")
+    return kinds
+
+
+@dataclass(frozen=True)
+class Executor:
+    """Where jobs run: "local" (a process pool), "dask" (a running scheduler) or "dask-local"."""
+    kind: str = "local"
+    jobs: int = 1
+    scheduler: str | None = None
+    timing_resource: str | None = None
+
+
+def run_plan(plan: Plan, domain: Domain, store: Store, *, jobs: int = 1, keep_going: bool = False,
+             display=None, executor: Executor | None = None) -> RunSummary:
+    """Record the recipe's jobs (for reasons and gc), then run the stale ones."""
+    executor = executor or Executor("local", jobs)
+    write_json_atomic(store.recipe_path(slug(plan.recipe.name)),
+                      {"recipe": plan.recipe.name, "file": plan.recipe.file, "written_at": time.time(),
+                       "jobs": {s.job.name: s.job.spec() for s in plan.statuses}})
+    if display is not None:
+        display.start(s.job for s in plan.stale)
+    try:
+        if executor.kind == "local":
+            return run_local(plan.statuses, store, jobs=executor.jobs, keep_going=keep_going,
+                             kind_modules=domain.kind_modules, display=display)
+        return _run_on_dask(plan, domain, store, executor, keep_going, display)
+    finally:
+        if display is not None:
+            display.stop()
+
+
+def _run_on_dask(plan: Plan, domain: Domain, store: Store, executor: Executor, keep_going: bool,
+                 display) -> RunSummary:
+    from matrix import dask_executor
+    if executor.kind not in ("dask", "dask-local"):
+        raise MatrixError(f"unknown executor {executor.kind!r}; use local, dask or dask-local")
+    if executor.kind == "dask" and not executor.scheduler:
+        raise MatrixError("--executor dask needs --scheduler ADDRESS (or use --executor dask-local -j N)")
+    with dask_executor.connect(executor.scheduler if executor.kind == "dask" else None, executor.jobs) as client:
+        return dask_executor.run_dask(plan.statuses, store, client, keep_going=keep_going,
+                                      kind_modules=domain.kind_modules,
+                                      timing_resource=executor.timing_resource, display=display)
+
+
+@dataclass(frozen=True)
+class Garbage:
+    keys: list[str]
+    temp: list[Path]
+    bytes: int
+
+
+def find_garbage(store: Store, keep: set[str]) -> Garbage:
+    """Stored jobs no kept recipe reaches, failure records, and leftovers of killed runs."""
+    keys = [key for key in store.keys() if key not in keep]
+    failed = [p.stem for p in (store.root / "failed").glob("*.json") if p.stem not in keep]
+    temp = [p for p in (store.root / "tmp").glob("*") if not _in_flight(store, p)] \
+        if (store.root / "tmp").is_dir() else []
+    size = sum(_size(store.job_dir(k)) for k in keys) + sum(_size(p) for p in temp)
+    return Garbage(sorted(set(keys) | set(failed)), temp, size)
+
+
+def collect_garbage(store: Store, garbage: Garbage) -> None:
+    for key in garbage.keys:
+        with store.lock(key) as held:
+            if held:
+                store.remove(key)
+                (store.root / "locks" / f"{key}.lock").unlink(missing_ok=True)
+    for path in garbage.temp:
+        shutil.rmtree(path, ignore_errors=True)
+
+
+def _in_flight(store: Store, temp: Path) -> bool:
+    """A temp folder belongs to a running job when a lock whose key starts like it is held."""
+    if temp.name.startswith("trash-"):
+        return False
+    prefix = temp.name.split("-", 1)[0]
+    return any(store.is_locked(p.stem) for p in (store.root / "locks").glob(f"{prefix}*.lock"))
+
+
+def _size(path: Path) -> int:
+    if path.is_file():
+        return path.stat().st_size
+    return sum(p.stat().st_size for p in path.rglob("*") if p.is_file()) if path.is_dir() else 0

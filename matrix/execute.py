@@ -1,0 +1,212 @@
+"""Running the stale part of a plan on a local process pool.
+
+The driver keeps the schedule (which jobs are ready, which are blocked by a failure); workers run
+`matrix.worker.execute_job`, which does the locking and the atomic commit. Jobs of an `exclusive`
+kind (timings) run alone. A failed job's dependents are skipped; without `keep_going` nothing new
+starts after the first failure.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import time
+from collections import deque
+from collections.abc import Iterable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+
+from matrix.dag import dependents
+from matrix.display import Display, NullDisplay
+from matrix.jobs import Job
+from matrix.kinds import KINDS
+from matrix.stale import FRESH, JobStatus
+from matrix.store import Store
+from matrix.worker import BUSY, DONE_ELSEWHERE, FAILED, execute_job, init_worker
+
+SKIPPED, NOT_STARTED = "skipped", "not_started"
+BUSY_RETRY_S = 0.2
+
+
+@dataclass(frozen=True)
+class Outcome:
+    key: str
+    name: str
+    kind: str
+    status: str          # ok | not_applicable | failed | skipped | not_started | done_elsewhere
+    reason: str = ""
+    duration_s: float = 0.0
+
+
+@dataclass
+class RunSummary:
+    outcomes: list[Outcome] = field(default_factory=list)
+    fresh: int = 0
+    wall_s: float = 0.0
+
+    @property
+    def failed(self) -> list[Outcome]:
+        return [o for o in self.outcomes if o.status in (FAILED, SKIPPED, NOT_STARTED)]
+
+    def counts(self) -> dict[str, int]:
+        counts: dict[str, int] = {}
+        for outcome in self.outcomes:
+            counts[outcome.status] = counts.get(outcome.status, 0) + 1
+        return counts
+
+
+class Schedule:
+    """Which stale jobs may start: all their stale dependencies done, none failed."""
+
+    def __init__(self, stale: list[Job]):
+        self.jobs = {job.key: job for job in stale}
+        self.graph = {job.key: [d.key for d in job.dep_jobs() if d.key in self.jobs] for job in stale}
+        self.waiting = {key: set(deps) for key, deps in self.graph.items()}
+        self.needed_by: dict[str, list[str]] = {}
+        for key, deps in self.graph.items():
+            for dep in deps:
+                self.needed_by.setdefault(dep, []).append(key)
+        self.ready = deque(key for key in self.jobs if not self.waiting[key])
+        self.later: list[tuple[float, str]] = []   # jobs another run holds, retried after a pause
+        self.settled: set[str] = set()
+
+    def has_work(self) -> bool:
+        return bool(self.ready or self.later)
+
+    def take(self, exclusive_running: bool, running: int, slots: int) -> Job | None:
+        now = time.monotonic()
+        self.ready.extend(key for at, key in self.later if at <= now)
+        self.later = [(at, key) for at, key in self.later if at > now]
+        if not self.ready or exclusive_running or running >= slots:
+            return None
+        if KINDS.get(self.jobs[self.ready[0]].kind).exclusive and running:
+            return None  # an exclusive job waits until the others finish, then runs alone
+        return self.jobs[self.ready.popleft()]
+
+    def done(self, key: str) -> None:
+        self.settled.add(key)
+        for other in self.needed_by.get(key, ()):
+            self.waiting[other].discard(key)
+            if not self.waiting[other]:
+                self.ready.append(other)
+
+    def retry_later(self, key: str) -> None:
+        self.later.append((time.monotonic() + BUSY_RETRY_S, key))
+
+    def blocked_by(self, key: str) -> list[Job]:
+        """Settle and return every job that depends on `key`."""
+        self.settled.add(key)
+        blocked = dependents(self.graph, [key]) - self.settled
+        self.settled |= blocked
+        self.ready = deque(k for k in self.ready if k not in blocked)
+        return [self.jobs[k] for k in self.graph if k in blocked]
+
+    def pending(self) -> list[Job]:
+        """Jobs that never started."""
+        return [job for key, job in self.jobs.items() if key not in self.settled]
+
+
+def run_local(statuses: list[JobStatus], store: Store, *, jobs: int = 1, keep_going: bool = False,
+              kind_modules: Iterable[str] = (), display: Display | None = None) -> RunSummary:
+    """Run every non-fresh job of `statuses` (in dependency order) on `jobs` worker processes."""
+    display = display or NullDisplay()
+    stale = [s.job for s in statuses if s.state != FRESH]
+    summary = RunSummary(fresh=len(statuses) - len(stale))
+    started = time.monotonic()
+    if stale:
+        with _Pool(store, max(1, jobs), tuple(kind_modules), display) as pool:
+            _drive(Schedule(stale), pool, summary, keep_going, display)
+    summary.wall_s = time.monotonic() - started
+    return summary
+
+
+def _drive(schedule: Schedule, pool: _Pool, summary: RunSummary, keep_going: bool, display: Display) -> None:
+    running: dict[Future, Job] = {}
+    stopping = False
+    while running or (schedule.has_work() and not stopping):
+        exclusive = any(KINDS.get(j.kind).exclusive for j in running.values())
+        while not stopping and (job := schedule.take(exclusive, len(running), pool.slots)):
+            display.job_started(job)
+            running[pool.submit(job)] = job
+            exclusive = exclusive or KINDS.get(job.kind).exclusive
+        finished, _ = wait(running, timeout=0.1, return_when=FIRST_COMPLETED)
+        pool.drain_progress()
+        for future in finished:
+            job = running.pop(future)
+            outcome = _outcome(job, future)
+            if outcome.status == FAILED and pool.store.failure(job.key) is None:
+                pool.store.record_failure(job.key, {"error": outcome.reason, "spec": job.spec()})
+            if outcome.status == BUSY:
+                display.job_waiting(job)
+                schedule.retry_later(job.key)
+                continue
+            _record(outcome, schedule, summary, display)
+            stopping = stopping or (outcome.status == FAILED and not keep_going)
+    for job in schedule.pending():
+        _record(Outcome(job.key, job.name, job.kind, NOT_STARTED,
+                        "not started: the run stopped at the first failure (use --keep-going)"),
+                schedule, summary, display)
+
+
+def _record(outcome: Outcome, schedule: Schedule, summary: RunSummary, display: Display) -> None:
+    summary.outcomes.append(outcome)
+    display.job_finished(outcome)
+    if outcome.status == FAILED:
+        for blocked in schedule.blocked_by(outcome.key):
+            skipped = Outcome(blocked.key, blocked.name, blocked.kind, SKIPPED,
+                              f"dependency failed: {outcome.name}")
+            summary.outcomes.append(skipped)
+            display.job_finished(skipped)
+    else:
+        schedule.done(outcome.key)
+
+
+def _outcome(job: Job, future: Future) -> Outcome:
+    try:
+        answer = future.result()
+    except BrokenProcessPool:
+        answer = {"status": FAILED, "reason": "the worker process died (out of memory or a crash)"}
+    except Exception as error:  # an error in the engine's own worker code
+        answer = {"status": FAILED, "reason": f"{type(error).__name__}: {error}"}
+    return Outcome(job.key, job.name, job.kind, answer["status"], answer.get("reason", ""),
+                   answer.get("duration_s", 0.0))
+
+
+class _Pool:
+    """A spawn-based process pool that is rebuilt if a worker dies, plus a progress queue."""
+
+    def __init__(self, store: Store, slots: int, kind_modules: tuple, display: Display):
+        self.store, self.slots, self.kind_modules, self.display = store, slots, kind_modules, display
+        self.context = multiprocessing.get_context("spawn")
+        self.progress = self.context.Queue()
+        self.executor = self._new_executor()
+
+    def _new_executor(self) -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(self.slots, mp_context=self.context, initializer=init_worker,
+                                   initargs=(self.kind_modules, self.progress))
+
+    def submit(self, job: Job) -> Future:
+        try:
+            return self.executor.submit(execute_job, str(self.store.root), job.spec())
+        except BrokenProcessPool:
+            self.executor.shutdown(wait=False, cancel_futures=True)
+            self.executor = self._new_executor()
+            return self.executor.submit(execute_job, str(self.store.root), job.spec())
+
+    def drain_progress(self) -> None:
+        while not self.progress.empty():
+            try:
+                key, update = self.progress.get_nowait()
+            except Exception:  # queue.Empty, or a torn read at shutdown
+                return
+            self.display.job_progress(key, **update)
+
+    def __enter__(self) -> _Pool:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.executor.shutdown(wait=True, cancel_futures=True)
+        self.drain_progress()
+        self.progress.close()
+
+
+__all__ = ["run_local", "RunSummary", "Outcome", "DONE_ELSEWHERE"]

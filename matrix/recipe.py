@@ -1,0 +1,194 @@
+"""Recipes: one YAML file -> a validated, typed object and the grid of combinations.
+
+The engine validates the generic part (`name`, `description`, `matrix`); the domain contributes the
+schema of its own sections (pydantic types) and the axes a combination may carry. Every error names
+the file, the line and the key path, says what was expected and suggests the closest known name.
+"""
+from __future__ import annotations
+
+import typing
+from collections.abc import Callable, Collection, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pydantic
+
+from matrix.errors import RecipeError, did_you_mean
+from matrix.grid import RESERVED, expand_grid
+from matrix.yamlfile import Lines, read_yaml
+
+AxisValues = Callable[[Any], Collection[Any] | None]
+
+
+@dataclass(frozen=True)
+class Domain:
+    """What a domain plugs into the engine."""
+    name: str
+    sections: Mapping[str, tuple[Any, Any]]   # recipe key -> (pydantic type, default; ... = required)
+    axes: Mapping[str, AxisValues]             # known combination keys -> valid values (None: any)
+    plan: Callable[[Recipe], list]             # validated recipe -> jobs (matrix.jobs.Job)
+    kind_modules: tuple[str, ...] = ()         # imported (in workers too) to register job kinds
+    store_env: str = "MATRIX_STORE"
+    default_store: str = ".matrix"
+    after_run: Callable[..., None] | None = None   # (recipe, summary, store) after `run`
+
+
+@dataclass(frozen=True)
+class Recipe:
+    name: str
+    description: str
+    file: str
+    text: str
+    config: Any                          # the validated pydantic model (domain sections as attributes)
+    combinations: list[dict[str, Any]]
+    lines: Lines = field(repr=False, default_factory=dict)
+
+    def error(self, message: str, path: Sequence[Any]) -> RecipeError:
+        """A RecipeError pointing at `path` in this recipe (for the domain's own checks)."""
+        return RecipeError(message, file=self.file, line=line_of(self.lines, tuple(path)), path=path)
+
+
+def load_recipe(path: Path | str, domain: Domain) -> Recipe:
+    data, lines, text = read_yaml(Path(path))
+    file = str(path)
+    if not isinstance(data, dict):
+        raise RecipeError("a recipe is a mapping with at least `name` and `matrix`", file=file, line=1)
+    config = _validate(data, lines, file, domain)
+    try:
+        combinations = expand_grid(config.matrix)
+    except RecipeError as error:
+        raise RecipeError(error.message, file=file,
+                          line=line_of(lines, error.path), path=error.path) from None
+    if not combinations:
+        raise RecipeError("the matrix has no combinations left after `exclude`", file=file,
+                          line=line_of(lines, ("matrix",)), path=["matrix"])
+    recipe = Recipe(config.name, config.description, file, text, config, combinations, lines)
+    _check_combinations(recipe, domain)
+    return recipe
+
+
+def recipe_model(domain: Domain) -> type[pydantic.BaseModel]:
+    fields = {key: (annotation, default) for key, (annotation, default) in domain.sections.items()}
+    return pydantic.create_model(
+        "Recipe", __config__=pydantic.ConfigDict(extra="forbid", frozen=True),
+        name=(str, ...), description=(str, ""), matrix=(dict[str, Any], ...), **fields)
+
+
+def line_of(lines: Lines, path: tuple) -> int | None:
+    """The line of `path`, or of its closest ancestor that has one."""
+    for end in range(len(path), -1, -1):
+        if path[:end] in lines:
+            return lines[path[:end]]
+    return None
+
+
+def _validate(data: dict, lines: Lines, file: str, domain: Domain) -> Any:
+    model = recipe_model(domain)
+    try:
+        return model.model_validate(data)
+    except pydantic.ValidationError as error:
+        raise _recipe_error(error, data, lines, file, model) from None
+
+
+def _recipe_error(error: pydantic.ValidationError, data: Any, lines: Lines, file: str,
+                  model: type) -> RecipeError:
+    # A typo'd key also makes the key it meant "missing": report the typo, it is the cause.
+    first = min(error.errors(include_url=False), key=lambda e: e["type"] != "extra_forbidden")
+    path = _data_path(data, first["loc"])
+    message = _message(first, path, model)
+    more = error.error_count() - 1
+    if more:
+        message += f" (and {more} more problem{'s' if more > 1 else ''})"
+    return RecipeError(message, file=file, line=line_of(lines, tuple(path)), path=path)
+
+
+def _message(err: dict, path: list, model: type) -> str:
+    kind = err["type"]
+    if kind == "extra_forbidden":
+        known = _fields_at(model, path[:-1])
+        return (f"unknown key {path[-1]!r}{did_you_mean(path[-1], known)}; "
+                f"expected one of: {', '.join(sorted(known)) or '(none)'}")
+    if kind == "missing":
+        return f"missing required key {path[-1]!r}"
+    given = err.get("input")
+    shown = repr(given) if not isinstance(given, (dict, list)) else type(given).__name__
+    return f"{err['msg']} (got {shown})"
+
+
+def _data_path(data: Any, loc: tuple) -> list:
+    """The part of a pydantic error location that indexes into the data (drops union tags)."""
+    path, current = [], data
+    for i, part in enumerate(loc):
+        if isinstance(current, dict) and part in current:
+            path.append(part)
+            current = current[part]
+        elif isinstance(current, list) and isinstance(part, int) and part < len(current):
+            path.append(part)
+            current = current[part]
+        elif i == len(loc) - 1:
+            path.append(part)
+    return path
+
+
+def _fields_at(model: Any, path: Sequence[Any]) -> list[str]:
+    """Field names of the pydantic model found at `path` below `model` ([] when unknown)."""
+    candidates = [model]
+    for part in path:
+        candidates = [child for c in candidates for child in _children(c, part)]
+    return sorted({name for c in candidates if _is_model(c) for name in c.model_fields})
+
+
+def _children(annotation: Any, part: Any) -> list[Any]:
+    if _is_model(annotation):
+        info = annotation.model_fields.get(part)
+        return _unwrap(info.annotation) if info else []
+    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin in (dict, Mapping) and len(args) == 2:
+        return _unwrap(args[1])
+    if origin in (list, tuple, Sequence) and args:
+        return _unwrap(args[0])
+    return []
+
+
+def _unwrap(annotation: Any) -> list[Any]:
+    """Union / Optional / Annotated arms, flattened."""
+    origin = typing.get_origin(annotation)
+    if origin is typing.Annotated:
+        return _unwrap(typing.get_args(annotation)[0])
+    if origin in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+        return [arm for arg in typing.get_args(annotation) for arm in _unwrap(arg)]
+    return [annotation]
+
+
+def _is_model(annotation: Any) -> bool:
+    return isinstance(annotation, type) and issubclass(annotation, pydantic.BaseModel)
+
+
+def _check_combinations(recipe: Recipe, domain: Domain) -> None:
+    """Every key of every combination is an axis the domain knows, with a value it accepts."""
+    matrix = recipe.config.matrix
+    valid = {axis: values(recipe.config) for axis, values in domain.axes.items()}
+    for path, key, value in _declared_values(matrix):
+        if key not in domain.axes:
+            key_path = path if path[1] in RESERVED else path[:2]
+            raise recipe.error(f"unknown axis {key!r}{did_you_mean(key, domain.axes)}; "
+                               f"known axes: {', '.join(domain.axes)}", key_path)
+        if not isinstance(value, (str, int, float, bool)):
+            raise recipe.error(f"axis values are plain names or numbers, got {value!r}", path)
+        known = valid[key]
+        if known is not None and value not in known:
+            raise recipe.error(f"unknown {key} {value!r}{did_you_mean(str(value), map(str, known))}; "
+                               f"known: {', '.join(map(str, known)) or '(none)'}", path)
+
+
+def _declared_values(matrix: Mapping[str, Any]):
+    """(key path, axis, value) for every value written in the matrix section."""
+    for key, values in matrix.items():
+        if key in RESERVED:
+            for i, entry in enumerate(matrix[key] or []):
+                for axis, value in entry.items():
+                    yield ["matrix", key, i, axis], axis, value
+        else:
+            for i, value in enumerate(values):
+                yield ["matrix", key, i], key, value

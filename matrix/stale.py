@@ -1,0 +1,97 @@
+"""Why a job must run: a short chain, as DVC's `Stage.changed`.
+
+    own (params, code, inputs) -> dependencies -> outputs
+
+Each link answers with reasons; an empty answer means the job is fresh. A job whose key has a
+finished, intact result in the store is fresh whatever happened before (undoing an edit finds the
+old results again). Otherwise the job's last spec under the same name in this recipe's last run
+explains what changed.
+"""
+from __future__ import annotations
+
+from collections.abc import Collection, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from matrix.jobs import Job, canonical_json
+from matrix.store import Store
+
+FRESH, STALE, NEW = "fresh", "stale", "new"
+
+
+@dataclass(frozen=True)
+class JobStatus:
+    job: Job
+    state: str                  # fresh | stale | new
+    reasons: tuple[str, ...]
+
+    @property
+    def reason(self) -> str:
+        return "; ".join(self.reasons)
+
+
+def job_status(job: Job, store: Store, previous: Mapping[str, dict],
+               forced_kinds: Collection[str] = ()) -> JobStatus:
+    if job.kind in forced_kinds:
+        return JobStatus(job, STALE, (f"forced (--force {job.kind})",))
+    result = store.result(job.key)
+    if result is not None and store.outputs_intact(job.key, result):
+        return JobStatus(job, FRESH, ())
+    if result is not None:
+        return JobStatus(job, STALE, ("output missing or corrupt",))
+    before = previous.get(job.name)
+    failure = store.failure(job.key)
+    if failure is not None:
+        return JobStatus(job, STALE, (f"failed last time: {failure.get('error', '?')}",))
+    if before is None:
+        return JobStatus(job, NEW, ("new",))
+    reasons = own_changes(job, before) + dependency_changes(job, before)
+    return JobStatus(job, STALE, tuple(reasons) or ("output missing or corrupt",))
+
+
+def own_changes(job: Job, before: dict) -> list[str]:
+    reasons = []
+    diffs = _diff(before.get("params", {}), dict(job.params))
+    if diffs:
+        reasons.append("params changed: " + ", ".join(diffs[:3]) + (" …" if len(diffs) > 3 else ""))
+    if before.get("code") != job.code:
+        reasons.append(f"code changed ({job.kind})")
+    old_inputs = {role: f.get("sha256") for role, f in before.get("inputs", {}).items()}
+    changed = sorted(role for role, f in job.inputs.items() if old_inputs.get(role) != f.sha256)
+    if changed:
+        reasons.append("input changed: " + ", ".join(f"{r} ({job.inputs[r].path})" for r in changed))
+    return reasons
+
+
+def dependency_changes(job: Job, before: dict) -> list[str]:
+    old = before.get("deps", {})
+    changed = [d.name for role, dep in job.deps.items()
+               for d in (dep if isinstance(dep, tuple) else (dep,))
+               if d.key not in _flat(old.get(role))]
+    return [f"dependency changed: {', '.join(dict.fromkeys(changed))}"] if changed else []
+
+
+def _flat(value: Any) -> list:
+    return value if isinstance(value, list) else [value]
+
+
+def _diff(old: Any, new: Any, prefix: str = "") -> list[str]:
+    if isinstance(old, dict) and isinstance(new, dict):
+        out = []
+        for key in sorted(set(old) | set(new), key=str):
+            where = f"{prefix}.{key}" if prefix else str(key)
+            if key not in old:
+                out.append(f"{where} added ({_short(new[key])})")
+            elif key not in new:
+                out.append(f"{where} removed")
+            else:
+                out.extend(_diff(old[key], new[key], where))
+        return out
+    if canonical_json(old) != canonical_json(new):
+        return [f"{prefix or 'value'} {_short(old)} -> {_short(new)}"]
+    return []
+
+
+def _short(value: Any) -> str:
+    text = canonical_json(value)
+    return text if len(text) <= 30 else text[:27] + "..."

@@ -1,0 +1,146 @@
+"""Running one job, wherever it runs (a local worker process or a Dask worker).
+
+`execute_job` takes the job's spec as plain data, reads its dependencies' results from the store,
+runs the registered handler in a private folder and commits the result atomically, all under the
+job's lock, so two runs sharing a store never run the same job at once.
+"""
+from __future__ import annotations
+
+import contextlib
+import importlib
+import logging
+import time
+import traceback
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
+from matrix.store import LOG, Store
+
+OK, NOT_APPLICABLE, FAILED, BUSY, DONE_ELSEWHERE = "ok", "not_applicable", "failed", "busy", "done_elsewhere"
+
+_progress_sink: Callable[[str, dict], None] | None = None
+
+
+def init_worker(kind_modules: Iterable[str], progress_queue: Any = None) -> None:
+    """Process-pool initializer: register the domain's job kinds; send progress to the driver."""
+    global _progress_sink
+    for module in kind_modules:
+        importlib.import_module(module)
+    if progress_queue is not None:
+        _progress_sink = lambda key, update: progress_queue.put((key, update))
+
+
+def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = ()) -> dict:
+    """Run the job described by `spec` (see Job.spec) unless it is done or running elsewhere.
+
+    Returns {"status": ok | not_applicable | failed | busy | done_elsewhere, "reason", "duration_s"}."""
+    for module in kind_modules:
+        importlib.import_module(module)
+    store, key = Store(store_root), spec["key"]
+    with store.lock(key) as held:
+        if not held:
+            return {"status": BUSY, "reason": "running in another process"}
+        done = store.result(key)
+        if done is not None and store.outputs_intact(key, done):
+            return {"status": DONE_ELSEWHERE, "reason": done.get("reason", ""), "duration_s": 0.0}
+        return _run_locked(store, spec)
+
+
+def _run_locked(store: Store, spec: dict) -> dict:
+    key, started = spec["key"], time.time()
+    workdir = store.new_workdir(key)
+    deps = _dep_results(store, spec)
+    blocked = _not_applicable_dep(spec, deps)
+    try:
+        if blocked:
+            status, reason, value = NOT_APPLICABLE, blocked, {}
+        else:
+            status, reason, value = _call_handler(store, spec, deps, workdir)
+    except Exception as error:  # a failing handler is reported, never crashes the run
+        return _fail(store, spec, workdir, error, started)
+    result = {"status": status, "reason": reason, "value": value, "duration_s": time.time() - started,
+              "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    store.commit(key, workdir, spec, result)
+    return {"status": status, "reason": reason, "duration_s": result["duration_s"]}
+
+
+def _call_handler(store: Store, spec: dict, deps: dict, workdir: Path) -> tuple[str, str, dict]:
+    kind = KINDS.get(spec["kind"])
+    with _job_log(workdir / LOG, spec) as log:
+        ctx = JobContext(key=spec["key"], kind=spec["kind"], name=spec["name"], params=spec["params"],
+                         deps=deps, inputs={r: Path(f["path"]) for r, f in spec["inputs"].items()},
+                         out=workdir / "artifacts", cache=store.cache, log=log,
+                         _progress=_progress_for(spec["key"]))
+        try:
+            value = kind.handler(ctx)
+        except NotApplicable as na:
+            log.info("not applicable: %s", na)
+            return NOT_APPLICABLE, str(na), {}
+    return OK, "", dict(value or {})
+
+
+def _dep_results(store: Store, spec: dict) -> dict[str, DepResult | tuple[DepResult, ...]]:
+    def one(key: str) -> DepResult:
+        result, dep_spec = store.result(key), store.spec(key) or {}
+        if result is None:
+            raise RuntimeError(f"dependency {key[:12]} has no result in {store.root}")
+        return DepResult(key, dep_spec.get("kind", ""), dep_spec.get("params", {}),
+                         result.get("value", {}), store.artifacts(key), dep_spec.get("name", key[:12]),
+                         result["status"], result.get("reason", ""))
+    return {role: tuple(one(k) for k in keys) if isinstance(keys, list) else one(keys)
+            for role, keys in spec["deps"].items()}
+
+
+def _not_applicable_dep(spec: dict, deps: dict) -> str:
+    for dep in (d for value in deps.values() for d in (value if isinstance(value, tuple) else (value,))):
+        if dep.status == NOT_APPLICABLE:
+            return f"{dep.reason} ({dep.name})"
+    return ""
+
+
+def _fail(store: Store, spec: dict, workdir: Path, error: Exception, started: float) -> dict:
+    message = f"{type(error).__name__}: {error}".splitlines()[0][:300]
+    log_tail = _tail(workdir / LOG)
+    store.record_failure(spec["key"], {"error": message, "traceback": traceback.format_exc(),
+                                       "log_tail": log_tail, "spec": spec, "workdir": str(workdir)})
+    return {"status": FAILED, "reason": message, "duration_s": time.time() - started}
+
+
+def _tail(path: Path, lines: int = 30) -> str:
+    try:
+        return "\n".join(path.read_text(errors="replace").splitlines()[-lines:])
+    except OSError:
+        return ""
+
+
+@contextlib.contextmanager
+def _job_log(path: Path, spec: dict):
+    """A logger writing to the job's log.txt; the handler's prints go there too."""
+    logger = logging.getLogger(f"matrix.job.{spec['key'][:12]}")
+    logger.setLevel(logging.INFO)
+    logger.propagate = False
+    handler = logging.FileHandler(path, encoding="utf-8")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
+    logger.addHandler(handler)
+    try:
+        stream = handler.stream
+        with contextlib.redirect_stdout(stream), contextlib.redirect_stderr(stream):
+            logger.info("%s %s (%s)", spec["kind"], spec["name"], spec["key"])
+            yield logger
+    finally:
+        logger.removeHandler(handler)
+        handler.close()
+
+
+def _progress_for(key: str) -> Callable[..., None]:
+    last = [0.0]
+
+    def report(**update: Any) -> None:
+        now = time.monotonic()
+        done = update.get("total") is not None and update.get("completed") == update.get("total")
+        if _progress_sink is not None and (done or now - last[0] > 0.2):
+            last[0] = now
+            _progress_sink(key, update)
+    return report

@@ -1,0 +1,72 @@
+"""`pilotlab dataset inspect BAG [--json]` and `pilotlab dataset convert FOLDER --out BAG`."""
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser("dataset", help="inspect rosbags, convert DeepLearningStudio datasets")
+    commands = parser.add_subparsers(dest="dataset_command", metavar="ACTION", required=True)
+
+    inspect = commands.add_parser("inspect", help="topics, types, counts, duration, image size, v/w ranges")
+    inspect.add_argument("bag", help="a ROS1 .bag, a ROS2 bag folder, or a DeepLearningStudio dataset folder")
+    inspect.add_argument("--command-topic", default=None, help="topic of the commands (default /F1ROS/cmd_vel)")
+    inspect.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    inspect.set_defaults(func=run_inspect)
+
+    convert = commands.add_parser("convert", help="a DeepLearningStudio folder (images + data.csv) -> a bag")
+    convert.add_argument("folder", help="folder with <n>.png images and data.csv (image_name, v, w, timestamp)")
+    convert.add_argument("--out", required=True, help="output: NAME.bag (ROS1) or a folder name (ROS2)")
+    convert.add_argument("--storage", choices=["auto", "ros1", "sqlite3", "mcap"], default="auto",
+                         help="auto: ROS1 for .bag, else ROS2 sqlite3")
+    convert.add_argument("--compression", choices=["jpeg", "png"], default=None,
+                         help="write sensor_msgs/CompressedImage instead of raw rgb8 images")
+    convert.add_argument("--image-topic", default=None)
+    convert.add_argument("--command-topic", default=None)
+    convert.set_defaults(func=run_convert)
+
+
+def run_inspect(args: argparse.Namespace) -> int:
+    from pilotlab.data.inspect import inspect_recording
+    from pilotlab.data.topics import COMMAND_TOPIC
+
+    info = inspect_recording(args.bag, args.command_topic or COMMAND_TOPIC)
+    if args.json:
+        print(json.dumps(info, indent=1))
+    else:
+        print_inspection(info)
+    return 0
+
+
+def print_inspection(info: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    console.print(f"[bold]{info['path']}[/bold]  {info['format']}, {info['messages']} messages, "
+                  f"{info['duration_s']:.1f} s")
+    if info["topics"]:
+        table = Table("topic", "type", "messages", "rate (Hz)")
+        for topic in info["topics"]:
+            table.add_row(topic["name"], topic["type"], str(topic["count"]), f"{topic['rate_hz'] or 0:.1f}")
+        console.print(table)
+    for name, image in info["images"].items():
+        height, width = image["size"]
+        console.print(f"images on {name}: {width}×{height} {image['encoding']}")
+    commands = info["commands"]
+    if commands:
+        console.print(f"commands on {commands['topic']}: {commands['count']}, "
+                      f"v {commands['v'][0]:.3f} .. {commands['v'][1]:.3f} m/s, "
+                      f"w {commands['w'][0]:.3f} .. {commands['w'][1]:.3f} rad/s")
+    else:
+        console.print("no command topic found (name it with --command-topic)")
+
+
+def run_convert(args: argparse.Namespace) -> int:
+    from pilotlab.data.folder import folder_to_bag
+
+    count = folder_to_bag(args.folder, args.out, storage=args.storage, compression=args.compression,
+                          image_topic=args.image_topic, command_topic=args.command_topic)
+    print(f"wrote {count} frames to {args.out}")
+    return 0

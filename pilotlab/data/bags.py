@@ -1,0 +1,224 @@
+"""Read any ROS1 bag or ROS2 bag (sqlite3 or mcap) into a FrameSet, through rosbags' AnyReader.
+
+Each image is paired with the command in force at its time stamp (the latest command at or before
+it, by bag time: commands carry no header); images before the first command are dropped. Every
+way a bag can be unusable ends in a `BagError` that names the bag (and topic) and says how to fix it.
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+
+from pilotlab.data.frames import FrameSet
+from pilotlab.data.images import IMAGE_TYPES, encoding_of, frame_from_message, image_size
+from pilotlab.data.preprocess import PreprocessConfig
+from pilotlab.data.topics import COMMAND_TOPIC, DEFAULT_IMAGE_TOPICS
+from pilotlab.errors import BagError
+
+COMMAND_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")
+CHUNK = 32                     # frames per task handed to a worker thread
+Progress = Callable[[int, int], None]
+
+
+@dataclass(frozen=True)
+class Topics:
+    image: str | None = None           # None: the first of DEFAULT_IMAGE_TOPICS present
+    command: str = COMMAND_TOPIC
+
+
+def bag_format(path: Path) -> str:
+    """'ros1', 'ros2-sqlite3' or 'ros2-mcap'."""
+    path = Path(path)
+    if path.suffix == ".bag":
+        return "ros1"
+    names = [p.suffix for p in path.iterdir()] if path.is_dir() else [path.suffix]
+    return "ros2-mcap" if ".mcap" in names else "ros2-sqlite3"
+
+
+def corrupt(path: Path, detail: str) -> BagError:
+    return BagError(f"{path}: cannot read the bag ({detail}); it is truncated or corrupt. Record it again, "
+                    "or repair it (`rosbag reindex` for ROS1, `ros2 bag reindex` for ROS2) and retry")
+
+
+def check_bag_path(path: Path) -> None:
+    """Errors for paths that are not a bag at all, before rosbags sees them."""
+    if not path.exists():
+        raise BagError(f"{path}: no such bag; check the path (a ROS1 .bag file or a ROS2 bag folder)")
+    if path.is_dir() and not (path / "metadata.yaml").exists():
+        raise BagError(f"{path}: this folder is not a ROS2 bag (it has no metadata.yaml) nor a dataset folder "
+                       "(no data.csv); if its recording was interrupted, run `ros2 bag reindex` on it")
+    if path.is_file() and path.suffix not in (".bag", ".db3", ".mcap"):
+        raise BagError(f"{path}: not a bag file; a ROS1 bag ends in .bag, a ROS2 bag is a folder "
+                       "(or its .db3 / .mcap file)")
+
+
+@contextmanager
+def open_bag(path: Path | str) -> Iterator[AnyReader]:
+    """An open AnyReader on one bag, with rosbags' errors turned into BagErrors."""
+    path = Path(path)
+    check_bag_path(path)
+    reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+    try:
+        reader.open()
+    except Exception as error:  # rosbags raises many types for a damaged file
+        raise corrupt(path, _describe(error)) from None
+    try:
+        if reader.message_count == 0:
+            raise BagError(f"{path}: the bag is empty (no messages); record it again, "
+                           "or check that the recorder wrote to this path")
+        yield reader
+    finally:
+        reader.close()
+
+
+def _describe(error: Exception) -> str:
+    text = " ".join(str(a) for a in error.args) if error.args else type(error).__name__
+    return text.strip() or type(error).__name__
+
+
+def topic_listing(reader: AnyReader) -> str:
+    return ", ".join(f"{name} ({info.msgtype}, {info.msgcount} message{'' if info.msgcount == 1 else 's'})"
+                     for name, info in sorted(reader.topics.items()))
+
+
+def find_topic(reader: AnyReader, path: Path, topic: str | None, key: str,
+               types: tuple[str, ...], defaults: tuple[str, ...] = ()) -> tuple[str, str, list]:
+    """(topic, msgtype, connections) of the topic named by `key` (or the first default present)."""
+    topics = reader.topics
+    candidates = [topic] if topic else [t for t in defaults if t in topics]
+    if not candidates or candidates[0] not in topics:
+        lacks = (f"no topic {topic!r}" if topic else
+                 f"none of the default {key.replace('_', ' ')}s ({', '.join(defaults)})")
+        raise BagError(f"{path}: the bag has {lacks}; topics present: {topic_listing(reader)}; "
+                       f"set {key} to one of them")
+    name = candidates[0]
+    info = topics[name]
+    if info.msgtype not in types:
+        raise BagError(f"{path}: topic {name!r} carries {info.msgtype}, not {' or '.join(types)}; "
+                       f"set {key} to a topic of that type (topics present: {topic_listing(reader)})")
+    if info.msgcount == 0:
+        raise BagError(f"{path}: topic {name!r} has no messages; record it again or set {key} to another topic")
+    return name, info.msgtype, info.connections
+
+
+def messages(reader: AnyReader, path: Path, connections: list, start: int | None = None
+             ) -> Iterator[tuple[int, object]]:
+    """(time stamp ns, message) of the given connections, in time order."""
+    stream = reader.messages(connections, start=start)
+    while True:
+        try:
+            connection, stamp, raw = next(stream)
+            msg = reader.deserialize(raw, connection.msgtype)
+        except StopIteration:
+            return
+        except Exception as error:  # a damaged chunk, a bad compression block, a short message
+            raise corrupt(path, _describe(error)) from None
+        yield stamp, msg
+
+
+def read_commands(reader: AnyReader, path: Path, topic: str) -> tuple[np.ndarray, np.ndarray]:
+    """(time stamps int64 [M], physical (v, w) float32 [M, 2]) of the command topic."""
+    name, msgtype, connections = find_topic(reader, path, topic, "command_topic", COMMAND_TYPES)
+    stamps, labels = [], []
+    for stamp, msg in messages(reader, path, connections):
+        twist = msg.twist if msgtype.endswith("TwistStamped") else msg
+        stamps.append(stamp)
+        labels.append((twist.linear.x, twist.angular.z))
+    return np.asarray(stamps, np.int64), np.asarray(labels, np.float32).reshape(-1, 2)
+
+
+def default_workers() -> int:
+    """Threads that resize frames beside the reading thread (cv2 releases the GIL)."""
+    return max(0, min(2, len(os.sched_getaffinity(0))))
+
+
+def read_bag(path: Path | str, preprocess: PreprocessConfig, topics: Topics = Topics(), *,
+             workers: int | None = None, progress: Progress | None = None) -> FrameSet:
+    """Every image at or after the first command, preprocessed, with the command in force."""
+    path = Path(path)
+    with open_bag(path) as reader:
+        cmd_stamps, commands = read_commands(reader, path, topics.command)
+        order = np.argsort(cmd_stamps, kind="stable")
+        cmd_stamps, commands = cmd_stamps[order], commands[order]
+        name, msgtype, connections = find_topic(reader, path, topics.image, "image_topic",
+                                                IMAGE_TYPES, DEFAULT_IMAGE_TOPICS)
+        total = sum(c.msgcount for c in connections)
+        stream = messages(reader, path, connections, start=int(cmd_stamps[0]))
+        decoder = _Decoder(preprocess, msgtype, f"{path}, topic {name}", total,
+                           default_workers() if workers is None else workers, progress)
+        stamps, first = decoder.run(stream)
+    if not len(stamps):
+        raise BagError(f"{path}: no image on {name!r} at or after the first command on {topics.command!r}; "
+                       "the recording has no labelled frames, record it again")
+    index = np.searchsorted(cmd_stamps, stamps, side="right") - 1
+    frames = decoder.frames[:len(stamps)]
+    meta = {"source": str(path), "format": bag_format(path), "image_topic": name, "image_type": msgtype,
+            "encoding": encoding_of(first, msgtype),
+            "image_size": list(image_size(first, msgtype, f"{path}, topic {name}")),
+            "command_topic": topics.command, "frames": len(stamps), "dropped": total - len(stamps),
+            "start_ns": int(stamps[0]), "end_ns": int(stamps[-1]), "preprocess": preprocess.as_dict()}
+    return FrameSet(frames, commands[index], np.zeros(len(stamps), np.int32), meta)
+
+
+class _Decoder:
+    """Preprocess image messages into one preallocated array, optionally on worker threads."""
+
+    def __init__(self, config: PreprocessConfig, msgtype: str, where: str, capacity: int,
+                 workers: int, progress: Progress | None):
+        self.config, self.msgtype, self.where, self.workers = config, msgtype, where, workers
+        self.frames = np.empty((capacity, config.height, config.width, 3), np.uint8)
+        self.progress = progress or (lambda done, total: None)
+
+    def _decode(self, chunk: list[tuple[int, object]]) -> None:
+        for i, msg in chunk:
+            frame_from_message(msg, self.msgtype, self.config, self.where, out=self.frames[i])
+
+    def run(self, stream: Iterator[tuple[int, object]]) -> tuple[np.ndarray, object]:
+        """(time stamps of the decoded frames, the first message)."""
+        stamps, chunk, pending, first = [], [], [], None
+        pool = ThreadPoolExecutor(self.workers) if self.workers else None
+        try:
+            for stamp, msg in stream:
+                if len(stamps) == len(self.frames):
+                    break  # more messages than the index announced (never seen; keeps writes in bounds)
+                first = first if first is not None else msg
+                chunk.append((len(stamps), msg))
+                stamps.append(stamp)
+                if len(chunk) == CHUNK:
+                    self._submit(pool, chunk, pending)
+                    chunk = []
+                    self.progress(len(stamps), len(self.frames))
+            self._submit(pool, chunk, pending)
+            for future in pending:
+                future.result()
+        finally:
+            if pool:
+                pool.shutdown(cancel_futures=True)
+        self.progress(len(stamps), len(stamps))
+        return np.asarray(stamps, np.int64), first
+
+    def _submit(self, pool: ThreadPoolExecutor | None, chunk: list, pending: list[Future]) -> None:
+        if pool is None:
+            return self._decode(chunk)
+        pending.append(pool.submit(self._decode, chunk))
+        while len(pending) > 2 * self.workers:      # bound the messages held in memory
+            pending.pop(0).result()
+
+
+def read_frames(path: Path | str, preprocess: PreprocessConfig, topics: Topics = Topics(), **kwargs) -> FrameSet:
+    """A bag, or a DeepLearningStudio dataset folder (`data.csv` + images), as a FrameSet."""
+    from pilotlab.data.folder import is_dataset_folder, read_folder
+
+    path = Path(path)
+    if is_dataset_folder(path):
+        return read_folder(path, preprocess, progress=kwargs.get("progress"))
+    return read_bag(path, preprocess, topics, **kwargs)
+

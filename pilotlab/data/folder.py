@@ -1,0 +1,127 @@
+"""DeepLearningStudio dataset folders: images plus `data.csv` (image_name, v, w, timestamp).
+
+Such a folder is read directly (each row's v, w label its image) or converted into a bag, where each
+row becomes a command and an image at the same time stamp, so reading the bag back gives the same
+frames and labels.
+"""
+from __future__ import annotations
+
+import csv
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from pilotlab.data.bagwrite import BagWriter
+from pilotlab.data.frames import FrameSet
+from pilotlab.data.preprocess import PreprocessConfig, preprocess
+from pilotlab.errors import BagError
+
+CSV_NAME = "data.csv"
+DEFAULT_RATE_HZ = 20.0         # frame rate assumed when data.csv has no timestamp column
+
+
+@dataclass(frozen=True)
+class FolderRow:
+    image: Path
+    v: float
+    w: float
+    stamp_ns: int
+
+
+def is_dataset_folder(path: Path) -> bool:
+    return Path(path).is_dir() and (Path(path) / CSV_NAME).is_file()
+
+
+def _image_path(folder: Path, name: str, row: int) -> Path:
+    path = folder / name
+    if not path.suffix and not path.exists():
+        path = path.with_suffix(".png")
+    if not path.is_file():
+        raise BagError(f"{folder / CSV_NAME}: row {row} names image {name!r}, which is not in {folder}; "
+                       "add the image or remove the row")
+    return path
+
+
+def _float(value: str, column: str, row: int, csv_path: Path) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise BagError(f"{csv_path}: row {row}, column {column!r} is {value!r}, not a number; fix the row") from None
+
+
+def read_rows(folder: Path | str, rate_hz: float = DEFAULT_RATE_HZ) -> list[FolderRow]:
+    """The rows of a dataset folder, checked: images present, numbers numeric, time increasing."""
+    folder = Path(folder)
+    csv_path = folder / CSV_NAME
+    if not csv_path.is_file():
+        raise BagError(f"{folder}: not a dataset folder (no {CSV_NAME} with columns image_name, v, w, timestamp)")
+    with csv_path.open(newline="") as handle:
+        table = list(csv.DictReader(handle))
+    columns = set(table[0]) if table else set()
+    if not table or not {"v", "w"} <= columns:
+        raise BagError(f"{csv_path}: needs a header with columns v and w (and image_name, timestamp) "
+                       f"and at least one row; found columns: {', '.join(sorted(columns)) or 'none'}")
+    rows = []
+    for i, entry in enumerate(table, start=1):
+        name = entry.get("image_name") or f"{i - 1}.png"
+        seconds = (_float(entry["timestamp"], "timestamp", i, csv_path) if "timestamp" in columns
+                   else (i - 1) / rate_hz)
+        rows.append(FolderRow(_image_path(folder, name, i), _float(entry["v"], "v", i, csv_path),
+                              _float(entry["w"], "w", i, csv_path), round(seconds * 1e9)))
+    stamps = np.array([r.stamp_ns for r in rows])
+    if np.any(np.diff(stamps) <= 0):
+        row = int(np.argmax(np.diff(stamps) <= 0)) + 2
+        raise BagError(f"{csv_path}: timestamp does not increase at row {row}; sort the rows by time, "
+                       f"or remove the timestamp column to assume {rate_hz:g} frames per second")
+    return rows
+
+
+def load_image(path: Path) -> np.ndarray:
+    """uint8 H×W×3 RGB."""
+    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if bgr is None:
+        raise BagError(f"{path}: not a readable image; replace or remove it (and its row in {CSV_NAME})")
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
+
+def read_folder(folder: Path | str, config: PreprocessConfig,
+                progress: Callable[[int, int], None] | None = None) -> FrameSet:
+    folder = Path(folder)
+    rows = read_rows(folder)
+    frames = np.empty((len(rows), config.height, config.width, 3), np.uint8)
+    size = None
+    for i, row in enumerate(rows):
+        image = load_image(row.image)
+        size = size or list(image.shape[:2])
+        preprocess(image, config, out=frames[i])
+        if progress and i % 32 == 0:
+            progress(i, len(rows))
+    if progress:
+        progress(len(rows), len(rows))
+    labels = np.array([(r.v, r.w) for r in rows], np.float32)
+    meta = {"source": str(folder), "format": "folder", "encoding": "png", "image_size": size,
+            "frames": len(rows), "dropped": 0, "start_ns": rows[0].stamp_ns, "end_ns": rows[-1].stamp_ns,
+            "preprocess": config.as_dict()}
+    return FrameSet(frames, labels, np.zeros(len(rows), np.int32), meta)
+
+
+def folder_to_bag(folder: Path | str, out: Path | str, *, storage: str = "auto",
+                  compression: str | None = None, image_topic: str | None = None,
+                  command_topic: str | None = None) -> int:
+    """Write a dataset folder as a bag; returns the number of frames written."""
+    rows = read_rows(folder)
+    options = {"command_topic": command_topic} if command_topic else {}
+    writer = BagWriter(out, storage=storage, compression=compression, image_topic=image_topic, **options)
+    try:
+        with writer as bag:
+            for row in rows:
+                bag.command(row.stamp_ns, row.v, row.w)
+                bag.image(row.stamp_ns, load_image(row.image))
+    except BaseException:
+        shutil.rmtree(out, ignore_errors=True) if Path(out).is_dir() else Path(out).unlink(missing_ok=True)
+        raise
+    return len(rows)

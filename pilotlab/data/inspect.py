@@ -1,0 +1,57 @@
+"""What a bag (or dataset folder) holds: topics, types, counts, duration, image size, v/w ranges."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pilotlab.data.bags import COMMAND_TYPES, bag_format, find_topic, messages, open_bag, read_commands
+from pilotlab.data.folder import is_dataset_folder, load_image, read_rows
+from pilotlab.data.images import IMAGE_TYPES, encoding_of, image_size
+from pilotlab.data.topics import COMMAND_TOPIC
+
+
+def _range(values: np.ndarray) -> list[float] | None:
+    return [float(values.min()), float(values.max())] if len(values) else None
+
+
+def inspect_recording(path: Path | str, command_topic: str = COMMAND_TOPIC) -> dict[str, Any]:
+    path = Path(path)
+    return inspect_folder(path) if is_dataset_folder(path) else inspect_bag(path, command_topic)
+
+
+def inspect_bag(path: Path, command_topic: str = COMMAND_TOPIC) -> dict[str, Any]:
+    with open_bag(path) as reader:
+        seconds = reader.duration / 1e9
+        topics = [{"name": name, "type": info.msgtype, "count": info.msgcount,
+                   "rate_hz": round(info.msgcount / seconds, 2) if seconds > 0 else None}
+                  for name, info in sorted(reader.topics.items())]
+        images = {t["name"]: _first_image(reader, path, t["name"]) for t in topics if t["type"] in IMAGE_TYPES}
+        commands = None
+        if reader.topics.get(command_topic) and reader.topics[command_topic].msgtype in COMMAND_TYPES:
+            _, labels = read_commands(reader, path, command_topic)
+            commands = {"topic": command_topic, "count": len(labels),
+                        "v": _range(labels[:, 0]), "w": _range(labels[:, 1])}
+        return {"path": str(path), "format": bag_format(path), "messages": reader.message_count,
+                "start_ns": reader.start_time, "end_ns": reader.end_time, "duration_s": round(seconds, 3),
+                "topics": topics, "images": images, "commands": commands}
+
+
+def _first_image(reader, path: Path, topic: str) -> dict[str, Any]:
+    name, msgtype, connections = find_topic(reader, path, topic, "image_topic", IMAGE_TYPES)
+    _, msg = next(messages(reader, path, connections))
+    where = f"{path}, topic {name}"
+    return {"type": msgtype, "encoding": encoding_of(msg, msgtype), "size": list(image_size(msg, msgtype, where))}
+
+
+def inspect_folder(path: Path) -> dict[str, Any]:
+    rows = read_rows(path)
+    labels = np.array([(r.v, r.w) for r in rows], np.float64)
+    seconds = (rows[-1].stamp_ns - rows[0].stamp_ns) / 1e9
+    return {"path": str(path), "format": "folder", "messages": len(rows), "start_ns": rows[0].stamp_ns,
+            "end_ns": rows[-1].stamp_ns, "duration_s": round(seconds, 3),
+            "topics": [], "images": {"data.csv": {"type": "png", "encoding": "png",
+                                                  "size": list(load_image(rows[0].image).shape[:2])}},
+            "commands": {"topic": "data.csv", "count": len(rows), "v": _range(labels[:, 0]),
+                         "w": _range(labels[:, 1])}}

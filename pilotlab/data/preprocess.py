@@ -1,0 +1,132 @@
+"""Preprocessing as DeepLearningStudio's PilotNet: crop the lower half, resize to 200×66.
+
+One function, `preprocess`, turns a camera image into the uint8 66×200×3 RGB frame the FrameSet
+stores; the bag reader calls it on every decoded message and the simulator's brain calls it on every
+live camera image (through `DrivePreprocessor`), so a network sees at drive time exactly what it saw
+in training. `to_input` turns such frames into the network's float tensor.
+
+    pre = DrivePreprocessor.from_checkpoint(checkpoint)   # the dict load_checkpoint returns
+    inputs = pre(rgb_image)                                 # [1, 3 × frames, 66, 200] float32
+    v, w = pre.commands(model(inputs))                      # physical (m/s, rad/s)
+"""
+from __future__ import annotations
+
+import dataclasses
+from collections import deque
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+import torch
+
+from pilotlab.data.frames import LabelRanges
+from pilotlab.errors import PilotlabError
+
+INTERPOLATIONS = {"area": cv2.INTER_AREA, "linear": cv2.INTER_LINEAR}
+ENCODINGS = ("rgb8", "bgr8", "mono8")
+
+
+@dataclass(frozen=True)
+class PreprocessConfig:
+    """Rows [crop_top, crop_bottom) of the image (fractions of its height) resized to width×height."""
+    version: int = 1
+    crop_top: float = 0.5            # DeepLearningStudio keeps rows 240:480 of a 640×480 image
+    crop_bottom: float = 1.0
+    width: int = 200
+    height: int = 66
+    interpolation: str = "area"      # "area" (cv2.INTER_AREA) or "linear" (cv2's default, DLS's)
+
+    def __post_init__(self):
+        if not 0.0 <= self.crop_top < self.crop_bottom <= 1.0:
+            raise PilotlabError(f"preprocess crop_top={self.crop_top}, crop_bottom={self.crop_bottom}: "
+                                "need 0 <= crop_top < crop_bottom <= 1 (fractions of the image height)")
+        if self.width < 1 or self.height < 1:
+            raise PilotlabError(f"preprocess size {self.width}×{self.height}: width and height must be >= 1")
+        if self.interpolation not in INTERPOLATIONS:
+            raise PilotlabError(f"preprocess interpolation {self.interpolation!r} is not one of "
+                                f"{', '.join(INTERPOLATIONS)}")
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> PreprocessConfig:
+        """The config from the matching keys of `params` (other keys are ignored)."""
+        names = {f.name for f in dataclasses.fields(cls)} - {"version"}
+        return cls(**{k: params[k] for k in names if k in params})
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    def rows(self, image_height: int) -> slice:
+        top, bottom = round(self.crop_top * image_height), round(self.crop_bottom * image_height)
+        return slice(top, max(bottom, top + 1))
+
+
+def preprocess(image: np.ndarray, config: PreprocessConfig, encoding: str = "rgb8",
+               out: np.ndarray | None = None) -> np.ndarray:
+    """Crop and resize one camera image to a uint8 [height, width, 3] RGB frame.
+
+    `image` is H×W×3 (rgb8, bgr8) or H×W (mono8); rows may be strided (a view of a message buffer).
+    Cropping first means only the kept rows are resized; the colour conversion happens after the
+    resize, on the small frame, which gives the same result because the resize is per channel.
+    """
+    size = (config.width, config.height)
+    cropped = image[config.rows(image.shape[0])]
+    interpolation = INTERPOLATIONS[config.interpolation]
+    if encoding == "rgb8":
+        return cv2.resize(cropped, size, dst=out, interpolation=interpolation)
+    small = cv2.resize(cropped, size, interpolation=interpolation)
+    if encoding == "bgr8":
+        return cv2.cvtColor(small, cv2.COLOR_BGR2RGB, dst=out)
+    if encoding == "mono8":
+        return cv2.cvtColor(small, cv2.COLOR_GRAY2RGB, dst=out)
+    raise PilotlabError(f"image encoding {encoding!r} is not supported; use one of {', '.join(ENCODINGS)}")
+
+
+def to_input(frames: np.ndarray) -> torch.Tensor:
+    """uint8 [N, H, W, 3] frames (or [N, F, H, W, 3] stacks, oldest first) -> float32 [N, 3F, H, W]
+    in [0, 1], the network input (docs/CONVENTIONS.md)."""
+    tensor = torch.from_numpy(np.ascontiguousarray(frames))
+    if tensor.dim() == 4:
+        tensor = tensor.unsqueeze(1)
+    n, stack, height, width, _ = tensor.shape
+    return tensor.permute(0, 1, 4, 2, 3).reshape(n, 3 * stack, height, width).float().div_(255.0)
+
+
+class DrivePreprocessor:
+    """Live camera image -> network input, as in training; keeps the last frames for temporal models.
+
+    The first frames of a drive repeat the earliest frame, as `FrameSet.stack_index` does at the start
+    of a recording.
+    """
+
+    def __init__(self, config: PreprocessConfig, ranges: LabelRanges, frames: int = 1):
+        self.config, self.ranges, self.frames = config, ranges, frames
+        self.history: deque[np.ndarray] = deque(maxlen=frames)
+
+    @classmethod
+    def from_checkpoint(cls, checkpoint: Mapping[str, Any]) -> DrivePreprocessor:
+        """From the dict `pilotlab.models.load_checkpoint` returns (its "preprocess" and "labels")."""
+        settings = dict(checkpoint.get("preprocess") or {})
+        frames = int(settings.pop("frames", 1))
+        if "labels" not in checkpoint:
+            raise PilotlabError("checkpoint has no 'labels' ranges; it was not written by the train job")
+        return cls(PreprocessConfig(**settings), LabelRanges.from_dict(checkpoint["labels"]), frames)
+
+    def reset(self) -> None:
+        """Forget earlier frames (call at the start of each drive)."""
+        self.history.clear()
+
+    def __call__(self, rgb: np.ndarray) -> torch.Tensor:
+        """[1, 3 × frames, height, width] float32 for the latest camera image (uint8 H×W×3 RGB)."""
+        frame = preprocess(rgb, self.config)
+        if not self.history:
+            self.history.extend([frame] * (self.frames - 1))
+        self.history.append(frame)
+        return to_input(np.stack(self.history)[None])
+
+    def commands(self, outputs: torch.Tensor | np.ndarray | Sequence[float]) -> tuple[float, float]:
+        """Physical (v m/s, w rad/s) from the network's normalised output for one image."""
+        values = outputs.detach().cpu().numpy() if isinstance(outputs, torch.Tensor) else outputs
+        v, w = self.ranges.denormalise(np.asarray(values, np.float32).reshape(-1, 2))[0]
+        return float(v), float(w)

@@ -1,0 +1,95 @@
+"""The `frames` job: one recording (a bag or a dataset folder) -> preprocessed frames in the store.
+
+Where the recording comes from (exactly one):
+  inputs["bag"]      a user's ROS1 .bag, ROS2 bag folder (or its .db3 / .mcap) or DeepLearningStudio
+                     dataset folder; an input file, so its content is in the job key;
+  deps["bag"]        a `record` job; its artifacts folder holds the bag at `result["path"]`;
+  params["path"]     the same as inputs["bag"], for jobs built by hand (not hashed: prefer inputs).
+
+params (all optional):
+  image_topic: str     default: /F1ROS/cameraL/image_raw, else /F1ROS/cameraL/image_raw/compressed
+  command_topic: str   default: /F1ROS/cmd_vel (geometry_msgs/Twist or TwistStamped)
+  crop_top: 0.5, crop_bottom: 1.0      rows kept, as fractions of the image height
+  width: 200, height: 66               frame size after resizing
+  interpolation: "area" | "linear"     cv2.INTER_AREA (default) or INTER_LINEAR
+  label: str                           a name for the recording (shown in logs and results)
+
+artifacts: a FrameSet (frames.npy uint8 [N, 66, 200, 3] RGB, labels.npy float32 [N, 2] physical v, w,
+recording.npy, meta.json), loaded by `FrameSet.load(dep.artifacts)`.
+result: frames, dropped (images before the first command), source, format (ros1 | ros2-sqlite3 |
+ros2-mcap | folder), image_topic, command_topic, encoding, image_size [h, w], duration_s,
+v_range, w_range, preprocess (settings), decode_fps, label.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from matrix.kinds import JobContext, job_kind
+from pilotlab.data.bags import Topics, read_frames
+from pilotlab.data.preprocess import PreprocessConfig
+from pilotlab.data.topics import COMMAND_TOPIC
+from pilotlab.errors import PilotlabError
+
+CODE = ["pilotlab.data.bags", "pilotlab.data.images", "pilotlab.data.preprocess", "pilotlab.data.folder",
+        "pilotlab.data.frames", "pilotlab.data.topics"]
+PARAMS = {"path", "image_topic", "command_topic", "crop_top", "crop_bottom", "width", "height",
+          "interpolation", "label"}
+
+
+def recording_path(ctx: JobContext) -> Path:
+    """The bag or folder this job reads (see the module docstring)."""
+    sources = []
+    if "bag" in ctx.inputs:
+        sources.append(Path(ctx.inputs["bag"]))
+    if "bag" in ctx.deps:
+        dep = ctx.dep("bag")
+        if "path" not in dep.result:
+            raise PilotlabError(f"{ctx.name}: dependency {dep.name or dep.key} has no 'path' (the bag) in its result")
+        sources.append(Path(dep.artifacts) / dep.result["path"])
+    if not sources and ctx.params.get("path"):
+        sources.append(Path(ctx.params["path"]))
+    if len(sources) != 1:
+        raise PilotlabError(f"{ctx.name}: a frames job reads exactly one recording (an input 'bag', a "
+                            f"'bag' dependency or a 'path' param); it was given {len(sources)}")
+    return sources[0]
+
+
+def check_params(ctx: JobContext) -> None:
+    unknown = sorted(set(ctx.params) - PARAMS)
+    if unknown:
+        raise PilotlabError(f"{ctx.name}: frames job has no param(s) {', '.join(unknown)}; "
+                            f"known: {', '.join(sorted(PARAMS))}")
+
+
+def summary(frameset, seconds: float) -> dict[str, Any]:
+    labels, meta = np.asarray(frameset.labels), frameset.meta
+    keys = ("frames", "dropped", "source", "format", "image_topic", "command_topic", "encoding",
+            "image_size", "preprocess")
+    return {**{k: meta[k] for k in keys if k in meta},
+            "duration_s": round((meta["end_ns"] - meta["start_ns"]) / 1e9, 3),
+            "v_range": [float(labels[:, 0].min()), float(labels[:, 0].max())],
+            "w_range": [float(labels[:, 1].min()), float(labels[:, 1].max())],
+            "decode_fps": round(len(frameset) / max(seconds, 1e-9), 1)}
+
+
+@job_kind("frames", code=CODE)
+def run_frames(ctx: JobContext) -> dict[str, Any]:
+    check_params(ctx)
+    path = recording_path(ctx)
+    config = PreprocessConfig.from_params(ctx.params)
+    topics = Topics(ctx.params.get("image_topic"), ctx.params.get("command_topic") or COMMAND_TOPIC)
+    label = ctx.params.get("label") or path.name
+    ctx.log.info("reading %s", path)
+    started = time.perf_counter()
+    frameset = read_frames(path, config, topics, progress=lambda done, total: ctx.progress(
+        done, total, f"decoding {label}"))
+    seconds = time.perf_counter() - started
+    frameset.meta["label"] = label
+    frameset.save(ctx.out)
+    result = {**summary(frameset, seconds), "label": label}
+    ctx.log.info("%d frames from %s (%.0f frames/s)", result["frames"], path, result["decode_fps"])
+    return result

@@ -1,0 +1,134 @@
+"""The `train` job: frames from one or more recordings -> a trained network checkpoint.
+
+deps: "frames", a group of `frames` jobs (one recording each).
+params (defaults in brackets):
+  arch ["pilotnet"]        a registered model (pilotnet, pilotnet_stacked, ...)
+  options [{}]             fields of the arch's config, e.g. {"frames": 3} for pilotnet_stacked
+  epochs [20], batch_size [64], lr [1e-3], seed [0]
+  patience [5]             early stopping: epochs without a better validation loss (null: never)
+  val_fraction [0.2]       share of frames held out for validation (0: none)
+  val_by ["recording"]     "recording": whole recordings held out; "block": the last part of each
+  augment [{}]             AugmentConfig fields: flip, oversample_curves, curve_threshold,
+                           color_jitter, blur, affine
+  labels ["auto"]          normalisation ranges {"v": [lo, hi], "w": [lo, hi]}, or "auto": v from its
+                           min to max, w symmetric about 0, over all the given frames
+
+artifacts: model.pt (pilotlab.models.save_checkpoint: arch, config, state_dict, labels, preprocess
+with "frames", history, training params and split), history.json.
+result: val_mse, val_mse_v, val_mse_w (normalised labels, best epoch), val_mse_mean_predictor
+(+ _v, _w: predicting the mean training label on the same validation frames), train_loss, epochs_run,
+best_epoch, stopped_early, params, train_frames, val_frames, recordings, val_recordings, val_by,
+labels, frames, seconds, checkpoint. Without validation frames the val_* entries are absent.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+import time
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import torch
+
+from matrix.kinds import JobContext, job_kind
+from pilotlab.data.augment import AugmentConfig
+from pilotlab.data.frames import FrameSet, LabelRanges
+from pilotlab.data.split import split_validation
+from pilotlab.errors import PilotlabError
+from pilotlab.models import MODELS, build_model, input_frames, make_config, save_checkpoint
+from pilotlab.training import FitConfig, evaluate, fit, mean_predictor_mse
+
+CODE = ["pilotlab.training", "pilotlab.data.augment", "pilotlab.data.split", "pilotlab.data.frames",
+        "pilotlab.models.registry"]
+DEFAULTS: dict[str, Any] = {"arch": "pilotnet", "options": {}, "epochs": 20, "batch_size": 64, "lr": 1e-3,
+                            "seed": 0, "patience": 5, "val_fraction": 0.2, "val_by": "recording",
+                            "augment": {}, "labels": "auto"}
+
+
+def arch_modules(params: Mapping[str, Any]) -> list:
+    """The modules that define the arch (its class and the classes it builds on)."""
+    entry = MODELS.get(params.get("arch", DEFAULTS["arch"]))
+    return [sys.modules[c.__module__] for c in entry.module_cls.__mro__ if c.__module__.startswith("pilotlab.")]
+
+
+def settings(ctx: JobContext) -> dict[str, Any]:
+    unknown = sorted(set(ctx.params) - set(DEFAULTS))
+    if unknown:
+        raise PilotlabError(f"{ctx.name}: train job has no param(s) {', '.join(unknown)}; "
+                            f"known: {', '.join(sorted(DEFAULTS))}")
+    return {**DEFAULTS, **ctx.params}
+
+
+def load_frames(ctx: JobContext) -> tuple[FrameSet, dict[str, Any]]:
+    """All recordings as one FrameSet, and the preprocessing they share."""
+    sets = [FrameSet.load(dep.artifacts) for dep in ctx.dep_group("frames")]
+    settings_seen = {json.dumps(s.meta.get("preprocess"), sort_keys=True) for s in sets}
+    if len(settings_seen) != 1:
+        raise PilotlabError(f"{ctx.name}: its frames jobs were preprocessed differently "
+                            f"({'; '.join(sorted(settings_seen))}); give them the same crop and size")
+    return FrameSet.concat(sets), sets[0].meta.get("preprocess") or {}
+
+
+def label_ranges(spec: Any, data: FrameSet) -> LabelRanges:
+    if spec == "auto":
+        return LabelRanges.covering(np.asarray(data.labels))
+    try:
+        ranges = LabelRanges.from_dict(spec)
+        spans = [float(hi) - float(lo) for lo, hi in (ranges.v, ranges.w)]
+    except (KeyError, TypeError, ValueError):
+        raise PilotlabError(f"labels = {spec!r}: give \"auto\" or {{\"v\": [lo, hi], \"w\": [lo, hi]}}") from None
+    if min(spans) <= 0:
+        raise PilotlabError(f"labels = {spec!r}: each range needs lo < hi")
+    return ranges
+
+
+def progress_callbacks(ctx: JobContext, epochs: int):
+    def on_batch(epoch: int, batch: int, batches: int, loss: float) -> None:
+        ctx.progress(epoch - 1 + batch / batches, epochs, f"epoch {epoch}/{epochs} loss {loss:.4f}")
+
+    def on_epoch(row: dict) -> None:
+        ctx.log.info("epoch %d: %s", row["epoch"], ", ".join(f"{k} {v:.5g}" for k, v in row.items()
+                                                               if k not in ("epoch", "best")))
+    return on_batch, on_epoch
+
+
+def validation_scores(model, train: FrameSet, val: FrameSet, ranges: LabelRanges, frames: int) -> dict:
+    if not len(val):
+        return {}
+    scores, mean = evaluate(model, val, ranges, frames=frames), mean_predictor_mse(train, val, ranges)
+    return {**{f"val_{k}": v for k, v in scores.items()},               # val_mse, val_mse_v, val_mse_w
+            **{f"val_{k}_mean_predictor": v for k, v in mean.items()}}
+
+
+@job_kind("train", code=CODE, code_for=arch_modules)
+def run_train(ctx: JobContext) -> dict[str, Any]:
+    p = settings(ctx)
+    data, preprocess = load_frames(ctx)
+    split = split_validation(data.recording, p["val_fraction"], p["val_by"], p["seed"])
+    train, val = data.subset(split.train), data.subset(split.val)
+    ranges = label_ranges(p["labels"], data)
+    torch.manual_seed(p["seed"])
+    config = make_config(p["arch"], p["options"])
+    model = build_model(p["arch"], config)
+    fit_config = FitConfig(epochs=p["epochs"], batch_size=p["batch_size"], lr=p["lr"], seed=p["seed"],
+                           frames=input_frames(config), patience=p["patience"],
+                           augment=AugmentConfig.from_params(p["augment"]))
+    on_batch, on_epoch = progress_callbacks(ctx, p["epochs"])
+    started = time.perf_counter()
+    history = fit(model, train, ranges, fit_config, val=val, on_epoch=on_epoch, on_batch=on_batch)
+    seconds = time.perf_counter() - started
+    result = {**validation_scores(model, train, val, ranges, fit_config.frames),
+              "train_loss": history[-1]["train_loss"], "epochs_run": len(history),
+              "best_epoch": next((r["epoch"] for r in history if r.get("best")), len(history)),
+              "stopped_early": len(history) < p["epochs"],
+              "params": sum(t.numel() for t in model.parameters()), "train_frames": len(train),
+              "val_frames": len(val), "recordings": int(len(np.unique(data.recording))),
+              "val_recordings": split.val_recordings, "val_by": split.by, "labels": ranges.as_dict(),
+              "frames": fit_config.frames, "seconds": round(seconds, 2), "checkpoint": "model.pt"}
+    save_checkpoint(ctx.out / "model.pt", model, p["arch"], config, labels=ranges.as_dict(),
+                    preprocess={**preprocess, "frames": fit_config.frames}, history=history,
+                    training={**p, "fit": dataclasses.asdict(fit_config)}, result=result)
+    (ctx.out / "history.json").write_text(json.dumps(history, indent=1))
+    return result

@@ -1,0 +1,56 @@
+"""Pure DAG functions on plain mappings."""
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from matrix import CycleError
+from matrix.dag import dependents, find_cycle, graph_of, subgraph, toposort
+from matrix.jobs import Job
+from tests.matrix import toydomain  # noqa: F401
+
+GRAPH = {"report": ["eval1", "eval2"], "eval1": ["opt"], "eval2": ["opt", "data"], "opt": ["train"],
+         "train": ["data"], "data": []}
+
+
+def test_toposort_puts_dependencies_first():
+    order = toposort(GRAPH)
+    assert sorted(order) == sorted(GRAPH)
+    assert all(order.index(dep) < order.index(node) for node, deps in GRAPH.items() for dep in deps)
+
+
+def test_cycle_error_names_the_path():
+    with pytest.raises(CycleError) as caught:
+        toposort({"a": ["b"], "b": ["c"], "c": ["a"], "d": []})
+    assert str(caught.value) == "dependency cycle: a -> b -> c -> a"
+
+
+def test_find_cycle_none_and_self_loop():
+    assert find_cycle(GRAPH) is None
+    assert find_cycle({"a": ["a"]}) == ["a", "a"]
+
+
+def test_dependents_and_subgraph():
+    assert dependents(GRAPH, ["opt"]) == {"eval1", "eval2", "report"}
+    assert dependents(GRAPH, ["report"]) == set()
+    assert subgraph(GRAPH, ["eval1"]) == {"eval1": ["opt"], "opt": ["train"], "train": ["data"], "data": []}
+
+
+def test_graph_of_jobs_shares_equal_jobs():
+    source = Job("source", "s", {"value": 1})
+    twin = Job("source", "s again", {"value": 1})
+    powers = [Job("power", f"p{i}", {"power": i}, deps={"source": s}) for i, s in ((2, source), (3, twin))]
+    graph, by_key = graph_of(powers)
+    assert len(graph) == 3
+    assert graph[powers[0].key] == [source.key] == graph[powers[1].key]
+
+
+dags = st.integers(1, 25).flatmap(lambda n: st.lists(st.lists(st.integers(0, n - 1), max_size=4),
+                                                     min_size=n, max_size=n))
+
+
+@given(dags)
+def test_toposort_on_random_dags(edges):
+    graph = {i: [j for j in deps if j < i] for i, deps in enumerate(edges)}  # edges to lower ids: acyclic
+    order = toposort(graph)
+    assert all(order.index(d) < order.index(n) for n, deps in graph.items() for d in deps)
+    assert find_cycle(graph) is None

@@ -1,0 +1,100 @@
+"""The same DAG on a Dask LocalCluster sharing the job store."""
+import os
+import signal
+import threading
+import time
+
+import pytest
+
+from matrix import engine
+from matrix.recipe import load_recipe
+from matrix.store import Store
+from tests.matrix.toydomain import TOY
+
+distributed = pytest.importorskip("distributed")
+
+RECIPE = """\
+name: toy
+sources:
+  a: {value: 2}
+  b: {value: 3, sleep: %s}
+  c: {value: 5}
+matrix:
+  source: [a, b, c]
+  power: [2, 3]
+"""
+
+
+@pytest.fixture(scope="module")
+def client():
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       dashboard_address=None)
+    with distributed.Client(cluster) as client:
+        yield client
+    cluster.close()
+
+
+def results(store: Store, plan) -> dict:
+    return {s.job.key: store.result(s.job.key)["value"] for s in plan.statuses}
+
+
+def plan_of(tmp_path, store, sleep="0.1"):
+    path = tmp_path / "r.yaml"
+    path.write_text(RECIPE % sleep)
+    return engine.make_plan(load_recipe(path, TOY), TOY, store)
+
+
+def test_dask_gives_the_same_keys_and_results_as_the_local_executor(tmp_path, client):
+    from matrix.dask_executor import run_dask
+    local, remote = Store(tmp_path / "local"), Store(tmp_path / "dask")
+    engine.run_plan(plan_of(tmp_path, local), TOY, local, jobs=2)
+    plan = plan_of(tmp_path, remote)
+    summary = run_dask(plan.statuses, remote, client, kind_modules=TOY.kind_modules)
+    assert summary.counts() == {"ok": 10}
+    assert results(local, plan) == results(remote, plan)
+    assert sorted(local.keys()) == sorted(remote.keys())
+    # The store is the source of truth: the local executor finds every job fresh.
+    assert not plan_of(tmp_path, remote).stale
+
+
+def test_a_failure_on_dask_skips_dependents(tmp_path, client):
+    from matrix.dask_executor import run_dask
+    path = tmp_path / "r.yaml"
+    path.write_text((RECIPE % "0").replace("{value: 5}", "{value: 5, fail: true}"))
+    store = Store(tmp_path / "s")
+    plan = engine.make_plan(load_recipe(path, TOY), TOY, store)
+    summary = run_dask(plan.statuses, store, client, keep_going=True, kind_modules=TOY.kind_modules)
+    status = {o.name: o.status for o in summary.outcomes}
+    assert status["source c"] == "failed" and status["power c^2"] == "skipped" and status["total"] == "skipped"
+    assert status["power a^3"] == "ok"
+
+
+def test_a_worker_killed_mid_job_is_survived(tmp_path, client):
+    from matrix.dask_executor import run_dask
+    store = Store(tmp_path / "s")
+    plan = plan_of(tmp_path, store, sleep="4")
+    slow = next(s.job for s in plan.statuses if s.job.name == "source b")
+    outcome = {}
+    thread = threading.Thread(target=lambda: outcome.update(
+        summary=run_dask(plan.statuses, store, client, kind_modules=TOY.kind_modules)))
+    thread.start()
+    victim = None
+    deadline = time.time() + 30
+    while victim is None and time.time() < deadline:
+        for worker, keys in client.processing().items():
+            if slow.key in keys:
+                victim = worker
+        time.sleep(0.1)
+    assert victim, "the slow job never started"
+    time.sleep(1.0)  # well inside the job
+    pid = client.run(os.getpid, workers=[victim])[victim]
+    os.kill(pid, signal.SIGKILL)
+    thread.join(timeout=120)
+    summary = outcome["summary"]
+    assert {o.status for o in summary.outcomes} <= {"ok", "done_elsewhere"}, summary.outcomes
+    for s in plan.statuses:  # no half-written entry: every job has a whole result
+        assert store.result(s.job.key)["status"] == "ok"
+        assert store.outputs_intact(s.job.key, store.result(s.job.key))
+    assert not plan_of(tmp_path, store, sleep="4").stale
+    executions = (store.root / "cache" / "executions.log").read_text().splitlines()
+    assert executions.count("source b") == 2  # killed once, then run again elsewhere

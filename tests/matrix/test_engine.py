@@ -1,0 +1,173 @@
+"""Incremental runs on the toy domain: exactly the jobs downstream of an edit rerun."""
+import importlib
+import sys
+import textwrap
+
+import pytest
+
+from matrix import engine
+from matrix.execute import run_local
+from matrix.fingerprint import clear_caches
+from matrix.jobs import Job
+from matrix.kinds import KINDS
+from matrix.recipe import load_recipe
+from matrix.stale import job_status
+from matrix.store import Store
+from tests.matrix.toydomain import TOY
+
+RECIPE = """\
+name: toy
+sources:
+  a: {{value: 2}}
+  b: {{value: {b}}}
+  c: {{value: 5{c_extra}}}
+matrix:
+  source: [a, b, c]
+  power: [2, 3]
+"""
+
+
+def recipe_file(tmp_path, b=3, c_extra=""):
+    path = tmp_path / "recipe.yaml"
+    path.write_text(RECIPE.format(b=b, c_extra=c_extra))
+    return path
+
+
+def run(path, store, **options):
+    recipe = load_recipe(path, TOY)
+    plan = engine.make_plan(recipe, TOY, store, options.pop("force", ()))
+    return plan, engine.run_plan(plan, TOY, store, **options)
+
+
+def ran(summary):
+    return sorted(o.name for o in summary.outcomes)
+
+
+def test_first_run_runs_everything_second_nothing(tmp_path):
+    store = Store(tmp_path / "store")
+    plan, summary = run(recipe_file(tmp_path), store, jobs=2)
+    assert len(plan.statuses) == 3 + 6 + 1 and summary.counts() == {"ok": 10}
+    total = store.result(plan.statuses[-1].job.key)
+    assert total["value"]["value"] == 2**2 + 2**3 + 3**2 + 3**3 + 5**2 + 5**3
+    plan, summary = run(recipe_file(tmp_path), store)
+    assert summary.outcomes == [] and summary.fresh == 10
+    assert {s.state for s in plan.statuses} == {"fresh"}
+
+
+def test_changing_one_parameter_reruns_exactly_its_downstream(tmp_path):
+    store = Store(tmp_path / "store")
+    run(recipe_file(tmp_path), store)
+    plan, summary = run(recipe_file(tmp_path, b=4), store)
+    assert ran(summary) == ["power b^2", "power b^3", "source b", "total"]
+    reasons = {s.job.name: s.reason for s in plan.statuses}
+    assert reasons["source b"] == "params changed: value 3 -> 4"
+    assert reasons["power b^2"] == "dependency changed: source b"
+    assert reasons["power a^2"] == ""
+
+
+def test_undoing_an_edit_finds_the_old_results(tmp_path):
+    store = Store(tmp_path / "store")
+    run(recipe_file(tmp_path), store)
+    run(recipe_file(tmp_path, b=4), store)
+    plan, summary = run(recipe_file(tmp_path), store)
+    assert summary.outcomes == []
+
+
+def test_failure_skips_dependents_and_reruns_next_time(tmp_path):
+    store = Store(tmp_path / "store")
+    plan, summary = run(recipe_file(tmp_path, c_extra=", fail: true"), store, keep_going=True)
+    status = {o.name: o.status for o in summary.outcomes}
+    assert status["source c"] == "failed"
+    assert status["power c^2"] == status["power c^3"] == status["total"] == "skipped"
+    assert status["power a^2"] == "ok"
+    assert "was told to fail" in store.failure(next(s.job.key for s in plan.statuses
+                                                     if s.job.name == "source c"))["error"]
+    plan, _ = run(recipe_file(tmp_path, c_extra=", fail: true"), store, keep_going=True)
+    reason = {s.job.name: s.reason for s in plan.statuses}["source c"]
+    assert reason.startswith("failed last time: RuntimeError: source source c was told to fail")
+
+
+def test_without_keep_going_nothing_new_starts_after_a_failure(tmp_path):
+    store = Store(tmp_path / "store")
+    _, summary = run(recipe_file(tmp_path, c_extra=", fail: true"), store, jobs=1)
+    statuses = [o.status for o in summary.outcomes]
+    assert "failed" in statuses and ("not_started" in statuses or "skipped" in statuses)
+    assert summary.failed
+
+
+def test_not_applicable_is_cached_and_propagates(tmp_path):
+    store = Store(tmp_path / "store")
+    _, summary = run(recipe_file(tmp_path, c_extra=", not_applicable: true"), store)
+    status = {o.name: (o.status, o.reason) for o in summary.outcomes}
+    assert status["source c"] == ("not_applicable", "this source needs hardware we do not have")
+    assert status["power c^2"][0] == "not_applicable" and "source c" in status["power c^2"][1]
+    assert status["total"][0] == "not_applicable"
+    _, summary = run(recipe_file(tmp_path, c_extra=", not_applicable: true"), store)
+    assert summary.outcomes == []
+
+
+def test_force_reruns_one_kind_and_nothing_else(tmp_path):
+    store = Store(tmp_path / "store")
+    run(recipe_file(tmp_path), store)
+    plan, summary = run(recipe_file(tmp_path), store, force=["total"])
+    assert ran(summary) == ["total"]
+    with pytest.raises(Exception, match="did you mean 'total'"):
+        run(recipe_file(tmp_path), store, force=["totl"])
+
+
+def test_corrupt_output_is_stale(tmp_path):
+    store = Store(tmp_path / "store")
+    plan, _ = run(recipe_file(tmp_path), store)
+    source_a = next(s.job for s in plan.statuses if s.job.name == "source a")
+    (store.artifacts(source_a.key) / "value.json").write_text("truncated")
+    plan, summary = run(recipe_file(tmp_path), store)
+    assert {s.job.name: s.reason for s in plan.statuses}["source a"] == "output missing or corrupt"
+    assert ran(summary) == ["source a"]
+
+
+KIND_MODULE = """
+from matrix import job_kind
+
+@job_kind("{kind}")
+def handler(ctx):
+    deps = [d.result["n"] for role in ctx.deps for d in ctx.dep_group(role)]
+    return {{"n": sum(deps) + {n}}}
+"""
+
+
+def test_editing_a_kinds_code_reruns_that_kind_and_its_dependents(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(str(tmp_path))
+    for name, n in (("edit_a", 1), ("edit_b", 2), ("edit_c", 3)):
+        (tmp_path / f"{name}.py").write_text(KIND_MODULE.format(kind=name, n=n))
+        importlib.import_module(name)
+    modules = ("edit_a", "edit_b", "edit_c")
+    store = Store(tmp_path / "store")
+
+    def jobs():
+        a = Job("edit_a", "a", {})
+        b = Job("edit_b", "b", {}, deps={"x": a})
+        return [a, b, Job("edit_c", "c", {}, deps={"x": b}), Job("edit_c", "c2", {"other": 1}, deps={"x": a})]
+
+    statuses = [job_status(j, store, {}) for j in jobs()]
+    assert run_local(statuses, store, kind_modules=modules).counts() == {"ok": 4}
+    (tmp_path / "edit_b.py").write_text(KIND_MODULE.format(kind="edit_b", n=20))
+    clear_caches()
+    statuses = [job_status(j, store, {}) for j in jobs()]
+    assert [s.state for s in statuses] == ["fresh", "new", "new", "fresh"]
+    summary = run_local(statuses, store, kind_modules=modules)
+    assert sorted(o.name for o in summary.outcomes) == ["b", "c"]
+    assert store.result(jobs()[2].key)["value"]["n"] == 1 + 20 + 3
+    for name in modules:
+        KINDS._entries.pop(name)
+        sys.modules.pop(name)
+
+
+def test_gc_removes_only_unreachable_jobs(tmp_path):
+    store = Store(tmp_path / "store")
+    run(recipe_file(tmp_path), store)
+    run(recipe_file(tmp_path, b=4), store)
+    keep = {j.key for j in engine.plan_jobs(load_recipe(recipe_file(tmp_path, b=4), TOY), TOY)}
+    garbage = engine.find_garbage(store, keep)
+    assert len(garbage.keys) == 4  # the old source b, its two powers and the old total
+    engine.collect_garbage(store, garbage)
+    assert set(store.keys()) == keep

@@ -1,0 +1,67 @@
+"""Job keys: canonical JSON, sha256, golden values that pin the format."""
+import math
+
+import pytest
+
+from matrix.jobs import Job, UnserialisableError, canonical_json, input_file, make_key
+from tests.matrix import toydomain  # noqa: F401  (registers the toy kinds)
+
+
+def test_canonical_json_sorts_keys_and_drops_spaces():
+    assert canonical_json({"b": [1, 2.5, None], "a": {"y": True, "x": "é"}}) == \
+        '{"a":{"x":"é","y":true},"b":[1,2.5,null]}'
+
+
+def test_golden_key_pins_the_format():
+    # sha256 of '{"code":"00…0","deps":{"data":["ab","cd"]},"format":1,"inputs":{"bag":"ef"},
+    #             "kind":"train","params":{"epochs":20,"lr":0.001}}'
+    key = make_key("train", {"epochs": 20, "lr": 0.001}, {"data": ["ab", "cd"]}, {"bag": "ef"}, "0" * 64)
+    assert key == "935508eccd334eeb326719318c1b3d5e7d95799d3144e277e4359a406e94a3f1"
+
+
+def test_golden_key_of_an_empty_job():
+    assert make_key("noop", {}, {}, {}, "") == \
+        "801d3eee219c57d6fda717edb8bb89289bdf25e8bcab3584c86735ebeec2fba3"
+
+
+@pytest.mark.parametrize("bad", [{1: "int key"}, {"x": {1, 2}}, {"x": object()}, {"x": math.nan},
+                                 {"x": b"bytes"}, {"x": math.inf}])
+def test_unserialisable_params_are_errors(bad):
+    with pytest.raises(UnserialisableError):
+        Job("source", "bad", bad)
+
+
+def test_key_changes_with_params_deps_and_inputs(tmp_path):
+    a = Job("source", "a", {"value": 1, "sleep": 0, "fail": False, "not_applicable": False})
+    b = Job("source", "a", {"value": 2, "sleep": 0, "fail": False, "not_applicable": False})
+    assert a.key != b.key
+    assert Job("power", "p", {"power": 2}, deps={"source": a}).key != \
+        Job("power", "p", {"power": 2}, deps={"source": b}).key
+    file = tmp_path / "f.bin"
+    file.write_bytes(b"one")
+    first = Job("source", "a", dict(a.params), inputs={"bag": input_file(str(file))})
+    file.write_bytes(b"two")
+    second = Job("source", "a", dict(a.params), inputs={"bag": input_file(str(file))})
+    assert first.key != second.key != a.key
+
+
+def test_name_does_not_enter_the_key_and_equal_jobs_are_shared():
+    params = {"value": 1, "sleep": 0, "fail": False, "not_applicable": False}
+    assert Job("source", "a", params) == Job("source", "another name", dict(params))
+    assert len({Job("source", "a", params), Job("source", "a", dict(params))}) == 1
+
+
+def test_moving_an_input_file_keeps_the_key(tmp_path):
+    one, two = tmp_path / "one.bag", tmp_path / "two.bag"
+    one.write_bytes(b"same")
+    two.write_bytes(b"same")
+    assert Job("source", "a", {}, inputs={"bag": input_file(str(one))}).key == \
+        Job("source", "a", {}, inputs={"bag": input_file(str(two))}).key
+
+
+def test_jobs_are_frozen():
+    job = Job("source", "a", {"value": 1})
+    with pytest.raises(Exception):
+        job.params["value"] = 2
+    with pytest.raises(Exception):
+        job.kind = "other"

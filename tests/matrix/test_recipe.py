@@ -1,0 +1,150 @@
+"""Recipe loading: typed validation, one-line errors with file:line and key path, did-you-mean."""
+import string
+
+import pytest
+import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from matrix import MatrixError, RecipeError
+from matrix.recipe import load_recipe
+from tests.matrix.toydomain import TOY
+
+GOOD = """\
+name: toy
+sources:
+  a: {value: 2}
+  b: {value: 3}
+matrix:
+  source: [a, b]
+  power: [2, 3]
+"""
+
+
+def write(tmp_path, text):
+    path = tmp_path / "recipe.yaml"
+    path.write_text(text)
+    return path
+
+
+def error_of(tmp_path, text) -> str:
+    with pytest.raises(RecipeError) as caught:
+        load_recipe(write(tmp_path, text), TOY)
+    message = str(caught.value)
+    assert "\n" not in message
+    return message
+
+
+def test_a_good_recipe_loads_typed(tmp_path):
+    recipe = load_recipe(write(tmp_path, GOOD), TOY)
+    assert recipe.name == "toy"
+    assert recipe.config.sources["a"].value == 2
+    assert len(recipe.combinations) == 4
+
+
+def test_bad_yaml_names_file_and_line(tmp_path):
+    message = error_of(tmp_path, GOOD.replace("power: [2, 3]", "power: [2, 3"))
+    assert message.startswith(f"{tmp_path / 'recipe.yaml'}:8: not valid YAML")
+
+
+def test_wrong_type_names_key_path_and_line(tmp_path):
+    message = error_of(tmp_path, GOOD.replace("value: 3", "value: three"))
+    assert message.endswith("valid integer, unable to parse string as an integer (got 'three')")
+    assert ":4: sources.b.value:" in message
+
+
+def test_unknown_key_suggests_the_closest(tmp_path):
+    message = error_of(tmp_path, GOOD.replace("{value: 2}", "{valeu: 2}"))
+    assert ":3: sources.a.valeu: unknown key 'valeu' (did you mean 'value'?)" in message
+
+
+def test_unknown_top_level_section(tmp_path):
+    message = error_of(tmp_path, GOOD + "sorces: {}\n")
+    assert ":8: sorces: unknown key 'sorces' (did you mean 'sources'?)" in message
+
+
+def test_missing_required_key(tmp_path):
+    message = error_of(tmp_path, GOOD.replace("name: toy\n", ""))
+    assert "missing required key 'name'" in message
+
+
+def test_empty_axis(tmp_path):
+    message = error_of(tmp_path, GOOD.replace("power: [2, 3]", "power: []"))
+    assert ":7: matrix.power: an axis needs at least one value" in message
+
+
+def test_exclude_naming_a_key_no_axis_has(tmp_path):
+    message = error_of(tmp_path, GOOD + "  exclude:\n    - {source: a, pwer: 2}\n")
+    assert ":9: matrix.exclude.0.pwer: exclude names 'pwer', which is not an axis (did you mean 'power'?)" in message
+
+
+def test_combination_key_the_domain_does_not_know(tmp_path):
+    message = error_of(tmp_path, GOOD + "  include:\n    - {colour: red}\n")
+    assert ":9: matrix.include.0.colour: unknown axis 'colour'" in message
+
+
+def test_axis_value_the_domain_does_not_know(tmp_path):
+    message = error_of(tmp_path, GOOD.replace("source: [a, b]", "source: [a, bb]"))
+    assert ":6: matrix.source.1: unknown source 'bb' (did you mean 'b'?); known: a, b" in message
+
+
+def test_duplicate_keys_are_errors(tmp_path):
+    message = error_of(tmp_path, GOOD + "name: again\n")
+    assert ":8: duplicate key 'name'" in message
+
+
+def test_everything_excluded(tmp_path):
+    message = error_of(tmp_path, GOOD + "  exclude:\n    - {source: a}\n    - {source: b}\n")
+    assert "no combinations left" in message
+
+
+def test_not_a_mapping(tmp_path):
+    assert "a recipe is a mapping" in error_of(tmp_path, "- just\n- a list\n")
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(RecipeError, match="cannot read the recipe"):
+        load_recipe(tmp_path / "nope.yaml", TOY)
+
+
+# --- fuzzing: random YAML-like documents only ever raise the project's own exception -----------
+
+scalars = st.one_of(st.none(), st.booleans(), st.integers(-5, 5), st.floats(allow_nan=True),
+                    st.text(string.ascii_letters + " :-[]{}#&*!|>'\"%@`,?", max_size=8))
+keys = st.sampled_from(["name", "sources", "matrix", "a", "b", "value", "sleep", "include", "exclude",
+                        "source", "power", "description", "fail"])
+documents = st.recursive(scalars, lambda children: st.one_of(
+    st.lists(children, max_size=4), st.dictionaries(keys, children, max_size=5)), max_leaves=20)
+
+
+@settings(max_examples=300, deadline=None)
+@given(documents)
+def test_random_documents_raise_only_matrix_errors(tmp_path_factory, document):
+    path = tmp_path_factory.mktemp("fuzz") / "r.yaml"
+    path.write_text(yaml.safe_dump(document))
+    try:
+        load_recipe(path, TOY)
+    except MatrixError:
+        pass
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.text(string.printable, max_size=80))
+def test_random_text_raises_only_matrix_errors(tmp_path_factory, text):
+    path = tmp_path_factory.mktemp("fuzz") / "r.yaml"
+    path.write_text(text)
+    try:
+        load_recipe(path, TOY)
+    except MatrixError:
+        pass
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.dictionaries(keys, documents, max_size=4), st.sampled_from(["name: x\n", GOOD]))
+def test_random_sections_on_a_good_recipe(tmp_path_factory, extra, base):
+    path = tmp_path_factory.mktemp("fuzz") / "r.yaml"
+    path.write_text(base + yaml.safe_dump(extra))
+    try:
+        load_recipe(path, TOY)
+    except MatrixError:
+        pass

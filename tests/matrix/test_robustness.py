@@ -1,0 +1,76 @@
+"""Killed runs and concurrent runs on one store, through the real command line."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from matrix.store import Store
+
+ROOT = Path(__file__).resolve().parents[2]
+SLOW_RECIPE = """\
+name: slow
+sleep: 0.4
+sources:
+  a: {value: 1}
+  b: {value: 2}
+  c: {value: 3}
+matrix:
+  source: [a, b, c]
+  power: [1, 2, 3]
+"""
+
+
+def toy(*args, **popen):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.Popen([sys.executable, "-m", "tests.matrix.toycli", *args], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True, **popen)
+
+
+def plan_states(recipe, store):
+    out, err = toy("plan", str(recipe), "--store", str(store), "--json").communicate(timeout=60)
+    return {row["name"]: row["status"] for row in json.loads(out)}
+
+
+def test_sigkill_loses_only_jobs_in_flight(tmp_path):
+    recipe, store = tmp_path / "r.yaml", tmp_path / "store"
+    recipe.write_text(SLOW_RECIPE)
+    process = toy("run", str(recipe), "--store", str(store))
+    deadline = time.time() + 60
+    while time.time() < deadline and len(list(Store(store).keys())) < 4:
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGKILL)  # the driver and its workers, mid-run
+    process.wait()
+    done_before = set(Store(store).keys())
+    assert 4 <= len(done_before) < 13
+    for key in done_before:  # every stored entry is whole
+        assert Store(store).result(key)["status"] == "ok"
+    states = plan_states(recipe, store)
+    assert list(states.values()).count("fresh") == len(done_before)
+    out, err = toy("run", str(recipe), "--store", str(store)).communicate(timeout=120)
+    assert "done: " in out, err
+    assert set(plan_states(recipe, store).values()) == {"fresh"}
+
+
+def test_two_runs_together_run_every_job_exactly_once(tmp_path):
+    recipe, store = tmp_path / "r.yaml", tmp_path / "store"
+    recipe.write_text(SLOW_RECIPE)
+    runs = [toy("run", str(recipe), "--store", str(store), "-j", "2") for _ in range(2)]
+    outputs = [run.communicate(timeout=180) for run in runs]
+    assert [run.returncode for run in runs] == [0, 0], outputs
+    executions = (store / "cache" / "executions.log").read_text().splitlines()
+    assert len(executions) == 13 and len(set(executions)) == 13
+    assert set(plan_states(recipe, store).values()) == {"fresh"}
+
+
+def test_cli_errors_are_one_line_without_traceback(tmp_path):
+    recipe = tmp_path / "r.yaml"
+    recipe.write_text(SLOW_RECIPE.replace("power: [1, 2, 3]", "powr: [1]"))
+    process = toy("plan", str(recipe), "--store", str(tmp_path / "s"))
+    out, err = process.communicate(timeout=60)
+    assert process.returncode == 2
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"toy: error: {recipe}:9: matrix.powr: unknown axis 'powr' (did you mean 'power'?)")

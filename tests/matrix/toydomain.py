@@ -1,0 +1,80 @@
+"""A toy domain for engine tests: numbers instead of driving.
+
+    sources:  {a: {value: 2}, b: {value: 3, sleep: 0.2}}
+    matrix:   {source: [a, b], power: [2, 3]}
+
+plans one `source` job per source (shared by every power), one `power` job per combination and
+one `total` job over all of them.
+"""
+from __future__ import annotations
+
+import json
+import time
+from typing import Any
+
+import pydantic
+
+from matrix import NotApplicable, job_kind
+from matrix.jobs import Job
+from matrix.recipe import Domain, Recipe
+
+
+class SourceConfig(pydantic.BaseModel):
+    model_config = pydantic.ConfigDict(extra="forbid", frozen=True)
+    value: int
+    sleep: float = 0.0
+    fail: bool = False
+    not_applicable: bool = False
+
+
+def count_execution(ctx) -> None:
+    """Append the job's name to a store-wide file, so tests can count executions across runs."""
+    with open(ctx.cache / "executions.log", "a") as log:
+        log.write(ctx.name + "\n")
+
+
+@job_kind("source")
+def run_source(ctx) -> dict[str, Any]:
+    count_execution(ctx)
+    time.sleep(ctx.params["sleep"])
+    if ctx.params["fail"]:
+        raise RuntimeError(f"source {ctx.name} was told to fail")
+    if ctx.params["not_applicable"]:
+        raise NotApplicable("this source needs hardware we do not have")
+    (ctx.out / "value.json").write_text(json.dumps(ctx.params["value"]))
+    ctx.progress(1, 1, "written")
+    return {"value": ctx.params["value"]}
+
+
+@job_kind("power")
+def run_power(ctx) -> dict[str, Any]:
+    count_execution(ctx)
+    source = ctx.dep("source")
+    value = json.loads((source.artifacts / "value.json").read_text())
+    time.sleep(ctx.params.get("sleep", 0.0))
+    return {"value": value ** ctx.params["power"]}
+
+
+@job_kind("total", exclusive=True)
+def run_total(ctx) -> dict[str, Any]:
+    count_execution(ctx)
+    return {"value": sum(dep.result["value"] for dep in ctx.dep_group("parts"))}
+
+
+def plan(recipe: Recipe) -> list[Job]:
+    sources = {name: Job("source", f"source {name}", cfg.model_dump())
+               for name, cfg in recipe.config.sources.items()}
+    powers = [Job("power", f"power {c['source']}^{c['power']}", {"power": c["power"], "sleep": recipe.config.sleep},
+                  deps={"source": sources[c["source"]]}) for c in recipe.combinations]
+    return powers + [Job("total", "total", {}, deps={"parts": tuple(powers)})]
+
+
+TOY = Domain(
+    name="toy",
+    sections={"sources": (dict[str, SourceConfig], ...), "sleep": (float, 0.0)},
+    axes={"source": lambda config: list(config.sources), "power": lambda config: None},
+    plan=plan,
+    kind_modules=("tests.matrix.toydomain",),
+    store_env="TOY_STORE",
+    default_store=".toy",
+)

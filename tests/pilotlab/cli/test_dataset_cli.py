@@ -1,0 +1,58 @@
+"""`pilotlab dataset inspect` and `pilotlab dataset convert`, through the real command line."""
+import json
+
+from pilotlab.cli import main
+from tests.pilotlab.data.bagfiles import RawBag, drive_bag, images
+from tests.pilotlab.data.test_folder import make_folder
+
+
+def test_inspect_json_lists_topics_sizes_and_ranges(tmp_path, capsys):
+    drive_bag(tmp_path / "run", "mcap", images(5))
+    assert main(["dataset", "inspect", str(tmp_path / "run"), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["format"] == "ros2-mcap" and info["messages"] == 10
+    assert [(t["name"], t["type"], t["count"]) for t in info["topics"]] == [
+        ("/F1ROS/cameraL/image_raw", "sensor_msgs/msg/Image", 5), ("/F1ROS/cmd_vel", "geometry_msgs/msg/Twist", 5)]
+    assert info["images"] == {"/F1ROS/cameraL/image_raw": {"type": "sensor_msgs/msg/Image", "encoding": "rgb8",
+                                                         "size": [60, 80]}}
+    assert info["commands"]["v"] == [1.0, 1.399999976158142] and info["commands"]["w"][0] == -0.30000001192092896
+    assert info["duration_s"] == 0.401
+
+
+def test_inspect_table_for_people(tmp_path, capsys):
+    with RawBag(tmp_path / "c.bag", "ros1") as bag:
+        bag.twist(10**9, 2.0, 0.5)
+        bag.compressed(10**9 + 1, images(1)[0], "jpeg")
+    assert main(["dataset", "inspect", str(tmp_path / "c.bag")]) == 0
+    out = capsys.readouterr().out
+    assert "/F1ROS/cameraL/image_raw/compressed" in out and "80×60 jpeg" in out
+    assert "v 2.000 .. 2.000 m/s, w 0.500 .. 0.500 rad/s" in out
+
+
+def test_inspect_a_bad_bag_prints_one_line_and_fails(tmp_path, capsys):
+    (tmp_path / "bad.bag").write_bytes(b"nope")
+    assert main(["dataset", "inspect", str(tmp_path / "bad.bag")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"pilotlab: error: {tmp_path}/bad.bag: cannot read the bag") and err.count("\n") == 1
+
+
+def test_convert_a_folder_then_inspect_it(tmp_path, capsys):
+    folder = make_folder(tmp_path / "dls", images(4))
+    assert main(["dataset", "convert", str(folder), "--out", str(tmp_path / "out.bag")]) == 0
+    assert "wrote 4 frames" in capsys.readouterr().out
+    assert main(["dataset", "inspect", str(tmp_path / "out.bag"), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["format"] == "ros1" and info["commands"]["count"] == 4
+    assert main(["dataset", "inspect", str(folder), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["format"] == "folder"
+
+
+def test_convert_to_ros2_mcap_with_compressed_images(tmp_path, capsys):
+    folder = make_folder(tmp_path / "dls", images(2))
+    assert main(["dataset", "convert", str(folder), "--out", str(tmp_path / "ros2"), "--storage", "mcap",
+                 "--compression", "png"]) == 0
+    capsys.readouterr()
+    main(["dataset", "inspect", str(tmp_path / "ros2"), "--json"])
+    info = json.loads(capsys.readouterr().out)
+    assert info["format"] == "ros2-mcap"
+    assert info["images"]["/F1ROS/cameraL/image_raw/compressed"]["encoding"] == "png"

@@ -1,0 +1,76 @@
+"""DeepLearningStudio dataset folders: read directly, and converted to bags that read back the same."""
+import cv2
+import numpy as np
+import pytest
+
+from pilotlab.data.bags import read_bag, read_frames
+from pilotlab.data.folder import folder_to_bag, read_folder
+from pilotlab.data.preprocess import PreprocessConfig, preprocess
+from pilotlab.errors import BagError
+from tests.pilotlab.data.bagfiles import images
+
+CONFIG = PreprocessConfig()
+
+
+def make_folder(folder, frames, header="image_name,v,w,timestamp", rows=None):
+    folder.mkdir()
+    lines = [header]
+    for i, rgb in enumerate(frames):
+        cv2.imwrite(str(folder / f"{i}.png"), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+        lines.append(f"{i}.png,{5 + i * 0.5},{0.1 * i - 0.2},{1650000000 + i * 0.05:.3f}")
+    (folder / "data.csv").write_text("\n".join(rows or lines) + "\n")
+    return folder
+
+
+def test_reads_a_folder_directly(tmp_path):
+    frames = images(4)
+    data = read_frames(make_folder(tmp_path / "dls", frames), CONFIG)
+    np.testing.assert_array_equal(data.frames, np.stack([preprocess(f, CONFIG) for f in frames]))
+    np.testing.assert_allclose(data.labels, [[5 + i * 0.5, 0.1 * i - 0.2] for i in range(4)], rtol=1e-6)
+    assert data.meta["format"] == "folder" and data.meta["image_size"] == [60, 80]
+
+
+@pytest.mark.parametrize("out, storage", [("run.bag", "auto"), ("run_ros2", "auto"), ("run_mcap", "mcap")])
+def test_converted_bags_read_back_the_same_frames_and_labels(tmp_path, out, storage):
+    folder = make_folder(tmp_path / "dls", images(5))
+    assert folder_to_bag(folder, tmp_path / out, storage=storage) == 5
+    direct, converted = read_folder(folder, CONFIG), read_bag(tmp_path / out, CONFIG)
+    np.testing.assert_array_equal(converted.frames, direct.frames)
+    np.testing.assert_array_equal(converted.labels, direct.labels)
+    assert converted.meta["start_ns"] == direct.meta["start_ns"] == 1650000000 * 10**9
+
+
+def test_without_timestamps_rows_are_20_hz_and_names_default_to_the_row_number(tmp_path):
+    folder = make_folder(tmp_path / "dls", images(3), rows=["v,w", "1,0", "2,0.5", "3,-0.5"])
+    data = read_folder(folder, CONFIG)
+    assert data.meta["end_ns"] - data.meta["start_ns"] == 100_000_000
+    np.testing.assert_allclose(data.labels[:, 1], [0, 0.5, -0.5])
+
+
+def test_folder_errors_say_where_and_what_to_do(tmp_path):
+    folder = make_folder(tmp_path / "dls", images(2), rows=["image_name,v,w", "0.png,1,0", "7.png,1,0"])
+    with pytest.raises(BagError) as caught:
+        read_folder(folder, CONFIG)
+    assert str(caught.value) == (f"{folder}/data.csv: row 2 names image '7.png', which is not in {folder}; "
+                                 "add the image or remove the row")
+    (folder / "data.csv").write_text("image_name,v,w,timestamp\n0.png,1,0,2.0\n1.png,1,0,1.0\n")
+    with pytest.raises(BagError) as caught:
+        read_folder(folder, CONFIG)
+    assert str(caught.value) == (f"{folder}/data.csv: timestamp does not increase at row 2; sort the rows by "
+                                 "time, or remove the timestamp column to assume 20 frames per second")
+    (folder / "data.csv").write_text("image_name,speed\n0.png,1\n")
+    with pytest.raises(BagError) as caught:
+        read_folder(folder, CONFIG)
+    assert str(caught.value) == (f"{folder}/data.csv: needs a header with columns v and w (and image_name, "
+                                 "timestamp) and at least one row; found columns: image_name, speed")
+    (folder / "data.csv").write_text("image_name,v,w\n0.png,fast,0\n")
+    with pytest.raises(BagError, match="row 1, column 'v' is 'fast', not a number; fix the row"):
+        read_folder(folder, CONFIG)
+
+
+def test_a_failed_conversion_leaves_no_partial_bag(tmp_path):
+    folder = make_folder(tmp_path / "dls", images(2))
+    (folder / "1.png").write_bytes(b"broken")
+    with pytest.raises(BagError, match="1.png: not a readable image"):
+        folder_to_bag(folder, tmp_path / "out.bag")
+    assert not (tmp_path / "out.bag").exists()

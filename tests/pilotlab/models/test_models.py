@@ -1,0 +1,64 @@
+"""The networks: PilotNet as DeepLearningStudio's PyTorch version, and PilotNetStacked."""
+import pytest
+import torch
+from torch import nn
+
+from pilotlab.errors import PilotlabError, UnknownNameError
+from pilotlab.models import MODELS, build_model, input_frames, load_checkpoint, make_config, save_checkpoint
+
+
+def layers(model):
+    return [(type(m).__name__, getattr(m, "in_channels", getattr(m, "in_features", getattr(m, "num_features", None))),
+             getattr(m, "out_channels", getattr(m, "out_features", None)), getattr(m, "kernel_size", None),
+             getattr(m, "stride", None)) for m in model.modules() if not list(m.children())]
+
+
+def test_pilotnet_is_deeplearningstudios():
+    model = build_model("pilotnet")
+    assert layers(model) == [
+        ("BatchNorm2d", 3, None, None, None),
+        ("Conv2d", 3, 24, (5, 5), (2, 2)), ("ReLU", None, None, None, None),
+        ("Conv2d", 24, 36, (5, 5), (2, 2)), ("ReLU", None, None, None, None),
+        ("Conv2d", 36, 48, (5, 5), (2, 2)), ("ReLU", None, None, None, None),
+        ("Conv2d", 48, 64, (3, 3), (1, 1)), ("ReLU", None, None, None, None),
+        ("Conv2d", 64, 64, (3, 3), (1, 1)), ("ReLU", None, None, None, None),
+        ("Flatten", None, None, None, None),
+        ("Linear", 1152, 1164, None, None), ("ReLU", None, None, None, None),
+        ("Linear", 1164, 100, None, None), ("ReLU", None, None, None, None),
+        ("Linear", 100, 50, None, None), ("ReLU", None, None, None, None),
+        ("Linear", 50, 10, None, None), ("ReLU", None, None, None, None),
+        ("Linear", 10, 2, None, None)]
+    assert model.input_norm.eps == pytest.approx(1e-3)
+    assert sum(p.numel() for p in model.parameters()) == 1_595_528
+    assert model(torch.rand(2, 3, 66, 200)).shape == (2, 2)
+
+
+def test_pilotnet_dropout_is_an_option():
+    model = build_model("pilotnet", make_config("pilotnet", {"dropout": 0.3}))
+    assert [m.p for m in model.modules() if isinstance(m, nn.Dropout)] == [0.3]
+
+
+def test_pilotnet_stacked_takes_consecutive_frames_on_the_channels():
+    config = make_config("pilotnet_stacked", {"frames": 3})
+    model = build_model("pilotnet_stacked", config)
+    assert input_frames(config) == 3 and input_frames(make_config("pilotnet")) == 1
+    assert model.input_norm.num_features == 9 and model.features[0].in_channels == 9
+    assert sum(p.numel() for p in model.parameters()) == 1_599_140
+    assert model(torch.rand(2, 9, 66, 200)).shape == (2, 2)
+    with pytest.raises(PilotlabError, match="frames = 0 must be at least 1"):
+        make_config("pilotnet_stacked", {"frames": 0})
+
+
+def test_registry_lists_both_and_suggests_names():
+    assert {"pilotnet", "pilotnet_stacked"} <= set(MODELS.names())
+    with pytest.raises(UnknownNameError, match="did you mean 'pilotnet_stacked'"):
+        build_model("pilotnet_stackd")
+
+
+def test_checkpoint_round_trip_keeps_config_and_extras(tmp_path):
+    config = make_config("pilotnet_stacked", {"frames": 2})
+    model = build_model("pilotnet_stacked", config).eval()
+    save_checkpoint(tmp_path / "m.pt", model, "pilotnet_stacked", config, labels={"v": [0, 1], "w": [-1, 1]})
+    loaded, payload = load_checkpoint(tmp_path / "m.pt")
+    x = torch.rand(1, 6, 66, 200)
+    assert torch.equal(loaded(x), model(x)) and loaded.config == config and payload["labels"]["w"] == [-1, 1]

@@ -1,0 +1,83 @@
+"""fit: learns a learnable task, stops early restoring the best weights, is seeded, reports progress."""
+import numpy as np
+import pytest
+import torch
+
+from pilotlab.data.augment import AugmentConfig
+from pilotlab.data.frames import LabelRanges
+from pilotlab.data.split import split_validation
+from pilotlab.models import build_model, make_config
+from pilotlab.training import FitConfig, FitProgress, evaluate, fit, mean_predictor_mse
+from tests.pilotlab.synthetic import stripe_frameset
+
+
+@pytest.fixture(autouse=True)
+def one_thread():
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+def split(data, fraction=0.25):
+    s = split_validation(data.recording, fraction)
+    return data.subset(s.train), data.subset(s.val)
+
+
+def test_pilotnet_learns_where_the_stripe_is_far_better_than_the_mean():
+    data = stripe_frameset(recordings=4, per_recording=24)
+    train, val = split(data)
+    ranges = LabelRanges.covering(data.labels)
+    torch.manual_seed(0)
+    model = build_model("pilotnet")
+    history = fit(model, train, ranges, FitConfig(epochs=6, batch_size=8, lr=1e-3), val=val)
+    val_mse, mean_mse = evaluate(model, val, ranges)["mse"], mean_predictor_mse(train, val, ranges)["mse"]
+    print(f"val MSE {val_mse:.4f}, mean predictor {mean_mse:.4f}")
+    assert val_mse < 0.25 * mean_mse
+    assert val_mse == pytest.approx(min(r["val_loss"] for r in history), rel=1e-5)  # best weights restored
+
+
+def test_early_stopping_stops_and_restores_the_best_epoch():
+    data = stripe_frameset(recordings=2, per_recording=16)
+    train, val = split(data, 0.5)
+    ranges = LabelRanges.covering(data.labels)
+    torch.manual_seed(0)
+    model = build_model("pilotnet")
+    # A learning rate this high makes the validation loss jump about, so it soon stops improving.
+    history = fit(model, train, ranges, FitConfig(epochs=30, batch_size=8, lr=0.05, patience=2), val=val)
+    best = min(history, key=lambda r: r["val_loss"])
+    assert len(history) < 30 and len(history) == best["epoch"] + 2 and best.get("best")
+    assert evaluate(model, val, ranges)["mse"] == pytest.approx(best["val_loss"], rel=1e-5)
+
+
+def test_same_seed_same_history_with_augmentation():
+    data = stripe_frameset(recordings=2, per_recording=12)
+    ranges = LabelRanges.covering(data.labels)
+    config = FitConfig(epochs=2, batch_size=8, seed=7,
+                       augment=AugmentConfig(flip=True, color_jitter=0.2, blur=0.5, affine=0.5, oversample_curves=1))
+    runs = []
+    for _ in range(2):
+        torch.manual_seed(7)
+        model = build_model("pilotnet")
+        runs.append([{k: v for k, v in r.items() if k != "seconds"} for r in fit(model, data, ranges, config)])
+    assert runs[0] == runs[1]
+
+
+def test_stacked_frames_model_trains_and_callbacks_report_progress():
+    data = stripe_frameset(recordings=2, per_recording=10)
+    train, val = split(data, 0.5)
+    ranges = LabelRanges.covering(data.labels)
+    model = build_model("pilotnet_stacked", make_config("pilotnet_stacked", {"frames": 2}))
+    batches, epochs = [], []
+    with FitProgress(2) as bar:
+        def on_batch(*args):
+            batches.append(args)
+            bar.on_batch(*args)
+
+        def on_epoch(row):
+            epochs.append(row)
+            bar.on_epoch(row)
+        fit(model, train, ranges, FitConfig(epochs=2, batch_size=4, frames=2), val=val,
+            on_epoch=on_epoch, on_batch=on_batch)
+    assert [b[:3] for b in batches] == [(e, b, 3) for e in (1, 2) for b in (1, 2, 3)]
+    assert [r["epoch"] for r in epochs] == [1, 2] and all(np.isfinite(r["val_loss"]) for r in epochs)
