@@ -18,7 +18,7 @@ import pytest
 
 from matrix.kinds import NotApplicable
 from pilotlab.hardware import apply_profile, cpu_count, describe_host, host_fingerprint, make_profile
-from pilotlab.offline import TimingSettings, measure_latency, measure_throughput, test_batch
+from pilotlab.offline import TimingSettings, measure_latency, measure_throughput, sample_batch
 from pilotlab.predictor import OnnxPredictor, TorchPredictor, load_predictor
 from pilotlab.strategies import STRATEGIES, StrategySource, apply_strategy
 from tests.pilotlab.conftest import random_frames
@@ -113,7 +113,7 @@ def test_benchmark_every_strategy(trained, tmp_path):
     random_frames(256, seed=3).save(frames)
     built, skipped = build_all(trained, frames, tmp_path / "artifacts")
     test = random_frames(64, seed=4)
-    one, many = test_batch(test, 1, 1), test_batch(test, 64, 1)
+    one, many = sample_batch(test, 1, 1), sample_batch(test, 64, 1)
     print(f"\nhost: {describe_host(host_fingerprint())}; load average before: {os.getloadavg()}")
     for name, reason in skipped.items():
         print(f"{name}: not applicable: {reason}")
