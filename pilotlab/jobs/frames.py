@@ -11,7 +11,7 @@ params (all optional):
   command_topic: str   default: /F1ROS/cmd_vel (geometry_msgs/Twist or TwistStamped)
   crop_top: 0.5, crop_bottom: 1.0      rows kept, as fractions of the image height
   width: 200, height: 66               frame size after resizing
-  interpolation: "area" | "linear"     cv2.INTER_AREA (default) or INTER_LINEAR
+  interpolation: "fast_area" (default) | "area" | "linear"   see pilotlab.data.preprocess.resize
   label: str                           a name for the recording (shown in logs and results)
 
 artifacts: a FrameSet (frames.npy uint8 [N, 66, 200, 3] RGB, labels.npy float32 [N, 2] physical v, w,
