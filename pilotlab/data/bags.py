@@ -17,6 +17,7 @@ import numpy as np
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
+from pilotlab.data.folder import is_dataset_folder, read_folder
 from pilotlab.data.frames import FrameSet
 from pilotlab.data.images import IMAGE_TYPES, encoding_of, frame_from_message, image_size
 from pilotlab.data.preprocess import PreprocessConfig
@@ -215,8 +216,6 @@ class _Decoder:
 
 def read_frames(path: Path | str, preprocess: PreprocessConfig, topics: Topics = Topics(), **kwargs) -> FrameSet:
     """A bag, or a DeepLearningStudio dataset folder (`data.csv` + images), as a FrameSet."""
-    from pilotlab.data.folder import is_dataset_folder, read_folder
-
     path = Path(path)
     if is_dataset_folder(path):
         return read_folder(path, preprocess, progress=kwargs.get("progress"))
