@@ -25,8 +25,8 @@ GetDomain = Callable[[], Domain]
 STATE_STYLE = {"fresh": "green", "stale": "yellow", "new": "cyan"}
 
 
-def add_engine_commands(subparsers, get_domain: GetDomain) -> None:
-    store_help = "job store folder (default: $STORE variable or the domain's default)"
+def add_engine_commands(subparsers, get_domain: GetDomain,
+                        store_help: str = "job store folder (default: the domain's default)") -> None:
 
     def add(name: str, func, help: str) -> argparse.ArgumentParser:
         parser = subparsers.add_parser(name, help=help, description=help)

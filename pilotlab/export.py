@@ -1,0 +1,96 @@
+"""Copy an optimized artifact out of the job store, with a README saying how to deploy it."""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+from pilotlab.errors import PilotlabError
+from pilotlab.strategies.artifact import META_FILE, ArtifactMeta, read_meta
+
+LOADERS = {
+    "onnx": """```python
+import numpy as np, onnxruntime as ort
+session = ort.InferenceSession("{file}", providers=["CPUExecutionProvider"])
+vw = session.run(["vw"], {{"images": images}})[0]      # images: float32 {shape}
+```""",
+    "torchscript": """```python
+import torch
+module = torch.jit.load("{file}").eval()
+with torch.inference_mode():
+    vw = module(torch.from_numpy(images){cast}).float().numpy()   # images: float32 {shape}
+```""",
+    "pilotlab-checkpoint": """```python
+import torch
+from pilotlab.models import load_checkpoint          # needs pilotlab installed
+model, checkpoint = load_checkpoint("{file}")
+with torch.inference_mode():
+    vw = model(torch.from_numpy(images)).numpy()      # images: float32 {shape}
+```""",
+}
+
+FRAMEWORKS = {"onnx": "ONNX (run with ONNX Runtime ≥ 1.18, no Python needed in C/C++/C#/Java)",
+              "torchscript": "TorchScript (run with PyTorch or libtorch in C++)",
+              "pilotlab-checkpoint": "a pilotlab checkpoint (PyTorch eager; needs pilotlab)"}
+
+
+def export_artifact(artifact_dir: Path, result: dict[str, Any], out_dir: Path) -> Path:
+    """Copy the artifact folder into `out_dir` and write README.md; returns out_dir."""
+    artifact_dir, out_dir = Path(artifact_dir), Path(out_dir)
+    meta = read_meta(artifact_dir)
+    if out_dir.exists() and any(out_dir.iterdir()):
+        raise PilotlabError(f"{out_dir} exists and is not empty; give --out a new folder")
+    shutil.copytree(artifact_dir, out_dir, dirs_exist_ok=True)
+    (out_dir / "README.md").write_text(readme(meta, result))
+    return out_dir
+
+
+def readme(meta: ArtifactMeta, result: dict[str, Any]) -> str:
+    shape = "[N, " + ", ".join(str(d) for d in meta.input_shape[1:]) + "]"
+    cast = {"bfloat16": ".bfloat16()", "float16": ".half()"}.get(meta.dtype, "")
+    labels = meta.labels
+    lines = [
+        f"# {meta.arch} — {meta.strategy}", "",
+        f"Exported from pilotlab: strategy `{meta.strategy}` (version {meta.strategy_version}), "
+        f"{meta.dtype} weights, {FRAMEWORKS.get(meta.format, meta.format)}, for {meta.device}.", "",
+        f"- File: `{meta.file}` ({result.get('size_mb', 0):.2f} MB); metadata: `{META_FILE}`.",
+        f"- Input `images`: float32 {shape}, NCHW, RGB in [0, 1], any batch size N.",
+        f"- Preprocessing of a camera image: {json.dumps(meta.preprocess) if meta.preprocess else 'see artifact.json'} "
+        f"(pilotlab: lower half of the 640×480 image, resized to {meta.input_shape[3]}×{meta.input_shape[2]}, divided by 255).",
+        f"- Output `vw`: float32 [N, 2], normalised (v, w). Physical value = x × (hi − lo) + lo with "
+        f"v in [{labels['v'][0]}, {labels['v'][1]}] m/s and w in [{labels['w'][0]}, {labels['w'][1]}] rad/s.",
+        "", "## Load and run", "",
+        LOADERS[meta.format].format(file=meta.file, shape=shape, cast=cast), "",
+        "Denormalise:", "", "```python",
+        f"v = vw[:, 0] * ({labels['v'][1]} - {labels['v'][0]}) + {labels['v'][0]}",
+        f"w = vw[:, 1] * ({labels['w'][1]} - {labels['w'][0]}) + {labels['w'][0]}", "```", "",
+        "Or with pilotlab: `pilotlab.predictor.load_predictor(folder, 'cpu').predict(images)`.", ""]
+    return "\n".join(lines)
+
+
+def find_job(store: Path, key: str) -> Path:
+    """The job folder of `key` (a unique prefix is enough) in a store laid out as
+    `<store>/jobs/<key[:2]>/<key>/`."""
+    if len(key) < 2:
+        raise PilotlabError(f"job key {key!r} is too short; give at least 2 characters")
+    matches = sorted((Path(store) / "jobs" / key[:2]).glob(f"{key}*"))
+    if not matches:
+        raise PilotlabError(f"no job {key!r} in the store {store} (set --store or $PILOTLAB_STORE)")
+    if len(matches) > 1:
+        raise PilotlabError(f"job key {key!r} is ambiguous in {store}: "
+                            f"{', '.join(m.name[:12] for m in matches[:5])}…; give more characters")
+    return matches[0]
+
+
+def export_job(store: Path, key: str, out_dir: Path) -> Path:
+    job = find_job(store, key)
+    result_file = job / "result.json"
+    if not result_file.exists():
+        raise PilotlabError(f"job {job.name[:12]} has no result yet (not run, or still running)")
+    result = json.loads(result_file.read_text())
+    if not (job / "artifacts" / META_FILE).exists():
+        status = result.get("status") or result.get("reason") or "it wrote no artifact.json"
+        raise PilotlabError(f"job {job.name[:12]} is not an optimized artifact ({status}); "
+                            "export the key of an optimize job")
+    return export_artifact(job / "artifacts", result.get("result", result), out_dir)

@@ -1,0 +1,137 @@
+"""Hardware profiles (where an artifact is run and timed) and the host fingerprint.
+
+A profile is pure data, so it can travel in job params:
+
+    {"name": "cpu1", "device": "cpu", "threads": 1}
+
+Built in: `cpu` (all cores), `cpu1` (one thread), `cuda` (the first GPU). A recipe may define more
+under `hardware:` with `device` ("cpu" | "cuda") and `threads` (CPU threads; omitted = all cores).
+A profile that cannot run on this host raises `matrix.NotApplicable` with the reason, so the report
+shows "not applicable: …" instead of a crash.
+
+The host fingerprint (CPU model, core count, GPU name) goes into the key of every timing job, so
+timings measured on another machine are never shown as this one's.
+"""
+from __future__ import annotations
+
+import os
+import platform
+from dataclasses import asdict, dataclass
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from matrix.kinds import NotApplicable
+from pilotlab.errors import PilotlabError
+
+DEVICES = ("cpu", "cuda")
+
+
+@dataclass(frozen=True)
+class HardwareProfile:
+    name: str
+    device: str = "cpu"
+    threads: int | None = None      # CPU threads for torch and ONNX Runtime; None = every core
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @property
+    def cpu_threads(self) -> int:
+        return self.threads or cpu_count()
+
+
+BUILTIN = {
+    "cpu": HardwareProfile("cpu", "cpu", None),
+    "cpu1": HardwareProfile("cpu1", "cpu", 1),
+    "cuda": HardwareProfile("cuda", "cuda", None),
+}
+
+
+def cpu_count() -> int:
+    """Cores this process may run on (the affinity mask, not the machine's total)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def make_profile(name: str, options: dict[str, Any] | None = None) -> HardwareProfile:
+    """The built-in profile `name`, or a recipe-defined one from `options` ({device, threads})."""
+    if not options:
+        if name not in BUILTIN:
+            from matrix.errors import UnknownNameError
+            raise UnknownNameError("hardware profile", name, BUILTIN)
+        return BUILTIN[name]
+    unknown = sorted(set(options) - {"device", "threads"})
+    if unknown:
+        raise PilotlabError(f"hardware.{name}: unknown option(s) {', '.join(unknown)}; "
+                            "a hardware profile has: device (cpu | cuda), threads (an integer ≥ 1)")
+    device = options.get("device", "cpu")
+    threads = options.get("threads")
+    if device not in DEVICES:
+        raise PilotlabError(f"hardware.{name}.device: {device!r} is not one of {', '.join(DEVICES)}")
+    if threads is not None and (not isinstance(threads, int) or threads < 1):
+        raise PilotlabError(f"hardware.{name}.threads: {threads!r} must be an integer ≥ 1 (or omitted: all cores)")
+    return HardwareProfile(name, device, threads)
+
+
+def profile_from_dict(data: dict[str, Any]) -> HardwareProfile:
+    """The inverse of `HardwareProfile.as_dict` (job params carry profiles as dicts)."""
+    options = {k: v for k, v in data.items() if k != "name"}
+    return make_profile(data.get("name", "custom"), options or None)
+
+
+def check_available(profile: HardwareProfile) -> None:
+    """Raise NotApplicable when `profile` cannot run on this host."""
+    if profile.device == "cuda":
+        import torch
+        if not torch.cuda.is_available():
+            raise NotApplicable(f"hardware {profile.name!r} needs a CUDA GPU; this host has none "
+                                f"(torch {torch.__version__})")
+    if profile.threads is not None and profile.threads > cpu_count():
+        raise NotApplicable(f"hardware {profile.name!r} asks for {profile.threads} threads; "
+                            f"this host has {cpu_count()} cores")
+
+
+def apply_profile(profile: HardwareProfile) -> None:
+    """Set torch's thread count for this process (ONNX Runtime sessions take theirs from the profile)."""
+    import torch
+    check_available(profile)
+    torch.set_num_threads(profile.cpu_threads)
+
+
+@cache
+def cpu_model() -> str:
+    cpuinfo = Path("/proc/cpuinfo")
+    if cpuinfo.exists():
+        for line in cpuinfo.read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    return platform.processor() or platform.machine()
+
+
+@cache
+def cpu_flags() -> frozenset[str]:
+    cpuinfo = Path("/proc/cpuinfo")
+    if cpuinfo.exists():
+        for line in cpuinfo.read_text().splitlines():
+            if line.startswith("flags"):
+                return frozenset(line.split(":", 1)[1].split())
+    return frozenset()
+
+
+def gpu_name() -> str | None:
+    import torch
+    return torch.cuda.get_device_name(0) if torch.cuda.is_available() else None
+
+
+def host_fingerprint() -> dict[str, Any]:
+    """What makes timings from this host comparable: CPU model, cores, GPU (None without one)."""
+    return {"cpu": cpu_model(), "cores": cpu_count(), "machine": platform.machine(), "gpu": gpu_name()}
+
+
+def describe_host(host: dict[str, Any]) -> str:
+    """One line for reports: 'AMD EPYC, 2 cores, no GPU'."""
+    gpu = host.get("gpu") or "no GPU"
+    return f"{host.get('cpu')}, {host.get('cores')} cores, {gpu}"

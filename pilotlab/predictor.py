@@ -1,0 +1,141 @@
+"""One way to run any strategy's artifact: offline evaluation, benchmarks and the simulator's brain.
+
+    predictor = load_predictor(artifact_dir, "cpu1")          # or a HardwareProfile / profile dict
+    vw = predictor.predict(batch)   # float32 [N, C, 66, 200], RGB in [0, 1] -> float32 [N, 2]
+    predictor.meta.labels           # {"v": [lo, hi], "w": [lo, hi]} to denormalise vw
+    predictor.meta.preprocess       # how camera images were cropped/resized for this network
+
+`predict` does no work it can avoid per call (a brain calls it at batch 1 every control step): the
+numpy input is handed to the runtime without a copy (torch.from_numpy / ONNX Runtime's binding),
+the output comes back as the runtime's own array, and casts happen only for half-precision
+artifacts. The input must be C-contiguous float32.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from matrix.kinds import NotApplicable
+from pilotlab.errors import PilotlabError
+from pilotlab.hardware import BUILTIN, HardwareProfile, apply_profile, make_profile, profile_from_dict
+from pilotlab.strategies.artifact import INPUT_NAME, OUTPUT_NAME, ArtifactMeta, read_meta
+
+
+class Predictor:
+    """Runs one artifact on one hardware profile. Subclasses implement `_run`."""
+
+    def __init__(self, meta: ArtifactMeta, hardware: HardwareProfile):
+        self.meta = meta
+        self.hardware = hardware
+        self._trailing = tuple(meta.input_shape[1:])
+
+    @property
+    def threads(self) -> int:
+        return self.hardware.cpu_threads
+
+    def predict(self, batch: np.ndarray) -> np.ndarray:
+        if batch.dtype != np.float32 or batch.shape[1:] != self._trailing:
+            raise PilotlabError(f"predict: expected float32 [N, {', '.join(map(str, self._trailing))}], "
+                                f"got {batch.dtype} {list(batch.shape)}")
+        return self._run(batch)
+
+    def _run(self, batch: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+class TorchPredictor(Predictor):
+    """A pilotlab checkpoint (eager) or a TorchScript file."""
+
+    def __init__(self, meta: ArtifactMeta, hardware: HardwareProfile, module):
+        import torch
+        super().__init__(meta, hardware)
+        self._torch = torch
+        self._module = module
+        self._device = torch.device(hardware.device)
+        self._dtype = getattr(torch, meta.dtype) if meta.dtype in ("bfloat16", "float16") else torch.float32
+        self._cast = self._device.type != "cpu" or self._dtype != torch.float32
+
+    def _run(self, batch: np.ndarray) -> np.ndarray:
+        inputs = self._torch.from_numpy(batch)
+        with self._torch.inference_mode():
+            if self._cast:
+                return self._module(inputs.to(self._device, self._dtype)).float().cpu().numpy()
+            return self._module(inputs).numpy()
+
+
+class OnnxPredictor(Predictor):
+    """An ONNX model run by ONNX Runtime."""
+
+    def __init__(self, meta: ArtifactMeta, hardware: HardwareProfile, session):
+        super().__init__(meta, hardware)
+        self.session = session
+        self._run_session = session.run
+        self._outputs = [OUTPUT_NAME]
+
+    def _run(self, batch: np.ndarray) -> np.ndarray:
+        return self._run_session(self._outputs, {INPUT_NAME: batch})[0]
+
+
+def resolve_profile(hardware: HardwareProfile | dict | str | None) -> HardwareProfile:
+    if hardware is None:
+        return BUILTIN["cpu"]
+    if isinstance(hardware, HardwareProfile):
+        return hardware
+    if isinstance(hardware, dict):
+        return profile_from_dict(hardware)
+    return make_profile(hardware)
+
+
+def load_predictor(artifact_dir: Path, hardware: HardwareProfile | dict | str | None = None) -> Predictor:
+    """Load the artifact in `artifact_dir` to run on `hardware` (threads applied to this process)."""
+    artifact_dir = Path(artifact_dir)
+    meta = read_meta(artifact_dir)
+    profile = resolve_profile(hardware)
+    if meta.device == "cuda" and profile.device != "cuda":
+        raise NotApplicable(f"artifact {meta.strategy} was built for CUDA; hardware {profile.name!r} is a CPU")
+    apply_profile(profile)
+    path = artifact_dir / meta.file
+    if meta.runtime == "onnxruntime":
+        return OnnxPredictor(meta, profile, _ort_session(path, meta, profile))
+    if meta.runtime == "torch":
+        return TorchPredictor(meta, profile, _torch_module(path, meta, profile))
+    raise PilotlabError(f"{artifact_dir}: unknown runtime {meta.runtime!r} in artifact.json")
+
+
+def _torch_module(path: Path, meta: ArtifactMeta, profile: HardwareProfile):
+    import torch
+    if meta.format == "torchscript":
+        module = torch.jit.load(str(path), map_location=profile.device)
+    elif meta.format == "pilotlab-checkpoint":
+        from pilotlab.models import load_checkpoint
+        module, _ = load_checkpoint(path)
+    else:
+        raise PilotlabError(f"{path}: format {meta.format!r} cannot run on torch")
+    return module.to(profile.device).eval()
+
+
+def _ort_session(path: Path, meta: ArtifactMeta, profile: HardwareProfile):
+    import onnxruntime
+    options = onnxruntime.SessionOptions()
+    options.graph_optimization_level = onnxruntime.GraphOptimizationLevel.ORT_ENABLE_ALL
+    options.execution_mode = onnxruntime.ExecutionMode.ORT_SEQUENTIAL
+    options.intra_op_num_threads = profile.cpu_threads
+    options.inter_op_num_threads = 1
+    options.log_severity_level = 3
+    return onnxruntime.InferenceSession(str(path), options, providers=_providers(meta, profile))
+
+
+def _providers(meta: ArtifactMeta, profile: HardwareProfile) -> list[Any]:
+    import onnxruntime
+    if profile.device == "cpu":
+        return ["CPUExecutionProvider"]
+    wanted = meta.extra.get("providers", ["CUDAExecutionProvider"])
+    available = onnxruntime.get_available_providers()
+    missing = [p for p in wanted if p not in available]
+    if missing:
+        raise NotApplicable(f"artifact {meta.strategy} needs ONNX Runtime provider(s) {', '.join(missing)} "
+                            f"for {profile.name!r}; this onnxruntime has {', '.join(available)}")
+    options = {"TensorrtExecutionProvider": {"trt_fp16_enable": bool(meta.extra.get("trt_fp16"))}}
+    return [(p, options.get(p, {})) for p in wanted] + ["CPUExecutionProvider"]

@@ -1,0 +1,243 @@
+"""What a report is made of: `ReportData`, built by the caller from job results (plain dicts).
+
+    data = ReportData.from_dict({
+        "recipe_name": "quickstart", "description": "...", "recipe_text": yaml_text,
+        "versions": package_versions(), "host": Host.detect(), "date": "2025-01-31T12:00:00",
+        "rows": [
+            {"model": "pilotnet", "strategy": "baseline", "hardware": "cpu1", "kind": "offline",
+             "test_set": "simple_circuit", "job_keys": {"offline": "3f2a..."},
+             "size_mb": 6.1, "mse": 0.078, "latency_ms": 2.2},          # metrics flat or under "metrics"
+            {"model": "pilotnet", "strategy": "static_quant", "hardware": "cuda", "kind": "offline",
+             "status": "not_applicable", "reason": "fbgemm kernels run on CPU only"},
+            {"model": "pilotnet", "strategy": "baseline", "hardware": "cpu1", "kind": "online",
+             "circuit": "montreal", "direction": "cw", "lap_completed": True, "average_speed": 8.4,
+             "trajectory": "/path/to/trajectory.png"},
+        ],
+        "histories": {"pilotnet": [{"epoch": 1, "train_loss": 0.2, "val_loss": 0.3}, ...]},
+    })
+
+Metric names are exactly those of `pilotlab.columns`; an unknown name is an error that names the
+closest known one (`pick_metrics(job_result)` keeps only the metric keys of a job's result dict).
+A metric that was not measured is left out (None and NaN count as left out): the report shows it as
+missing, never as 0. A row whose status is not "ok" needs a one-line reason and shows no numbers.
+`baseline` (default "baseline") names the strategy the ratios are taken against.
+"""
+from __future__ import annotations
+
+import math
+import os
+import platform
+from collections.abc import Iterable, Mapping
+from datetime import datetime
+from importlib import metadata
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
+
+from pilotlab.columns import BY_NAME
+from pilotlab.errors import PilotlabError
+from matrix.errors import did_you_mean
+
+Kind = Literal["offline", "online"]
+Status = Literal["ok", "not_applicable", "failed"]
+MetricValue = StrictBool | int | float
+DEFAULT_PACKAGES = ("pilotlab", "torch", "torchao", "onnxruntime", "onnx", "numpy", "pybullet",
+                    "opencv-python-headless")
+ROW_FIELDS = ("model", "strategy", "hardware", "circuit", "direction", "test_set", "kind", "status", "reason")
+
+
+class ReportDataError(PilotlabError):
+    """The data handed to the report writer is not well formed; the message says which row and field."""
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class Host(_Frozen):
+    """The machine the timings were measured on."""
+    cpu: str = "unknown CPU"
+    cores: int | None = None
+    gpu: str | None = None          # None: no GPU was used or present
+    os: str = ""
+
+    @classmethod
+    def detect(cls) -> Host:
+        """This machine: CPU model from /proc/cpuinfo, logical cores, the CUDA device if torch sees one."""
+        return cls(cpu=_cpu_model(), cores=os.cpu_count(), gpu=_cuda_device(), os=platform.platform(terse=True))
+
+    def describe(self) -> str:
+        cores = f", {self.cores} cores" if self.cores else ""
+        return f"{self.cpu}{cores}; GPU: {self.gpu or 'none'}"
+
+
+class HistoryPoint(BaseModel):
+    """One epoch of training, as `pilotlab.training.fit` returns it (other keys are ignored)."""
+    model_config = ConfigDict(frozen=True, extra="ignore")
+    epoch: int
+    train_loss: float
+    val_loss: float | None = None
+
+
+class ReportRow(_Frozen):
+    """One evaluated cell: an offline evaluation or a closed-loop lap of one optimised model."""
+    model: str
+    strategy: str
+    hardware: str
+    kind: Kind
+    status: Status = "ok"
+    reason: str = ""                         # one line; required unless status is "ok"
+    circuit: str | None = None               # online rows: the circuit driven
+    direction: str | None = None             # online rows: "cw" / "ccw" where it matters
+    test_set: str | None = None              # offline rows: the held-out recordings' name
+    job_keys: dict[str, str] = Field(default_factory=dict)   # job kind (or role) -> store key
+    metrics: dict[str, MetricValue] = Field(default_factory=dict)
+    trajectory: Path | None = None           # online rows: PNG of the path over the red line
+
+    @model_validator(mode="before")
+    @classmethod
+    def _gather_flat_metrics(cls, value: Any) -> Any:
+        """Accept metrics at the top level (as job results carry them) as well as under "metrics"."""
+        if not isinstance(value, Mapping):
+            return value
+        fields = cls.model_fields
+        row = {k: v for k, v in value.items() if k in fields}
+        flat = {k: v for k, v in value.items() if k not in fields}   # unknown names are reported as metrics
+        row["metrics"] = {**dict(value.get("metrics") or {}), **flat}
+        return row
+
+    @field_validator("metrics", mode="before")
+    @classmethod
+    def _known_measured_metrics(cls, metrics: Mapping[str, Any]) -> dict[str, Any]:
+        for name in metrics:
+            if name not in BY_NAME:
+                known = [*BY_NAME, *cls.model_fields]
+                raise ValueError(f"unknown metric or field {name!r}{did_you_mean(name, known)}; "
+                                 f"metric names are those of pilotlab/columns.py")
+        return {k: v for k, v in metrics.items() if not _unmeasured(v)}
+
+    @field_validator("reason")
+    @classmethod
+    def _one_line(cls, reason: str) -> str:
+        return " ".join(reason.split())
+
+    @model_validator(mode="after")
+    def _reason_when_not_ok(self) -> ReportRow:
+        if self.status != "ok" and not self.reason:
+            raise ValueError(f"a {self.status!r} row needs a one-line 'reason'")
+        return self
+
+    def get(self, name: str) -> MetricValue | None:
+        """The metric's value, or None when it was not measured (or the cell did not run)."""
+        return self.metrics.get(name) if self.status == "ok" else None
+
+    @property
+    def place(self) -> str:
+        """Where it was evaluated: the circuit (and direction) online, the test set offline."""
+        if self.kind == "online":
+            return " ".join(p for p in (self.circuit, self.direction) if p) or "—"
+        return self.test_set or self.circuit or "test set"
+
+    def flat(self) -> dict[str, Any]:
+        """The tidy row as written to results.csv / results.json (metrics None when unmeasured)."""
+        base = {name: getattr(self, name) for name in ROW_FIELDS}
+        return {**base, **{name: self.get(name) for name in BY_NAME}}
+
+
+class ReportData(_Frozen):
+    """Everything the report shows. Build it with `ReportData.from_dict` from plain dicts."""
+    recipe_name: str
+    description: str = ""
+    recipe_text: str = ""
+    versions: dict[str, str] = Field(default_factory=dict)
+    host: Host = Field(default_factory=Host)
+    date: datetime
+    baseline: str = "baseline"               # the strategy the ratios are taken against
+    rows: tuple[ReportRow, ...] = ()
+    histories: dict[str, tuple[HistoryPoint, ...]] = Field(default_factory=dict)   # model -> epochs
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ReportData:
+        """Validate plain data (see the module docstring); errors name the row and field."""
+        try:
+            return cls.model_validate(data)
+        except ValidationError as error:
+            raise ReportDataError(_describe(error, data)) from None
+
+    def models(self) -> list[str]:
+        return _unique(row.model for row in self.rows)
+
+    def strategies(self) -> list[str]:
+        """In recipe order, with the baseline first."""
+        found = _unique(row.strategy for row in self.rows)
+        return sorted(found, key=lambda s: s != self.baseline)
+
+    def hardware(self) -> list[str]:
+        return _unique(row.hardware for row in self.rows)
+
+    def circuits(self) -> list[str]:
+        return _unique(row.circuit for row in self.rows if row.circuit)
+
+    def of_kind(self, kind: Kind) -> list[ReportRow]:
+        return [row for row in self.rows if row.kind == kind]
+
+
+def pick_metrics(result: Mapping[str, Any]) -> dict[str, Any]:
+    """The metrics of pilotlab/columns.py found in a job's result dict (other keys are left behind)."""
+    return {name: value for name, value in result.items() if name in BY_NAME}
+
+
+def package_versions(packages: Iterable[str] = DEFAULT_PACKAGES) -> dict[str, str]:
+    """Installed versions of the packages that shape the results (missing ones are left out)."""
+    versions = {"python": platform.python_version()}
+    for name in packages:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return versions
+
+
+def _describe(error: ValidationError, data: Mapping[str, Any]) -> str:
+    lines = []
+    for problem in error.errors():
+        where = ".".join(str(p) for p in problem["loc"])
+        if problem["loc"][:1] == ("rows",) and len(problem["loc"]) > 1:
+            where += _row_label(data, problem["loc"][1])
+        lines.append(f"{where}: {problem['msg']}")
+    return "report data is not valid: " + "; ".join(lines)
+
+
+def _row_label(data: Mapping[str, Any], index: Any) -> str:
+    try:
+        row = data["rows"][index]
+        return " (" + "/".join(str(row.get(k)) for k in ("model", "strategy", "hardware", "kind")) + ")"
+    except (KeyError, IndexError, TypeError, AttributeError):
+        return ""
+
+
+def _unmeasured(value: Any) -> bool:
+    return value is None or (isinstance(value, float) and math.isnan(value))
+
+
+def _unique(values: Iterable[str | None]) -> list[str]:
+    return [v for v in dict.fromkeys(values) if v is not None]
+
+
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine() or "unknown CPU"
+
+
+def _cuda_device() -> str | None:
+    try:
+        import torch
+    except ImportError:
+        return None
+    return torch.cuda.get_device_name(0) if torch.cuda.is_available() else None

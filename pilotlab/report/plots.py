@@ -1,0 +1,221 @@
+"""The report's plots (PNG + SVG), drawn with matplotlib's object API on the Agg canvas.
+
+Each function draws one figure from a `ReportData` and returns it, or None when there is nothing to
+draw (no measured points); `save_plots` writes whatever exists. Colour means strategy and marker
+shape means model everywhere, so a strategy looks the same in every plot.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import matplotlib
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+
+from pilotlab.report.data import ReportData, ReportRow
+
+MARKERS = "osD^vP*h"
+STYLE = {"font.size": 10, "axes.titlesize": 11, "axes.spines.top": False, "axes.spines.right": False,
+         "svg.hashsalt": "pilotlab", "svg.fonttype": "none", "figure.dpi": 110}
+
+
+def save_plots(data: ReportData, folder: Path) -> dict[str, tuple[Path, Path]]:
+    """Draw every plot that has data; write `<name>.png` and `<name>.svg`; return name -> (png, svg)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    written = {}
+    with matplotlib.rc_context(STYLE):
+        for name, draw in PLOTS.items():
+            figure = draw(data)
+            if figure is None:
+                continue
+            png, svg = folder / f"{name}.png", folder / f"{name}.svg"
+            figure.savefig(png, dpi=110, metadata={"Software": None})
+            figure.savefig(svg, metadata={"Date": None, "Creator": None})
+            written[name] = (png, svg)
+    return written
+
+
+def strategy_colours(data: ReportData) -> dict[str, tuple]:
+    cmap = matplotlib.colormaps["tab10" if len(data.strategies()) <= 10 else "tab20"]
+    return {strategy: cmap(i % cmap.N) for i, strategy in enumerate(data.strategies())}
+
+
+def model_markers(data: ReportData) -> dict[str, str]:
+    return {model: MARKERS[i % len(MARKERS)] for i, model in enumerate(data.models())}
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The points no other point beats on both axes (lower is better on both), by increasing x."""
+    front: list[tuple[float, float]] = []
+    for x, y in sorted(points):
+        if not front or y < front[-1][1]:
+            front.append((x, y))
+    return front
+
+
+def _grid(count: int, width: float = 5.2, height: float = 4.0, columns: int = 3) -> tuple[Figure, list]:
+    ncols = min(count, columns)
+    nrows = math.ceil(count / ncols)
+    figure = Figure(figsize=(width * ncols, height * nrows), layout="constrained")
+    axes = figure.subplots(nrows, ncols, squeeze=False).ravel().tolist()
+    for unused in axes[count:]:
+        unused.set_visible(False)
+    return figure, axes[:count]
+
+
+def _legend(figure: Figure, handles: list[Line2D]) -> None:
+    figure.legend(handles=handles, loc="outside right upper", frameon=False)
+
+
+def _identity_handles(data: ReportData, rows: list[ReportRow]) -> list[Line2D]:
+    colours, markers = strategy_colours(data), model_markers(data)
+    shown = dict.fromkeys(r.strategy for r in rows)
+    handles = [Line2D([], [], ls="", marker="o", color=colours[s], markersize=8, label=s) for s in shown]
+    models = list(dict.fromkeys(r.model for r in rows))
+    if len(data.models()) > 1:
+        handles += [Line2D([], [], ls="", marker=markers[m], color="0.4", markersize=8, label=m) for m in models]
+    return handles
+
+
+def draw_pareto(data: ReportData) -> Figure | None:
+    rows = [r for r in data.of_kind("offline") if r.get("latency_ms") is not None and r.get("mse") is not None]
+    if not rows:
+        return None
+    hardware = list(dict.fromkeys(r.hardware for r in rows))
+    figure, axes = _grid(len(hardware))
+    biggest = max((r.get("size_mb") or 0 for r in rows), default=0) or 1.0
+    area = lambda size: 40 + 700 * size / biggest  # noqa: E731  (marker area ∝ model size)
+    colours, markers = strategy_colours(data), model_markers(data)
+    for ax, target in zip(axes, hardware):
+        here = [r for r in rows if r.hardware == target]
+        for r in here:
+            size = r.get("size_mb")
+            ax.scatter(r.get("latency_ms"), r.get("mse"), s=area(size or 0), marker=markers[r.model],
+                       color=colours[r.strategy], alpha=0.75, edgecolors="black", linewidths=0.6, zorder=3)
+        front = pareto_front([(r.get("latency_ms"), r.get("mse")) for r in here])
+        ax.plot(*zip(*front), drawstyle="steps-post", color="0.35", ls="--", lw=1.2, zorder=2)
+        ax.set(title=target, xlabel="Inference time, batch 1 (ms)", ylabel="MSE (normalised v, w)")
+        ax.margins(0.15)
+        ax.grid(alpha=0.3)
+    sizes = sorted({round(r.get("size_mb"), 2) for r in rows if r.get("size_mb")})
+    shown = dict.fromkeys(sizes[i] for i in (0, len(sizes) // 2, -1)) if sizes else {}     # smallest, middle, largest
+    size_handles = [Line2D([], [], ls="", marker="o", markersize=math.sqrt(area(s)), color="0.75",
+                           markeredgecolor="black", label=f"{s:g} MB") for s in shown]
+    front_handle = Line2D([], [], color="0.35", ls="--", label="Pareto front")
+    _legend(figure, _identity_handles(data, rows) + [front_handle] + size_handles)
+    figure.suptitle("Latency vs MSE (lower left is better; marker area ∝ model size)")
+    return figure
+
+
+def _ratio_bars(ax, data: ReportData, groups: list[str], metric: str, title: str) -> None:
+    """Horizontal bars of baseline/value, one line per model and strategy, one bar per hardware."""
+    offline = data.of_kind("offline")
+    categories = sorted(dict.fromkeys((r.model, r.strategy) for r in offline),
+                        key=lambda c: (data.models().index(c[0]), data.strategies().index(c[1])))
+    height = 0.8 / max(1, len(groups))
+    for g, group in enumerate(groups):
+        for y, (model, strategy) in enumerate(categories):
+            row = next((r for r in offline if (r.model, r.strategy, r.hardware) == (model, strategy, group)), None)
+            base = next((r for r in offline if (r.model, r.strategy, r.hardware) == (model, data.baseline, group)
+                         and r.status == "ok"), None)
+            if row is not None:
+                _ratio_bar(ax, row, base, metric, y - 0.4 + height * (g + 0.5), height, g)
+    ax.axvline(1.0, color="0.3", lw=1)
+    labels = [s if len(data.models()) <= 1 else f"{m} · {s}" for m, s in categories]
+    ax.set_yticks(range(len(categories)), labels)
+    ax.set(title=title, xlabel="× baseline (above 1× is better)")
+    ax.set_xlim(0, max(1.5, ax.get_xlim()[1] * 1.12))   # room for the value labels
+    ax.grid(axis="x", alpha=0.3)
+
+
+def _ratio_bar(ax, row: ReportRow, base: ReportRow | None, metric: str, position: float, height: float,
+               index: int) -> None:
+    if row.status != "ok" or row.get(metric) is None or base is None or base.get(metric) is None:
+        label = {"not_applicable": "not applicable", "failed": "failed"}.get(row.status, "not measured")
+        ax.text(0.05, position, label, ha="left", va="center", fontsize=8, color="0.35", style="italic")
+        return
+    colour = matplotlib.colormaps["Set2"](index % 8)
+    bar = ax.barh(position, base.get(metric) / row.get(metric), height, color=colour, edgecolor="black", lw=0.5)
+    ax.bar_label(bar, fmt="%.2f×", fontsize=8, padding=3)
+
+
+def draw_ratios(data: ReportData) -> Figure | None:
+    offline = data.of_kind("offline")
+    if not any(r.strategy == data.baseline and r.status == "ok" for r in offline):
+        return None
+    hardware = list(dict.fromkeys(r.hardware for r in offline))
+    lines = len(dict.fromkeys((r.model, r.strategy) for r in offline))
+    figure = Figure(figsize=(11, 1.2 + 0.32 * lines * max(1, len(hardware) * 0.7)), layout="constrained")
+    size_ax, speed_ax = figure.subplots(1, 2, sharey=True)
+    _ratio_bars(size_ax, data, hardware[:1], "size_mb", "Size reduction (baseline size / size)")
+    _ratio_bars(speed_ax, data, hardware, "latency_ms", "Speed-up, batch 1 (baseline latency / latency)")
+    size_ax.invert_yaxis()                         # recipe order, top to bottom (the y axis is shared)
+    if len(hardware) > 1:
+        colours = matplotlib.colormaps["Set2"]
+        speed_ax.legend(handles=[Line2D([], [], lw=6, color=colours(i % 8), label=h) for i, h in enumerate(hardware)],
+                        frameon=False, fontsize=8, loc="lower right")
+    figure.suptitle(f"Strategies against {data.baseline}")
+    return figure
+
+
+def draw_closed_loop(data: ReportData) -> Figure | None:
+    rows = [r for r in data.of_kind("online")
+            if r.get("average_speed") is not None and r.get("position_deviation_mae_m") is not None]
+    if not rows:
+        return None
+    places = list(dict.fromkeys((r.hardware, r.place) for r in rows))
+    figure, axes = _grid(len(places))
+    colours, markers = strategy_colours(data), model_markers(data)
+    for ax, (target, place) in zip(axes, places):
+        for r in (r for r in rows if (r.hardware, r.place) == (target, place)):
+            lost = r.get("lap_completed") is False
+            ax.scatter(r.get("position_deviation_mae_m"), r.get("average_speed"), s=90, zorder=3,
+                       marker="X" if lost else markers[r.model], color=colours[r.strategy],
+                       edgecolors="crimson" if lost else "black", linewidths=1.2 if lost else 0.6)
+        ax.set(title=f"{place} · {target}", xlabel="Position deviation MAE (m), lower is better",
+               ylabel="Average speed (m/s), higher is better")
+        ax.margins(0.2)
+        ax.grid(alpha=0.3)
+    lost_handle = Line2D([], [], ls="", marker="X", color="0.6", markeredgecolor="crimson", markersize=9,
+                         label="lap not completed")
+    _legend(figure, _identity_handles(data, rows) + [lost_handle])
+    figure.suptitle("Closed loop: average speed vs deviation from the red line (upper left is better)")
+    return figure
+
+
+def draw_training(data: ReportData) -> Figure | None:
+    histories = {model: points for model, points in data.histories.items() if points}
+    if not histories:
+        return None
+    figure, axes = _grid(len(histories), width=5.0, height=3.6)
+    for ax, (model, points) in zip(axes, histories.items()):
+        epochs = [p.epoch for p in points]
+        ax.plot(epochs, [p.train_loss for p in points], marker="o", ms=3, label="train loss")
+        validated = [p for p in points if p.val_loss is not None]
+        if validated:
+            ax.plot([p.epoch for p in validated], [p.val_loss for p in validated], marker="s", ms=3, ls="--",
+                    label="validation loss")
+        losses = [p.train_loss for p in points] + [p.val_loss for p in validated]
+        if min(losses) > 0 and max(losses) / min(losses) > 20:
+            ax.set_yscale("log")
+        ax.set(title=model, xlabel="epoch", ylabel="MSE loss (normalised)")
+        ax.grid(alpha=0.3)
+        ax.legend(frameon=False)
+    figure.suptitle("Training curves")
+    return figure
+
+
+PLOTS: dict[str, Callable[[ReportData], Figure | None]] = {
+    "pareto": draw_pareto,
+    "ratios": draw_ratios,
+    "closed_loop": draw_closed_loop,
+    "training": draw_training,
+}
+CAPTIONS = {
+    "pareto": "Latency vs MSE per hardware: the dashed line is the Pareto front, marker area is the model size.",
+    "ratios": "Size reduction and speed-up of each strategy against the baseline (n/a: not applicable).",
+    "closed_loop": "Closed-loop laps: average speed against position deviation; a cross marks a lost lap.",
+    "training": "Training and validation loss per epoch for each model.",
+}

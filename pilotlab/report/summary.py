@@ -1,0 +1,142 @@
+"""A short generated summary of the findings: the best strategy per criterion, and who loses the lap.
+
+Findings are (label, text) pairs of plain text; the templates escape them.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from pilotlab.columns import BY_NAME
+from pilotlab.report.data import ReportData, ReportRow
+from pilotlab.report.tables import format_value, method_label
+
+
+@dataclass(frozen=True)
+class Finding:
+    label: str
+    text: str
+
+
+def summarise(data: ReportData) -> list[Finding]:
+    offline, online = data.of_kind("offline"), data.of_kind("online")
+    findings = [*_smallest(data, offline), *_most_accurate(data, offline), *_fastest(data, offline),
+                *_closed_loop(data, online), *_not_run(data, "not_applicable", "Not applicable"),
+                *_not_run(data, "failed", "Failed")]
+    return findings or [Finding("No results", "no cell produced a measurement")]
+
+
+def best(rows: Iterable[ReportRow], metric: str) -> ReportRow | None:
+    """The row with the best measured value of `metric` (lower or higher, as pilotlab/columns.py says)."""
+    measured = [r for r in rows if isinstance(r.get(metric), (int, float))]
+    if not measured:
+        return None
+    pick = max if BY_NAME[metric].better == "higher" else min
+    return pick(measured, key=lambda r: r.get(metric))
+
+
+def baseline_of(data: ReportData, row: ReportRow) -> ReportRow | None:
+    for other in data.rows:
+        if (other.strategy == data.baseline and other.status == "ok" and other.model == row.model
+                and other.kind == row.kind and other.hardware == row.hardware and other.place == row.place):
+            return other
+    return None
+
+
+def _smallest(data: ReportData, rows: list[ReportRow]) -> list[Finding]:
+    row = best(rows, "size_mb")
+    if row is None:
+        return []
+    size = format_value("size_mb", row.get("size_mb"))
+    text = f"{method_label(row, data)}{_ties(data, rows, row, 'size_mb')} — {size} MB"
+    return [Finding("Smallest model", text + _versus(data, row, "size_mb", "smaller"))]
+
+
+def _most_accurate(data: ReportData, rows: list[ReportRow]) -> list[Finding]:
+    findings = []
+    places = list(dict.fromkeys(r.place for r in rows))
+    for place in places:
+        here = [r for r in rows if r.place == place]
+        row = best(here, "mse")
+        if row is not None:
+            label = "Lowest MSE" + (f" on {place}" if len(places) > 1 else "")
+            text = f"{method_label(row, data)}{_ties(data, here, row, 'mse')} — {format_value('mse', row.get('mse'))}"
+            findings.append(Finding(label, text + _mse_delta(data, row)))
+    return findings
+
+
+def _fastest(data: ReportData, rows: list[ReportRow]) -> list[Finding]:
+    findings = []
+    for hardware in dict.fromkeys(r.hardware for r in rows):
+        here = [r for r in rows if r.hardware == hardware]
+        row = best(here, "latency_ms")
+        if row is not None:
+            text = f"{method_label(row, data)} — {format_value('latency_ms', row.get('latency_ms'))} ms per image"
+            findings.append(Finding(f"Fastest on {hardware}", text + _versus(data, row, "latency_ms", "faster")))
+        row = best(here, "throughput_ips")
+        if row is not None:
+            text = f"{method_label(row, data)} — {format_value('throughput_ips', row.get('throughput_ips'))} images/s"
+            findings.append(Finding(f"Highest throughput on {hardware}", text))
+    return findings
+
+
+def _closed_loop(data: ReportData, rows: list[ReportRow]) -> list[Finding]:
+    findings = []
+    for hardware, place in dict.fromkeys((r.hardware, r.place) for r in rows):
+        here = [r for r in rows if r.hardware == hardware and r.place == place and r.status == "ok"]
+        parts = _lap_parts(data, here)
+        if parts:
+            findings.append(Finding(f"Closed loop on {place} ({hardware})", "; ".join(parts)))
+    return findings
+
+
+def _lap_parts(data: ReportData, rows: list[ReportRow]) -> list[str]:
+    parts = []
+    completed = [r for r in rows if r.get("lap_completed") is True]
+    lap = best(completed, "lap_seconds")
+    if lap is not None:
+        parts.append(f"fastest lap {method_label(lap, data)} ({format_value('lap_seconds', lap.get('lap_seconds'))} s)")
+    steady = best(completed, "position_deviation_mae_m")
+    if steady is not None:
+        value = format_value("position_deviation_mae_m", steady.get("position_deviation_mae_m"))
+        parts.append(f"closest to the line {method_label(steady, data)} ({value} m)")
+    lost = [r for r in rows if r.get("lap_completed") is False]
+    if lost:
+        parts.append("lost the lap: " + ", ".join(
+            f"{method_label(r, data)} ({format_value('percentage_completed', r.get('percentage_completed'))})"
+            for r in lost))
+    elif completed:
+        parts.append("every model completed the lap")
+    return parts
+
+
+def _not_run(data: ReportData, status: str, label: str) -> list[Finding]:
+    rows = [r for r in data.rows if r.status == status]
+    if not rows:
+        return []
+    text = "; ".join(f"{method_label(r, data)} on {r.hardware}, {r.place} ({r.kind}): {r.reason}" for r in rows)
+    return [Finding(f"{label} ({len(rows)})", text)]
+
+
+def _ties(data: ReportData, rows: list[ReportRow], winner: ReportRow, metric: str) -> str:
+    """' (tied with a, b)' for the other strategies whose value reads the same as the winner's."""
+    shown = format_value(metric, winner.get(metric))
+    same = dict.fromkeys(method_label(r, data) for r in rows
+                         if r.get(metric) is not None and format_value(metric, r.get(metric)) == shown)
+    same.pop(method_label(winner, data), None)
+    return f" (tied with {', '.join(same)})" if same else ""
+
+
+def _versus(data: ReportData, row: ReportRow, metric: str, word: str) -> str:
+    base = baseline_of(data, row)
+    if base is None or base is row or not row.get(metric) or base.get(metric) is None:
+        return ""
+    return f", {base.get(metric) / row.get(metric):.2f}× {word} than {data.baseline}"
+
+
+def _mse_delta(data: ReportData, row: ReportRow) -> str:
+    base = baseline_of(data, row)
+    if base is None or base is row or base.get("mse") is None:
+        return ""
+    delta = row.get("mse") - base.get("mse")
+    return f" ({'+' if delta >= 0 else '−'}{abs(delta):.2g} against {data.baseline})"

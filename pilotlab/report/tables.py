@@ -1,0 +1,168 @@
+"""The report's tables, of the 2022 study's shape, as plain view models that both templates render.
+
+Offline: Method | Model size | MSE | Inference time | Throughput | Size × | Speed-up × | MSE Δ, one
+table per hardware and test set. Simulation: Method | Lap | Average speed | Position deviation MAE |
+Brain iteration frequency | Mean inference time | Real-time factor, one table per hardware and circuit.
+Ratios are taken against the baseline strategy of the same model in the same table.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from pilotlab.columns import BY_NAME
+from pilotlab.report.data import ReportData, ReportRow
+
+MISSING = "—"
+COUNT_COLUMNS = {"params", "nonzero_params", "throughput_batch", "threads", "test_frames", "off_road_events"}
+
+
+@dataclass(frozen=True)
+class Cell:
+    text: str
+    sort: float | None = None       # numeric sort key; None sorts last (missing / not applicable)
+    title: str = ""                 # tooltip in the HTML page
+    missing: bool = False
+
+
+@dataclass(frozen=True)
+class TableRow:
+    method: str
+    source: ReportRow
+    cells: tuple[Cell, ...]
+    note: str = ""                  # "not applicable: reason" / "failed: reason" spans the metric cells
+
+
+@dataclass(frozen=True)
+class Table:
+    title: str
+    kind: str
+    hardware: str
+    place: str
+    headers: tuple[str, ...]        # after the Method column
+    rows: tuple[TableRow, ...]
+    notes: tuple[str, ...] = field(default=())
+
+
+def format_value(name: str, value: object) -> str:
+    """A metric value as a person reads it: 3 significant digits, no exponent where avoidable."""
+    if value is None:
+        return MISSING
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if name in COUNT_COLUMNS or name == "throughput_ips":
+        return f"{value:,.0f}"
+    if name == "percentage_completed":
+        return f"{value:.0f} %"
+    return significant(float(value))
+
+
+def significant(value: float, digits: int = 3) -> str:
+    if value == 0 or not math.isfinite(value):
+        return f"{value:g}"
+    magnitude = math.floor(math.log10(abs(value)))
+    if magnitude >= digits - 1:
+        return f"{value:,.0f}"
+    if magnitude < -5:
+        return f"{value:.{digits - 1}e}"
+    return f"{value:.{digits - 1 - magnitude}f}"
+
+
+def method_label(row: ReportRow, data: ReportData) -> str:
+    return row.strategy if len(data.models()) <= 1 else f"{row.model} · {row.strategy}"
+
+
+def metric_cell(row: ReportRow, name: str) -> Cell:
+    value = row.get(name)
+    column = BY_NAME[name]
+    title = f"{name}: {column.doc}" + (f" ({column.unit})" if column.unit else "")
+    if value is None:
+        return Cell(MISSING, None, f"{title}: not measured", missing=True)
+    return Cell(format_value(name, value), float(value), title)
+
+
+def lap_cell(row: ReportRow) -> Cell:
+    done, seconds, share = row.get("lap_completed"), row.get("lap_seconds"), row.get("percentage_completed")
+    if done is None:
+        return Cell(MISSING, None, "lap not measured", missing=True)
+    if done:
+        text = f"✓ {format_value('lap_seconds', seconds)} s" if seconds is not None else "✓ completed"
+        return Cell(text, float(seconds) if seconds is not None else 0.0, "lap completed (simulated seconds)")
+    text = f"✗ {format_value('percentage_completed', share)}" if share is not None else "✗ lost"
+    return Cell(text, 1e9 - float(share or 0), "lap not completed (share of the circuit driven)")
+
+
+def ratio_cell(value: float | None, baseline: float | None, how: str) -> Cell:
+    """`how`: "smaller" (baseline/value, e.g. size), "faster" (baseline/value), "delta" (value - baseline)."""
+    if value is None or baseline is None:
+        reason = "no baseline to compare with" if baseline is None else "not measured"
+        return Cell(MISSING, None, reason, missing=True)
+    if how == "delta":
+        delta = float(value) - float(baseline)
+        return Cell(("+" if delta > 0 else "−" if delta < 0 else "±") + significant(abs(delta), 2),
+                    delta, "difference from the baseline (negative is better)")
+    if not value:
+        return Cell(MISSING, None, "zero value: no ratio", missing=True)
+    ratio = float(baseline) / float(value)
+    return Cell(f"{ratio:.2f}×", ratio, f"baseline / this ({how} above 1×)")
+
+
+OFFLINE_COLUMNS = (("Model size (MB)", "size_mb"), ("MSE", "mse"), ("Inference time (ms)", "latency_ms"),
+                   ("Throughput (images/s)", "throughput_ips"))
+ONLINE_COLUMNS = (("Average speed (m/s)", "average_speed"), ("Position deviation MAE (m)", "position_deviation_mae_m"),
+                  ("Brain iteration frequency (Hz)", "brain_frequency_sim_hz"),
+                  ("Mean inference time (ms)", "mean_inference_ms"), ("Real-time factor", "real_time_factor"))
+OFFLINE_HEADERS = tuple(h for h, _ in OFFLINE_COLUMNS) + ("Size ×", "Speed-up ×", "MSE Δ")
+ONLINE_HEADERS = ("Lap",) + tuple(h for h, _ in ONLINE_COLUMNS)
+
+
+def offline_cells(row: ReportRow, baseline: ReportRow | None) -> tuple[Cell, ...]:
+    base = baseline.get if baseline else (lambda _name: None)
+    return tuple(metric_cell(row, name) for _, name in OFFLINE_COLUMNS) + (
+        ratio_cell(row.get("size_mb"), base("size_mb"), "smaller"),
+        ratio_cell(row.get("latency_ms"), base("latency_ms"), "faster"),
+        ratio_cell(row.get("mse"), base("mse"), "delta"),
+    )
+
+
+def online_cells(row: ReportRow, _baseline: ReportRow | None) -> tuple[Cell, ...]:
+    return (lap_cell(row),) + tuple(metric_cell(row, name) for _, name in ONLINE_COLUMNS)
+
+
+def build_tables(data: ReportData, kind: str) -> list[Table]:
+    """One table per (hardware, test set) offline or (hardware, circuit and direction) online."""
+    headers, cells_of = (OFFLINE_HEADERS, offline_cells) if kind == "offline" else (ONLINE_HEADERS, online_cells)
+    groups: dict[tuple[str, str], list[ReportRow]] = {}
+    for row in data.of_kind(kind):
+        groups.setdefault((row.hardware, row.place), []).append(row)
+    return [_table(data, kind, hardware, place, rows, headers, cells_of)
+            for (hardware, place), rows in groups.items()]
+
+
+def _table(data: ReportData, kind: str, hardware: str, place: str, rows: list[ReportRow],
+           headers: tuple[str, ...], cells_of: Callable) -> Table:
+    order = {s: i for i, s in enumerate(data.strategies())}
+    rows = sorted(rows, key=lambda r: (data.models().index(r.model), order[r.strategy]))
+    baselines = {r.model: r for r in rows if r.strategy == data.baseline and r.status == "ok"}
+    notes = tuple(f"No usable {data.baseline!r} row for {model} here: ratios are not shown."
+                  for model in _unique(r.model for r in rows) if model not in baselines) if kind == "offline" else ()
+    table_rows = tuple(TableRow(method_label(r, data), r, cells_of(r, baselines.get(r.model)), _note(r)) for r in rows)
+    where = "test set" if kind == "offline" else "circuit"
+    return Table(f"{hardware} · {where} {place}", kind, hardware, place, headers, table_rows, notes)
+
+
+def _note(row: ReportRow) -> str:
+    return {"ok": "", "not_applicable": f"not applicable: {row.reason}", "failed": f"failed: {row.reason}"}[row.status]
+
+
+def _unique(values) -> list:
+    return list(dict.fromkeys(values))
+
+
+ALL_COLUMNS = tuple(BY_NAME)
+
+
+def all_results_cells(row: ReportRow) -> tuple[Cell, ...]:
+    """Every metric of pilotlab/columns.py, for the page's full results table."""
+    return tuple(metric_cell(row, name) for name in ALL_COLUMNS)

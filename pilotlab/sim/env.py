@@ -1,0 +1,243 @@
+"""DrivingEnv: a Gymnasium-style environment of the car on a circuit.
+
+    env = DrivingEnv("simple_circuit", camera=CameraSpec(), renderer="pybullet")
+    obs, info = env.reset(seed=0, options={"direction": "ccw"})
+    obs, reward, terminated, truncated, info = env.step((v, w))           # control_period later
+    obs, reward, terminated, truncated, info = env.step((v, w), duration=0.12)  # 0.12 s later
+
+`step` keeps Gymnasium's signature (`step(action)`) and adds two keyword arguments: `duration`, the
+simulated seconds this command stays in force (default: `env.control_period`, 0.05 s = 20 Hz; the
+"latency" timing mode passes max(control period, inference time) here, so a slow brain reacts
+late), and `render=False` to skip the camera (obs is then None). Time advances in physics steps
+(1/120 s): a duration is rounded to the nearest step, at least one; `info["sim_time"]` is exact.
+
+reset options (all optional): `circuit` (name or CSV path; changing it rebuilds the world),
+`direction` ("cw" | "ccw"), `start` (metres along the driving direction from the start line, or
+"random": uniform over the lap from the seed), `lateral` (metres left of the red line), `heading`
+(radians relative to the line), `speed` (initial forward speed, m/s), `laps`, `timeout_s`,
+`control_period`. The same seed and options give the same run, step for step.
+
+Episodes end (terminated) when the laps are completed, when the car's centre leaves the road (unless
+`stop_off_road=False`), or when it is trapped (less than 1 m of progress in `trapped_s` seconds, or
+tipped over); they are truncated at the timeout (BehaviorMetrics' per-circuit timeout × laps). The
+reward is the progress along the red line during the step, in metres. `info` holds everything
+BehaviorMetrics' metrics need; see `INFO_KEYS`.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from pilotlab.circuits import Circuit, get_circuit, wrap_angle
+from pilotlab.circuits.circuit import check_direction
+from pilotlab.errors import PilotlabError
+from pilotlab.sim.camera import CameraSpec, camera_pose
+from pilotlab.sim.car import Car, CarSpec
+from pilotlab.sim.render import GroundRenderer, PybulletRenderer, check_renderer
+from pilotlab.sim.world import PHYSICS_HZ, World
+
+INFO_KEYS = {
+    "sim_time": "simulated seconds since reset",
+    "dt": "simulated seconds this step lasted",
+    "step": "number of steps since reset",
+    "pose": "(x, y, yaw) of the car's centre, metres and radians",
+    "position": "(x, y, z) of the car's centre (z at axle height)",
+    "orientation": "quaternion (x, y, z, w) of the chassis",
+    "speed": "forward speed, m/s",
+    "yaw_rate": "rad/s, + turning left",
+    "command": "(v, w) applied during this step",
+    "s": "arc length of the nearest red-line point, metres in [0, circuit_length)",
+    "progress": "metres driven along the red line since the start (signed, all laps)",
+    "laps_completed": "whole laps completed",
+    "lap_times": "sim_time at which each lap was completed",
+    "lateral_offset": "signed distance from the red line, metres, + left of the driving direction",
+    "distance_to_line": "|lateral_offset|",
+    "heading_error": "car yaw minus red-line heading, radians in [-pi, pi)",
+    "off_road": "the car's centre is off the road (|lateral_offset| > road_width / 2)",
+    "termination": "None, or why the episode ended: lap_completed | off_road | trapped | timeout",
+    "circuit": "circuit name", "direction": "cw | ccw", "circuit_length": "metres",
+    "road_width": "metres",
+}
+
+
+class DrivingEnv:
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
+
+    def __init__(self, circuit: str | Circuit = "simple_circuit", *, direction: str = "cw",
+                 camera: CameraSpec | None = CameraSpec(), renderer: str = "pybullet",
+                 control_period: float = 0.05, physics_hz: float = PHYSICS_HZ, walls: bool = False,
+                 car: CarSpec = CarSpec(), laps: float = 1, timeout_s: float | None = None,
+                 stop_off_road: bool = True, trapped_s: float = 10.0):
+        self.camera, self.renderer_name = camera, check_renderer(renderer, walls)
+        self.physics_hz, self.walls, self.car_spec = physics_hz, walls, car
+        self.stop_off_road, self.trapped_s = stop_off_road, trapped_s
+        self._defaults = {"circuit": circuit, "direction": check_direction(direction), "laps": laps,
+                          "timeout_s": timeout_s, "control_period": control_period}
+        self.control_period = control_period
+        self.world: World | None = None
+        self.car: Car | None = None
+        self._renderer = None
+        self.circuit = self._load_circuit(circuit, direction)
+        self.np_random = np.random.default_rng()
+
+    # -- Gymnasium API ----------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        if seed is not None or not hasattr(self, "_seeded"):
+            self.np_random, self._seeded = np.random.default_rng(seed), True
+        options = dict(options or {})
+        unknown = set(options) - {"circuit", "direction", "start", "lateral", "heading", "speed", "laps",
+                                  "timeout_s", "control_period"}
+        if unknown:
+            raise PilotlabError(f"unknown reset option(s) {sorted(unknown)}; see DrivingEnv's docstring")
+        settings = {**self._defaults, **{k: v for k, v in options.items() if k in self._defaults}}
+        self.circuit = self._load_circuit(settings["circuit"], settings["direction"])
+        self.control_period = float(settings["control_period"])
+        self.laps = float(settings["laps"])
+        self.timeout_s = settings["timeout_s"] or self.circuit.timeout_s * self.laps
+        self._build_world()
+        self._place_car(options)
+        return self._observe(True), self._info()
+
+    def step(self, action, duration: float | None = None, render: bool = True):
+        if self.car is None:
+            raise PilotlabError("call reset() before step()")
+        v, w = (float(a) for a in action)
+        if not (math.isfinite(v) and math.isfinite(w)):
+            raise PilotlabError(f"the command must be finite numbers (v, w), got {action!r}")
+        duration = self.control_period if duration is None else float(duration)
+        if duration <= 0:
+            raise PilotlabError(f"a step must last a positive time, got duration={duration}")
+        self.car.apply(v, w)
+        substeps = max(1, round(duration * self.physics_hz))
+        self.world.step(substeps)
+        self._physics_steps += substeps
+        self._steps += 1
+        self._last_dt = substeps / self.physics_hz
+        before = self._progress
+        self._track()
+        termination = self._termination()
+        self._termination_reason = termination
+        truncated = termination == "timeout"
+        terminated = termination is not None and not truncated
+        return self._observe(render), self._progress - before, terminated, truncated, self._info()
+
+    def render(self) -> np.ndarray | None:
+        """The camera image now (None without a camera)."""
+        return self._observe(True)
+
+    def close(self) -> None:
+        if self.world is not None:
+            self.world.close()
+            self.world, self.car = None, None
+
+    def __enter__(self) -> DrivingEnv:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def sim_time(self) -> float:
+        return self._physics_steps / self.physics_hz
+
+    # -- internals ----------------------------------------------------------------------------
+    def _load_circuit(self, circuit: str | Circuit, direction: str) -> Circuit:
+        if isinstance(circuit, Circuit):
+            return circuit.directed(direction)
+        return get_circuit(circuit, direction)
+
+    def _build_world(self) -> None:
+        canonical = self.circuit.directed("cw")
+        if self.world is None or self.world.circuit is not canonical:
+            self.close()
+            meshes = self.camera is not None and self.renderer_name == "pybullet"
+            self.world = World(canonical, walls=self.walls, physics_hz=self.physics_hz, road_meshes=meshes)
+            self._renderer = self._make_renderer(canonical)
+        elif self.car is not None:
+            self.world.remove(self.car.body)  # a fresh car: nothing of the last episode carries over
+        self.car = None
+
+    def _make_renderer(self, canonical: Circuit):
+        if self.camera is None:
+            return None
+        if self.renderer_name == "pybullet":
+            return PybulletRenderer(self.world.client, self.camera)
+        return GroundRenderer(canonical, self.camera)
+
+    def _place_car(self, options: dict[str, Any]) -> None:
+        start = options.get("start", 0.0)
+        if start == "random":
+            start = float(self.np_random.uniform(0.0, self.circuit.length))
+        elif not isinstance(start, (int, float)):
+            raise PilotlabError(f"reset option start must be metres along the lap or 'random', got {start!r}")
+        x, y, yaw = self.circuit.start_pose(float(start), float(options.get("lateral", 0.0)))
+        yaw += float(options.get("heading", 0.0))
+        self.car = Car(self.world.client, self.car_spec, (x, y, yaw), speed=float(options.get("speed", 0.0)))
+        self._physics_steps, self._steps, self._last_dt = 0, 0, 0.0
+        self._start_s = float(start) % self.circuit.length
+        self._s, self._progress, self._lap_times = self._start_s, 0.0, []
+        self._progress_marks: list[tuple[float, float]] = [(0.0, 0.0)]
+        self._termination_reason = None
+        self._track()
+
+    def _track(self) -> None:
+        """Read the car's state and advance progress along the red line."""
+        position, orientation, speed, yaw_rate = self.car.state()
+        self._state = (position, orientation, speed, yaw_rate)
+        reach = 25.0 + abs(speed) * self._last_dt * 2
+        projection = self.circuit.project(position[0], position[1], near_s=self._s, window=reach)
+        length = self.circuit.length
+        self._progress += (projection.s - self._s + length / 2) % length - length / 2
+        self._s, self._projection = projection.s, projection
+        while self._progress >= (len(self._lap_times) + 1) * length:
+            self._lap_times.append(self.sim_time)
+        if self._progress > self._progress_marks[-1][1] + 1.0:
+            self._progress_marks.append((self.sim_time, self._progress))
+
+    def _termination(self) -> str | None:
+        if self._progress >= self.laps * self.circuit.length:
+            return "lap_completed"
+        if self.stop_off_road and self._off_road():
+            return "off_road"
+        if self._trapped():
+            return "trapped"
+        if self.sim_time >= self.timeout_s - 1e-9:
+            return "timeout"
+        return None
+
+    def _off_road(self) -> bool:
+        return self._projection.distance > self.circuit.road_width / 2
+
+    def _trapped(self) -> bool:
+        position, orientation = self._state[:2]
+        up_z = 1 - 2 * (orientation[0] ** 2 + orientation[1] ** 2)  # z of the chassis' up axis
+        if up_z < 0.5:
+            return True  # tipped over
+        last_mark_time = self._progress_marks[-1][0]
+        return self.sim_time - last_mark_time > self.trapped_s
+
+    def _observe(self, render: bool) -> np.ndarray | None:
+        if not render or self._renderer is None:
+            return None
+        position, orientation = self._state[:2]
+        eye, rotation = camera_pose(self.camera, position, orientation, self.car_spec.wheel_radius)
+        return self._renderer.render(eye, rotation)
+
+    def _info(self) -> dict[str, Any]:
+        position, orientation, speed, yaw_rate = self._state
+        yaw = math.atan2(2 * (orientation[3] * orientation[2] + orientation[0] * orientation[1]),
+                         1 - 2 * (orientation[1] ** 2 + orientation[2] ** 2))
+        projection, circuit = self._projection, self.circuit
+        return {
+            "sim_time": self.sim_time, "dt": self._last_dt, "step": self._steps,
+            "pose": (position[0], position[1], yaw), "position": tuple(position), "orientation": tuple(orientation),
+            "speed": speed, "yaw_rate": yaw_rate, "command": self.car.command,
+            "s": projection.s, "progress": self._progress, "laps_completed": len(self._lap_times),
+            "lap_times": list(self._lap_times), "lateral_offset": projection.lateral,
+            "distance_to_line": projection.distance,
+            "heading_error": float(wrap_angle(yaw - projection.heading)), "off_road": self._off_road(),
+            "termination": self._termination_reason, "circuit": circuit.name, "direction": circuit.direction,
+            "circuit_length": circuit.length, "road_width": circuit.road_width,
+        }

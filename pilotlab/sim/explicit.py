@@ -1,0 +1,76 @@
+"""The "explicit brain": follows the red line in the camera image with OpenCV only.
+
+The classic BehaviorMetrics baseline: threshold red in HSV, find the line's centre in bands of rows
+below the horizon, steer with a PD controller on the nearest band that sees the line, and slow down
+when the bands further ahead say a curve is coming. When the line is lost it keeps turning the way it last saw
+it, slowly. It reads a full camera frame (horizon across the middle); rows are fractions of the
+height, so any frame size works.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ExplicitBrainConfig:
+    # Bands of rows (fractions of the image height; the horizon is at 0.5) and how far ahead they see.
+    near_rows: tuple[float, float] = (0.75, 0.85)   # 3-4 m: steer on this
+    low_rows: tuple[float, float] = (0.88, 0.98)    # 2-3 m: steer on this when the near band is empty
+    mid_rows: tuple[float, float] = (0.60, 0.66)    # 6-9 m  } is a curve coming? slow down
+    far_rows: tuple[float, float] = (0.53, 0.56)    # 15-30 m }
+    kp: float = 2.0                  # rad/s per unit of normalised offset (1 = image edge)
+    kd: float = 2.0                  # rad/s per unit of change of the offset between two frames
+    max_turn: float = 2.5            # rad/s
+    max_speed: float = 12.0
+    min_speed: float = 6.0
+    slow_down: float = 10.0          # m/s of speed lost per unit of offset ahead (a lost far line counts 1)
+    lost_speed: float = 2.0
+    lost_turn: float = 1.0
+    version: int = 1
+
+
+def red_mask(image: np.ndarray) -> np.ndarray:
+    """Pixels of the red line (the image is RGB)."""
+    hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
+    low = cv2.inRange(hsv, (0, 120, 70), (10, 255, 255))
+    high = cv2.inRange(hsv, (170, 120, 70), (180, 255, 255))
+    return cv2.bitwise_or(low, high)
+
+
+def line_offset(mask: np.ndarray, rows: tuple[float, float]) -> float | None:
+    """Mean column of the red pixels in a band of rows, as -1 (left edge) .. 1 (right edge)."""
+    height, width = mask.shape
+    band = mask[int(rows[0] * height):max(int(rows[1] * height), int(rows[0] * height) + 1)]
+    columns = np.nonzero(band)[1]
+    if len(columns) == 0:
+        return None
+    return float(columns.mean() / (width - 1) * 2 - 1)
+
+
+class ExplicitBrain:
+    def __init__(self, config: ExplicitBrainConfig = ExplicitBrainConfig()):
+        self.config = config
+        self.reset()
+
+    def reset(self) -> None:
+        self._last_offset, self._last_band = 0.0, None
+
+    def act(self, image: np.ndarray) -> tuple[float, float]:
+        config = self.config
+        mask = red_mask(image)
+        band, offset = "near", line_offset(mask, config.near_rows)
+        if offset is None:
+            band, offset = "low", line_offset(mask, config.low_rows)
+        if offset is None:  # line lost: turn towards where it was last seen
+            self._last_band = None
+            return config.lost_speed, -float(np.sign(self._last_offset)) * config.lost_turn
+        change = offset - self._last_offset if band == self._last_band else 0.0
+        w = float(np.clip(-config.kp * offset - config.kd * change, -config.max_turn, config.max_turn))
+        self._last_offset, self._last_band = offset, band
+        ahead = [line_offset(mask, rows) for rows in (config.mid_rows, config.far_rows)]
+        curve = max([abs(offset)] + [1.0 if a is None else abs(a) for a in ahead])
+        v = float(np.clip(config.max_speed - config.slow_down * curve, config.min_speed, config.max_speed))
+        return v, w

@@ -1,0 +1,147 @@
+"""The artifact a strategy writes: one model file in a deployable format plus `artifact.json`.
+
+    artifact.json = {
+      "artifact_format": "pilotlab-artifact/1",
+      "strategy": "onnxruntime_int8", "strategy_version": 1,
+      "format": "onnx",                 # "onnx" | "torchscript" | "pilotlab-checkpoint"
+      "file": "model.onnx",
+      "runtime": "onnxruntime",         # "onnxruntime" | "torch"
+      "device": "cpu",                  # where it is meant to run ("cpu" | "cuda")
+      "dtype": "int8",                  # the precision of the weights/compute
+      "input": {"name": "images", "shape": [null, 3, 66, 200], "dtype": "float32",
+                "layout": "NCHW, RGB in [0, 1]"},
+      "output": {"name": "vw", "shape": [null, 2], "meaning": "normalised (v, w)"},
+      "arch": "pilotnet", "config": {...},            # from the trained checkpoint
+      "labels": {"v": [lo, hi], "w": [lo, hi]}, "preprocess": {...},
+      "extra": {...}                                  # strategy specifics (sparsity, quantizer...)
+    }
+
+The input is always float32 (the predictor casts for half-precision artifacts), so every consumer
+feeds the same tensor whatever the strategy.
+"""
+from __future__ import annotations
+
+import json
+import warnings
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch import nn
+
+from pilotlab.errors import PilotlabError
+
+ARTIFACT_FORMAT = "pilotlab-artifact/1"
+META_FILE = "artifact.json"
+INPUT_NAME, OUTPUT_NAME = "images", "vw"
+FLOAT_FORMATS = ("checkpoint", "torchscript", "onnx")   # how a float model (pruned, clustered) is saved
+
+
+@dataclass(frozen=True)
+class ArtifactMeta:
+    strategy: str
+    strategy_version: int
+    format: str
+    file: str
+    runtime: str
+    dtype: str
+    input_shape: tuple               # (None, C, H, W): None = any batch size
+    arch: str
+    config: dict[str, Any]
+    labels: dict[str, Any]
+    preprocess: dict[str, Any] = field(default_factory=dict)
+    device: str = "cpu"
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        data = asdict(self)
+        shape = list(data.pop("input_shape"))
+        return {"artifact_format": ARTIFACT_FORMAT, **{k: data[k] for k in (
+            "strategy", "strategy_version", "format", "file", "runtime", "device", "dtype")},
+            "input": {"name": INPUT_NAME, "shape": shape, "dtype": "float32",
+                      "layout": "NCHW, RGB in [0, 1]"},
+            "output": {"name": OUTPUT_NAME, "shape": [None, 2], "meaning": "normalised (v, w)"},
+            **{k: data[k] for k in ("arch", "config", "labels", "preprocess", "extra")}}
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> ArtifactMeta:
+        fields = {k: data[k] for k in ("strategy", "strategy_version", "format", "file", "runtime",
+                                       "dtype", "arch", "config", "labels", "preprocess", "device", "extra")}
+        return cls(input_shape=tuple(data["input"]["shape"]), **fields)
+
+
+def write_meta(out: Path, meta: ArtifactMeta) -> None:
+    tmp = Path(out) / (META_FILE + ".tmp")
+    tmp.write_text(json.dumps(meta.to_json(), indent=1))
+    tmp.replace(Path(out) / META_FILE)
+
+
+def read_meta(artifact_dir: Path) -> ArtifactMeta:
+    path = Path(artifact_dir) / META_FILE
+    if not path.exists():
+        raise PilotlabError(f"{artifact_dir}: not a pilotlab artifact (no {META_FILE}); "
+                            "give the folder an optimize job wrote (or `pilotlab export` copied)")
+    data = json.loads(path.read_text())
+    if data.get("artifact_format") != ARTIFACT_FORMAT:
+        raise PilotlabError(f"{path}: artifact format {data.get('artifact_format')!r} is not "
+                            f"{ARTIFACT_FORMAT!r}; rerun the optimize job with this pilotlab")
+    return ArtifactMeta.from_json(data)
+
+
+def artifact_size_mb(artifact_dir: Path) -> float:
+    """Size on disk of everything but artifact.json (the model file and any weight files)."""
+    files = [p for p in Path(artifact_dir).rglob("*") if p.is_file() and p.name != META_FILE]
+    return sum(p.stat().st_size for p in files) / 2**20
+
+
+def example_batch(input_shape: tuple, batch: int = 2, dtype=torch.float32) -> torch.Tensor:
+    # torch.export specialises a dimension of size 1, so a dynamic batch needs an example of 2.
+    return torch.rand(batch, *input_shape[1:], generator=torch.Generator().manual_seed(0)).to(dtype)
+
+
+def export_onnx(model: nn.Module, path: Path, input_shape: tuple) -> None:
+    """ONNX via the torch.export-based exporter (the TorchScript one is deprecated in torch 2.x),
+    with a dynamic batch dimension and the weights inside the one file (external_data=False)."""
+    from pilotlab.strategies.fold import fold_input_norm
+    model = fold_input_norm(model)
+    batch = torch.export.Dim("batch", min=1)
+    with warnings.catch_warnings(), _quiet_onnx_exporter():
+        warnings.simplefilter("ignore")
+        program = torch.onnx.export(model, (example_batch(input_shape),), dynamo=True,
+                                    input_names=[INPUT_NAME], output_names=[OUTPUT_NAME],
+                                    dynamic_shapes=({0: batch},), verbose=False)
+    program.save(str(path), external_data=False)
+
+
+class _quiet_onnx_exporter:
+    """The exporter prints progress lines and warnings about torchvision ops; silence them."""
+
+    def __enter__(self):
+        import contextlib
+        import io
+        self._stack = contextlib.ExitStack()
+        self._stack.enter_context(contextlib.redirect_stdout(io.StringIO()))
+        import logging
+        self._logger = logging.getLogger("torch.onnx")
+        self._level = self._logger.level
+        self._logger.setLevel(logging.ERROR)
+        return self
+
+    def __exit__(self, *exc):
+        self._logger.setLevel(self._level)
+        self._stack.close()
+        return False
+
+
+def save_torchscript(model: nn.Module, path: Path, input_shape: tuple, dtype=torch.float32,
+                     device: str = "cpu") -> None:
+    """Traced and frozen (weights folded in as constants, conv+relu fused): graph-level
+    optimisation without Python at run time."""
+    from pilotlab.strategies.fold import fold_input_norm
+    model = fold_input_norm(model.eval())
+    with torch.no_grad(), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        traced = torch.jit.trace(model, example_batch(input_shape, 1, dtype).to(device))
+        frozen = torch.jit.freeze(traced)
+    torch.jit.save(frozen, str(path))

@@ -1,0 +1,19 @@
+"""`baseline`: the trained network as it is, fp32 eager PyTorch — the reference every ratio uses."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pilotlab.strategies.common import save_float_model
+from pilotlab.strategies.registry import StrategySource, register_strategy
+
+
+@dataclass(frozen=True)
+class BaselineConfig:
+    version: int = 1
+
+
+@register_strategy("baseline", BaselineConfig)
+def baseline(config: BaselineConfig, source: StrategySource) -> dict:
+    # Kept as a pilotlab checkpoint run eagerly, as the 2022 study timed its PyTorch baseline.
+    save_float_model(source.load_model(), source, "baseline", "checkpoint")
+    return {}

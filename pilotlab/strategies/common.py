@@ -1,0 +1,86 @@
+"""Helpers shared by strategies: fine-tuning on the training frames, saving a float model, sparsity."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from torch import nn
+
+from matrix.kinds import NotApplicable
+from pilotlab.errors import PilotlabError
+from pilotlab.hardware import check_available
+from pilotlab.models import make_config, save_checkpoint
+from pilotlab.strategies.artifact import FLOAT_FORMATS, export_onnx, save_torchscript
+from pilotlab.strategies.registry import StrategySource
+from pilotlab.training import FitConfig, fit
+
+
+def finetune(model: nn.Module, source: StrategySource, *, epochs: int, lr: float,
+             batch_size: int) -> list[dict]:
+    """Fine-tune in place on the training frames with the shared loop; [] when epochs == 0."""
+    if epochs <= 0:
+        return []
+    source.log.info("fine-tuning %d epoch(s) on %d frames", epochs, len(source.calibration))
+
+    def on_epoch(row: dict) -> None:
+        source.progress(row["epoch"], epochs, f"fine-tune epoch {row['epoch']}/{epochs}")
+    config = FitConfig(epochs=epochs, batch_size=batch_size, lr=lr, frames=source.frames)
+    return fit(model, source.calibration, source.labels, config, on_epoch=on_epoch)
+
+
+def save_float_model(model: nn.Module, source: StrategySource, strategy: str, fmt: str,
+                     extra: dict | None = None, *, same_arch: bool = True) -> None:
+    """Save a float32 model as a pilotlab checkpoint (eager, as the 2022 study ran its pruned
+    models), TorchScript or ONNX, and write artifact.json."""
+    model = model.eval()
+    if fmt not in FLOAT_FORMATS:
+        raise PilotlabError(f"strategies.{strategy}.format: {fmt!r} is not one of {', '.join(FLOAT_FORMATS)}")
+    if fmt == "checkpoint":
+        if not same_arch:
+            raise PilotlabError(f"strategies.{strategy}.format: 'checkpoint' cannot hold a network whose "
+                                "layers changed shape; use format: torchscript or onnx")
+        write_checkpoint(model, source)
+        meta = source.meta(strategy, format="pilotlab-checkpoint", file="model.pt", runtime="torch",
+                           dtype="float32", extra=extra)
+    elif fmt == "torchscript":
+        save_torchscript(model, source.out / "model.ts", source.input_shape)
+        meta = source.meta(strategy, format="torchscript", file="model.ts", runtime="torch",
+                           dtype="float32", extra=extra)
+    else:
+        export_onnx(model, source.out / "model.onnx", source.input_shape)
+        meta = source.meta(strategy, format="onnx", file="model.onnx", runtime="onnxruntime",
+                           dtype="float32", extra=extra)
+    source.write(meta)
+
+
+def write_checkpoint(model: nn.Module, source: StrategySource) -> Path:
+    """The model as a pilotlab checkpoint with the original arch, config, labels and preprocess."""
+    checkpoint = source.checkpoint
+    config = make_config(checkpoint["arch"], checkpoint["config"])
+    extra = {k: v for k, v in checkpoint.items() if k not in ("format", "arch", "config", "state_dict")}
+    path = source.out / "model.pt"
+    save_checkpoint(path, model, checkpoint["arch"], config, **extra)
+    return path
+
+
+def weight_layers(model: nn.Module) -> list[tuple[str, nn.Module]]:
+    """The layers pruning and clustering act on: every Conv2d and Linear, in registration order."""
+    return [(name, m) for name, m in model.named_modules() if isinstance(m, (nn.Conv2d, nn.Linear))]
+
+
+def sparsity_report(model: nn.Module) -> dict:
+    """Fraction of exactly-zero weights, overall and per layer (conv/linear weights, not biases)."""
+    layers = {name: m.weight.detach() for name, m in weight_layers(model)}
+    zeros = {name: int((w == 0).sum()) for name, w in layers.items()}
+    total = sum(w.numel() for w in layers.values())
+    params = sum(p.numel() for p in model.parameters())
+    nonzero = sum(int((p != 0).sum()) for p in model.parameters())
+    return {"sparsity": sum(zeros.values()) / total, "params": params, "nonzero_params": nonzero,
+            "layer_sparsity": {name: zeros[name] / layers[name].numel() for name in layers}}
+
+
+
+def require_cuda_target(source: StrategySource, strategy: str) -> None:
+    """NotApplicable unless the optimize job targets a CUDA profile and this host has the GPU."""
+    if source.hardware.device != "cuda":
+        raise NotApplicable(f"{strategy} runs on a CUDA hardware target; {source.hardware.name!r} is a CPU profile")
+    check_available(source.hardware)

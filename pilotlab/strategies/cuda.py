@@ -1,0 +1,37 @@
+"""`tensorrt`: the study's TensorRT runs, through ONNX Runtime's TensorRT execution provider
+(fp16 engines built from the exported ONNX model when the session first runs, cached beside it).
+
+Only on a CUDA hardware target with onnxruntime-gpu built with TensorRT; elsewhere "not
+applicable" with the reason. (torch-tensorrt would also do; it is not installed here.)
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from matrix.kinds import NotApplicable
+from pilotlab.strategies.artifact import export_onnx
+from pilotlab.strategies.common import require_cuda_target
+from pilotlab.strategies.registry import StrategySource, register_strategy
+
+
+@dataclass(frozen=True)
+class TensorRTConfig:
+    version: int = 1
+    fp16: bool = True
+
+
+@register_strategy("tensorrt", TensorRTConfig)
+def tensorrt(config: TensorRTConfig, source: StrategySource) -> dict:
+    import onnxruntime
+    require_cuda_target(source, "tensorrt")
+    if "TensorrtExecutionProvider" not in onnxruntime.get_available_providers():
+        raise NotApplicable("tensorrt: this onnxruntime has no TensorrtExecutionProvider "
+                            f"(providers: {', '.join(onnxruntime.get_available_providers())}); "
+                            "install onnxruntime-gpu with TensorRT")
+    export_onnx(source.load_model(), source.out / "model.onnx", source.input_shape)
+    precision = "float16" if config.fp16 else "float32"
+    source.write(source.meta("tensorrt", format="onnx", file="model.onnx", runtime="onnxruntime",
+                             dtype=precision, device="cuda",
+                             extra={"providers": ["TensorrtExecutionProvider", "CUDAExecutionProvider"],
+                                    "trt_fp16": config.fp16}))
+    return {}

@@ -1,0 +1,61 @@
+"""Half precision: `bf16` and `fp16` (weights and compute in 16 bits; input and output stay float32,
+the predictor casts at the boundary).
+
+Only where the hardware computes in that precision natively: a CUDA GPU (fp16, bf16 on Ampere+),
+or a CPU with AVX512-BF16/AMX (bf16) or AVX512-FP16/AMX-FP16 (fp16). Elsewhere torch emulates the
+arithmetic (here fp16 ran 13× and bf16 6× slower than fp32 at batch 1), so the strategy is "not
+applicable" unless `allow_emulated: true` asks for it anyway (useful to check accuracy).
+Saved as frozen TorchScript in the target precision.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from matrix.kinds import NotApplicable
+from pilotlab.hardware import cpu_flags
+from pilotlab.strategies.artifact import save_torchscript
+from pilotlab.strategies.registry import StrategySource, register_strategy
+
+NATIVE_CPU_FLAGS = {"bfloat16": {"avx512_bf16", "amx_bf16"}, "float16": {"avx512_fp16", "amx_fp16"}}
+
+
+@dataclass(frozen=True)
+class HalfConfig:
+    version: int = 1
+    allow_emulated: bool = False     # run even where the CPU has no native 16-bit arithmetic
+
+
+@register_strategy("bf16", HalfConfig)
+def bf16(config: HalfConfig, source: StrategySource) -> dict:
+    return save_half(config, source, "bf16", torch.bfloat16)
+
+
+@register_strategy("fp16", HalfConfig)
+def fp16(config: HalfConfig, source: StrategySource) -> dict:
+    return save_half(config, source, "fp16", torch.float16)
+
+
+def save_half(config: HalfConfig, source: StrategySource, strategy: str, dtype: torch.dtype) -> dict:
+    device = source.hardware.device
+    native = native_support(dtype, device)
+    if not native and not config.allow_emulated:
+        raise NotApplicable(f"{strategy}: {device} here has no native {dtype_name(dtype)} arithmetic "
+                            f"(needs {' or '.join(sorted(NATIVE_CPU_FLAGS[dtype_name(dtype)]))} on a CPU, "
+                            "or a CUDA GPU); torch would emulate it, slower than fp32")
+    model = source.load_model().to(device=device, dtype=dtype)
+    save_torchscript(model, source.out / "model.ts", source.input_shape, dtype=dtype, device=device)
+    source.write(source.meta(strategy, format="torchscript", file="model.ts", runtime="torch",
+                             dtype=dtype_name(dtype), device=device, extra={"native": native}))
+    return {"native": native}
+
+
+def native_support(dtype: torch.dtype, device: str) -> bool:
+    if device == "cuda":
+        return dtype == torch.float16 or torch.cuda.is_bf16_supported()
+    return bool(NATIVE_CPU_FLAGS[dtype_name(dtype)] & cpu_flags())
+
+
+def dtype_name(dtype: torch.dtype) -> str:
+    return str(dtype).removeprefix("torch.")

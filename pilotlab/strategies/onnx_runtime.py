@@ -1,0 +1,128 @@
+"""ONNX Runtime strategies: `onnxruntime` (fp32), `onnxruntime_int8` (static, calibrated) and
+`dynamic_quant` (the study's dynamic-range int8).
+
+Why ONNX Runtime: it is maintained, deployable without Python or PyTorch, and on this CPU it is the
+fastest batch-1 path we have (its MLAS int8 kernels beat PyTorch's; see the benchmark). It is also
+the CPU counterpart of the study's TensorRT runs: a separate optimising inference engine fed an
+exported graph.
+
+- `onnxruntime_int8` quantizes weights and activations statically with ONNX Runtime's own
+  calibrator on training frames. QDQ format, per-tensor weights, u8 activations and s8 weights
+  measured fastest at batch 1 here (per-channel and the QOperator format were slower; u8u8 too).
+- `dynamic_quant` quantizes only MatMul/Gemm (the fully connected layers, 85% of PilotNet's
+  weights), as the study's `quantize_dynamic` did for nn.Linear: ONNX Runtime's dynamic int8 on
+  convolutions is slower than fp32 here. torch.ao.quantization.quantize_dynamic still runs in
+  torch 2.13 but is deprecated.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import logging
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from pilotlab.errors import PilotlabError
+from pilotlab.strategies.artifact import INPUT_NAME, export_onnx
+from pilotlab.strategies.registry import StrategySource, register_strategy
+
+
+@dataclass(frozen=True)
+class OnnxRuntimeConfig:
+    version: int = 1
+
+
+@register_strategy("onnxruntime", OnnxRuntimeConfig)
+def onnxruntime_fp32(config: OnnxRuntimeConfig, source: StrategySource) -> dict:
+    export_onnx(source.load_model(), source.out / "model.onnx", source.input_shape)
+    source.write(source.meta("onnxruntime", format="onnx", file="model.onnx", runtime="onnxruntime",
+                             dtype="float32"))
+    return {}
+
+
+@dataclass(frozen=True)
+class OnnxRuntimeInt8Config:
+    version: int = 1
+    calibration_frames: int = 512         # training frames fed to the calibrator
+    calibrate_method: str = "minmax"      # minmax | entropy | percentile
+    quant_format: str = "qdq"             # qdq | qoperator
+    per_channel: bool = False
+    weight_type: str = "int8"             # int8 | uint8
+
+
+@register_strategy("onnxruntime_int8", OnnxRuntimeInt8Config)
+def onnxruntime_int8(config: OnnxRuntimeInt8Config, source: StrategySource) -> dict:
+    from onnxruntime.quantization import CalibrationMethod, QuantFormat, QuantType, quantize_static
+    methods = {"minmax": CalibrationMethod.MinMax, "entropy": CalibrationMethod.Entropy,
+               "percentile": CalibrationMethod.Percentile}
+    formats = {"qdq": QuantFormat.QDQ, "qoperator": QuantFormat.QOperator}
+    types = {"int8": QuantType.QInt8, "uint8": QuantType.QUInt8}
+    for option, value, known in (("calibrate_method", config.calibrate_method, methods),
+                                 ("quant_format", config.quant_format, formats),
+                                 ("weight_type", config.weight_type, types)):
+        if value not in known:
+            raise PilotlabError(f"strategies.onnxruntime_int8.{option}: {value!r} is not one of {', '.join(known)}")
+    with tempfile.TemporaryDirectory() as tmp, _quiet():
+        prepared = _prepared_fp32(source, Path(tmp))
+        quantize_static(str(prepared), str(source.out / "model.onnx"), _Reader(source, config.calibration_frames),
+                        quant_format=formats[config.quant_format], per_channel=config.per_channel,
+                        activation_type=QuantType.QUInt8, weight_type=types[config.weight_type],
+                        calibrate_method=methods[config.calibrate_method])
+    source.write(source.meta("onnxruntime_int8", format="onnx", file="model.onnx", runtime="onnxruntime",
+                             dtype="int8", extra={"quantizer": "onnxruntime.quantize_static",
+                                                  "activations": "uint8", "weights": config.weight_type}))
+    return {"calibration_frames": min(config.calibration_frames, len(source.calibration))}
+
+
+@dataclass(frozen=True)
+class DynamicQuantConfig:
+    version: int = 1
+    op_types: tuple[str, ...] = ("MatMul", "Gemm")
+
+
+@register_strategy("dynamic_quant", DynamicQuantConfig)
+def dynamic_quant(config: DynamicQuantConfig, source: StrategySource) -> dict:
+    from onnxruntime.quantization import QuantType, quantize_dynamic
+    with tempfile.TemporaryDirectory() as tmp, _quiet():
+        prepared = _prepared_fp32(source, Path(tmp))
+        quantize_dynamic(str(prepared), str(source.out / "model.onnx"), weight_type=QuantType.QInt8,
+                         op_types_to_quantize=list(config.op_types))
+    source.write(source.meta("dynamic_quant", format="onnx", file="model.onnx", runtime="onnxruntime",
+                             dtype="int8", extra={"quantizer": "onnxruntime.quantize_dynamic",
+                                                  "op_types": list(config.op_types)}))
+    return {}
+
+
+def _prepared_fp32(source: StrategySource, tmp: Path) -> Path:
+    """The fp32 model exported and pre-processed for quantization (shape inference, fusions)."""
+    from onnxruntime.quantization.shape_inference import quant_pre_process
+    export_onnx(source.load_model(), tmp / "fp32.onnx", source.input_shape)
+    quant_pre_process(str(tmp / "fp32.onnx"), str(tmp / "prepared.onnx"))
+    return tmp / "prepared.onnx"
+
+
+class _Reader:
+    """ONNX Runtime's CalibrationDataReader protocol over the training frames."""
+
+    def __init__(self, source: StrategySource, max_frames: int):
+        self._batches = (({INPUT_NAME: b.numpy()}) for b in source.calibration_batches(max_frames))
+
+    def get_next(self):
+        return next(self._batches, None)
+
+    def __iter__(self):
+        return self._batches
+
+
+@contextlib.contextmanager
+def _quiet():
+    """ORT's quantizer logs a line per node and warns about pre-processing; keep the job log readable."""
+    logger = logging.getLogger()
+    level = logger.level
+    logger.setLevel(logging.WARNING)
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            yield
+    finally:
+        logger.setLevel(level)

@@ -1,0 +1,169 @@
+"""The strategy registry: name -> (frozen, versioned config dataclass, handler).
+
+    @dataclass(frozen=True)
+    class LocalPruneConfig:
+        version: int = 1
+        conv: float = 0.3
+
+    @register_strategy("local_prune", LocalPruneConfig)
+    def local_prune(config: LocalPruneConfig, source: StrategySource) -> dict:
+        model = source.load_model()          # a fresh copy of the trained checkpoint
+        ...                                  # write the artifact into source.out
+        return {"sparsity": 0.4}             # strategy-specific results
+
+Options come from the recipe's `strategies:` section; an unknown option is an error naming the
+strategy and its known options. Every handler starts from the checkpoint on disk, so no strategy
+ever sees another one's changes. A strategy that cannot run on the target hardware raises
+`matrix.NotApplicable(reason)`.
+"""
+from __future__ import annotations
+
+import dataclasses
+import logging
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pydantic
+import torch
+from torch import nn
+
+from matrix.registry import Registry
+from pilotlab.data.frames import FrameSet, LabelRanges
+from pilotlab.errors import PilotlabError
+from pilotlab.hardware import BUILTIN, HardwareProfile
+from pilotlab.models import load_checkpoint
+from pilotlab.strategies.artifact import ArtifactMeta, artifact_size_mb, read_meta, write_meta
+
+
+@dataclass
+class StrategySource:
+    """Everything a strategy may use: the trained checkpoint, calibration/fine-tuning frames, the
+    hardware it targets and the (empty) folder to write the artifact into."""
+    checkpoint_path: Path
+    out: Path
+    calibration_dirs: tuple[Path, ...] = ()
+    hardware: HardwareProfile = BUILTIN["cpu"]
+    log: logging.Logger = field(default_factory=lambda: logging.getLogger("pilotlab.strategies"))
+    progress: Callable[..., None] = lambda *args, **kwargs: None
+
+    def load_model(self) -> nn.Module:
+        """A fresh copy of the trained network, in eval mode."""
+        model, _ = load_checkpoint(self.checkpoint_path)
+        return model
+
+    @cached_property
+    def checkpoint(self) -> dict[str, Any]:
+        _, payload = load_checkpoint(self.checkpoint_path)
+        payload.pop("state_dict", None)
+        return payload
+
+    @property
+    def labels(self) -> LabelRanges:
+        if "labels" not in self.checkpoint:
+            raise PilotlabError(f"{self.checkpoint_path}: the checkpoint has no 'labels' ranges; "
+                                "retrain with this pilotlab (save_checkpoint(..., labels=ranges.as_dict()))")
+        return LabelRanges.from_dict(self.checkpoint["labels"])
+
+    @property
+    def input_shape(self) -> tuple:
+        config = self.checkpoint.get("config", {})
+        return (None, config.get("channels", 3), config.get("height", 66), config.get("width", 200))
+
+    @property
+    def frames(self) -> int:
+        """Consecutive camera frames per input (C = 3 × frames)."""
+        return max(1, self.input_shape[1] // 3)
+
+    @cached_property
+    def calibration(self) -> FrameSet:
+        """The training frames, for calibration and fine-tuning."""
+        if not self.calibration_dirs:
+            raise PilotlabError("this strategy needs training frames (for calibration or fine-tuning): "
+                                "give the optimize job a `calibration` dependency on the frames jobs")
+        sets = [FrameSet.load(d) for d in self.calibration_dirs]
+        return sets[0] if len(sets) == 1 else FrameSet.concat(sets)
+
+    def calibration_batches(self, max_frames: int, batch_size: int = 32) -> Iterator[torch.Tensor]:
+        """Up to `max_frames` frames spread evenly over the training set (every recording)."""
+        data = self.calibration
+        index = np.unique(np.linspace(0, len(data) - 1, min(max_frames, len(data))).astype(np.int64))
+        for start in range(0, len(index), batch_size):
+            yield data.inputs(index[start:start + batch_size], self.frames)
+
+    def meta(self, strategy: str, *, format: str, file: str, runtime: str, dtype: str,
+             device: str = "cpu", extra: dict | None = None) -> ArtifactMeta:
+        entry = STRATEGIES.get(strategy)
+        return ArtifactMeta(strategy=strategy, strategy_version=entry.version, format=format, file=file,
+                            runtime=runtime, dtype=dtype, input_shape=self.input_shape,
+                            arch=self.checkpoint["arch"], config=self.checkpoint.get("config", {}),
+                            labels=self.checkpoint.get("labels", {}),
+                            preprocess=self.checkpoint.get("preprocess", {}), device=device,
+                            extra=extra or {})
+
+    def write(self, meta: ArtifactMeta) -> None:
+        write_meta(self.out, meta)
+
+
+Handler = Callable[[Any, StrategySource], dict]
+
+
+@dataclass(frozen=True)
+class StrategyEntry:
+    name: str
+    config_cls: type
+    handler: Handler
+    module: str                      # the module that implements it (its code fingerprint)
+
+    @property
+    def version(self) -> int:
+        return self.config_cls().version
+
+    @property
+    def options(self) -> list[str]:
+        return [f.name for f in dataclasses.fields(self.config_cls) if f.name != "version"]
+
+
+STRATEGIES: Registry[StrategyEntry] = Registry("strategy")
+
+
+def register_strategy(name: str, config_cls: type) -> Callable[[Handler], Handler]:
+    if not (dataclasses.is_dataclass(config_cls) and config_cls.__dataclass_params__.frozen):
+        raise TypeError(f"strategy {name!r}: its config must be a frozen dataclass")
+    if "version" not in {f.name for f in dataclasses.fields(config_cls)}:
+        raise TypeError(f"strategy {name!r}: its config needs a `version` field")
+
+    def decorate(handler: Handler) -> Handler:
+        STRATEGIES.add(name, StrategyEntry(name, config_cls, handler, handler.__module__))
+        return handler
+    return decorate
+
+
+def make_strategy_config(name: str, options: dict[str, Any] | None = None):
+    """The strategy's config from recipe options; unknown options and wrong types are errors."""
+    entry = STRATEGIES.get(name)
+    options = dict(options or {})
+    unknown = sorted(set(options) - set(entry.options))
+    if unknown:
+        raise PilotlabError(f"strategies.{name}: unknown option(s) {', '.join(unknown)}; "
+                            f"{name} takes: {', '.join(entry.options) or '(no options)'}")
+    try:
+        return pydantic.TypeAdapter(entry.config_cls).validate_python(options)
+    except pydantic.ValidationError as error:
+        problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors())
+        raise PilotlabError(f"strategies.{name}: {problems}") from None
+
+
+def apply_strategy(name: str, options: dict[str, Any] | None, source: StrategySource) -> dict[str, Any]:
+    """Run strategy `name` on the checkpoint; returns its result (artifact summary + specifics)."""
+    config = make_strategy_config(name, options)
+    source.out.mkdir(parents=True, exist_ok=True)
+    specifics = STRATEGIES.get(name).handler(config, source) or {}
+    meta = read_meta(source.out)
+    return {"strategy": name, "strategy_version": meta.strategy_version,
+            "options": dataclasses.asdict(config), "format": meta.format, "runtime": meta.runtime,
+            "dtype": meta.dtype, "device": meta.device, "file": meta.file,
+            "size_mb": artifact_size_mb(source.out), **specifics}

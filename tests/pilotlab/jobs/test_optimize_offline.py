@@ -1,0 +1,74 @@
+"""The optimize and offline job kinds, run through their registered handlers with a hand-made
+JobContext, as the engine would."""
+from __future__ import annotations
+
+import json
+import logging
+
+import pytest
+
+import pilotlab.jobs.offline  # noqa: F401  (registers the kind)
+import pilotlab.jobs.optimize  # noqa: F401
+from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
+from pilotlab.columns import BY_NAME
+from pilotlab.errors import PilotlabError
+from pilotlab.hardware import host_fingerprint, make_profile
+
+QUICK = {"warmup_runs": 5, "warmup_seconds": 0.0, "min_runs": 30, "max_seconds": 0.5, "block": 10,
+         "throughput_batch": 8, "throughput_seconds": 0.1}
+
+
+def context(tmp_path, kind, params, deps) -> JobContext:
+    out = tmp_path / kind / "artifacts"
+    out.mkdir(parents=True)
+    return JobContext(key=f"{kind}-key", kind=kind, name=f"{kind}:test", params=params, deps=deps,
+                      out=out, cache=tmp_path / "cache", log=logging.getLogger("test"))
+
+
+def dep(kind, folder, result=None, params=None) -> DepResult:
+    return DepResult(key=f"{kind}-dep", kind=kind, params=params or {}, result=result or {}, artifacts=folder)
+
+
+def optimize(tmp_path, trained, frames, strategy, options=None, hardware=None):
+    params = {"strategy": strategy, "options": options or {}}
+    if hardware:
+        params["hardware"] = hardware
+    ctx = context(tmp_path, "optimize", params, {"model": dep("train", trained),
+                                                 "calibration": (dep("frames", frames),)})
+    return ctx, KINDS.get("optimize").handler(ctx)
+
+
+def test_optimize_then_offline(tmp_path, trained, frames, test_frames):
+    ctx, result = optimize(tmp_path, trained, frames, "local_prune", {"finetune_epochs": 1, "batch_size": 16})
+    assert result["strategy"] == "local_prune" and result["sparsity"] > 0.4
+    assert result["options"]["conv"] == 0.3 and json.dumps(result)
+    offline = context(tmp_path, "offline",
+                      {"hardware": make_profile("cpu1").as_dict(), "host": host_fingerprint(), "timing": QUICK},
+                      {"artifact": dep("optimize", ctx.out, result), "test": (dep("frames", test_frames),)})
+    metrics = KINDS.get("offline").handler(offline)
+    assert {"mse", "mse_v", "mse_w", "latency_ms", "throughput_ips", "size_mb", "peak_mem_mb"} <= set(metrics)
+    assert set(metrics) - {"strategy", "hardware", "host"} <= set(BY_NAME)
+    assert metrics["host"] == host_fingerprint() and metrics["threads"] == 1 and json.dumps(metrics)
+
+
+def test_offline_refuses_to_time_for_another_host(tmp_path, trained, frames, test_frames):
+    ctx, result = optimize(tmp_path, trained, frames, "baseline")
+    other = {**host_fingerprint(), "cpu": "Some Other CPU"}
+    offline = context(tmp_path, "offline", {"hardware": {"name": "cpu"}, "host": other, "timing": QUICK},
+                      {"artifact": dep("optimize", ctx.out, result), "test": (dep("frames", test_frames),)})
+    with pytest.raises(PilotlabError, match="Some Other CPU"):
+        KINDS.get("offline").handler(offline)
+
+
+def test_a_cuda_only_strategy_is_not_applicable_here(tmp_path, trained, frames):
+    import torch
+    if torch.cuda.is_available():
+        pytest.skip("this host has a GPU")
+    with pytest.raises(NotApplicable, match="CUDA"):
+        optimize(tmp_path, trained, frames, "tensorrt", hardware={"name": "cuda"})
+
+
+def test_kinds_are_registered_with_their_fingerprints():
+    assert KINDS.get("offline").exclusive
+    modules = KINDS.get("optimize").code_for({"strategy": "qat"})
+    assert [m.__name__ for m in modules] == ["pilotlab.strategies.pt2e"]

@@ -1,0 +1,30 @@
+from pilotlab.report import ReportData
+from pilotlab.report.plots import draw_closed_loop, draw_pareto, draw_ratios, draw_training, pareto_front
+from tests.pilotlab.report.toy import offline_row, small_dict
+
+
+def test_pareto_front_keeps_the_points_nothing_beats():
+    points = [(2.2, 0.079), (2.1, 0.073), (2.15, 0.071), (2.7, 0.067), (3.2, 0.078), (2.7, 0.070)]
+    assert pareto_front(points) == [(2.1, 0.073), (2.15, 0.071), (2.7, 0.067)]
+    assert pareto_front([]) == []
+
+
+def test_cells_without_the_needed_values_draw_nothing():
+    rows = [offline_row("baseline", size_mb=6.1, mse=0.07),                    # no latency: not on the Pareto plot
+            offline_row("qat", status="failed", reason="diverged")]
+    data = ReportData.from_dict(small_dict(rows))
+    assert draw_pareto(data) is None and draw_closed_loop(data) is None and draw_training(data) is None
+    assert draw_ratios(data) is not None                                          # size ratio exists
+
+
+def test_plots_show_every_strategy_and_hardware(study):
+    figure = draw_pareto(study)
+    axes = [ax for ax in figure.axes if ax.get_visible()]
+    assert [ax.get_title() for ax in axes] == ["cpu1", "cpu4"]
+    legend = [t.get_text() for t in figure.legends[0].get_texts()]
+    assert legend[:7] == list(study.strategies()) and "Pareto front" in legend and "6.12 MB" in legend
+    ratios = draw_ratios(study)
+    labels = [t.get_text() for t in ratios.axes[1].texts]
+    assert "not applicable" in labels and "failed" in labels                     # shown as such, not as 0
+    titles = [ax.get_title() for ax in draw_closed_loop(study).axes if ax.get_visible()]
+    assert titles == ["simple_circuit cw · cpu1", "montreal cw · cpu1"]

@@ -1,0 +1,53 @@
+from pilotlab.report import ReportData
+from pilotlab.report.render import code_block, markdown_escape
+from pilotlab.report.tables import build_tables, format_value, significant
+from tests.pilotlab.report.toy import offline_row, small_dict
+
+
+def test_values_read_as_a_person_expects():
+    assert format_value("mse", 0.07883577) == "0.0788"
+    assert format_value("latency_ms", 2.177743) == "2.18"
+    assert format_value("size_mb", 64.9173) == "64.9"
+    assert format_value("throughput_ips", 12345.6) == "12,346"
+    assert format_value("percentage_completed", 63.4) == "63 %"
+    assert format_value("lap_completed", False) == "no"
+    assert format_value("latency_ms", None) == "—"
+    assert significant(0.000012345) == "0.0000123" and significant(1.2345e-7) == "1.23e-07" and significant(0.0) == "0"
+
+
+def test_ratios_are_taken_against_the_baseline_of_the_same_table():
+    rows = [offline_row("baseline", size_mb=6.12, mse=0.0788, latency_ms=2.18),
+            offline_row("static_quant", size_mb=1.61, mse=0.0672, latency_ms=1.09),
+            offline_row("qat", status="not_applicable", reason="needs a GPU")]
+    [table] = build_tables(ReportData.from_dict(small_dict(rows)), "offline")
+    by_method = {row.method: row for row in table.rows}
+    size, speed, delta = (cell.text for cell in by_method["static_quant"].cells[-3:])
+    assert (size, speed, delta) == ("3.80×", "2.00×", "−0.012")
+    assert by_method["qat"].note == "not applicable: needs a GPU"
+    assert table.headers[:4] == ("Model size (MB)", "MSE", "Inference time (ms)", "Throughput (images/s)")
+    assert by_method["static_quant"].cells[3].text == "—" and by_method["static_quant"].cells[3].missing
+
+
+def test_without_a_baseline_ratios_are_missing_and_the_table_says_why():
+    rows = [offline_row("static_quant", size_mb=1.61, latency_ms=1.0), offline_row("qat", size_mb=1.6)]
+    [table] = build_tables(ReportData.from_dict(small_dict(rows)), "offline")
+    assert all(cell.text == "—" for row in table.rows for cell in row.cells[-3:])
+    assert "No usable 'baseline' row for pilotnet" in table.notes[0]
+
+
+def test_tables_split_by_hardware_and_circuit():
+    online = [{"model": "pilotnet", "strategy": s, "hardware": h, "kind": "online", "circuit": c,
+               "lap_completed": s == "baseline", "percentage_completed": 40.0, "lap_seconds": 50.0}
+              for s in ("baseline", "qat") for h in ("cpu1", "cpu4") for c in ("montreal", "simple_circuit")]
+    tables = build_tables(ReportData.from_dict(small_dict(online)), "online")
+    assert [t.title for t in tables] == ["cpu1 · circuit montreal", "cpu1 · circuit simple_circuit",
+                                         "cpu4 · circuit montreal", "cpu4 · circuit simple_circuit"]
+    assert [row.cells[0].text for row in tables[0].rows] == ["✓ 50.0 s", "✗ 40 %"]
+
+
+def test_markdown_escape_keeps_tables_and_html_intact():
+    assert markdown_escape("a|b <script>x</script> *bold* dynamic_quant _x_") == \
+        r"a\|b &lt;script&gt;x&lt;/script&gt; \*bold\* dynamic_quant \_x\_"
+    assert markdown_escape("# title") == r"\# title" and markdown_escape("1. one") == r"1\. one"
+    assert markdown_escape("1.5 ms, 2 cores") == "1.5 ms, 2 cores"
+    assert code_block("a\n```\nb", "yaml") == "````yaml\na\n```\nb\n````"   # the fence outgrows the text's

@@ -1,0 +1,131 @@
+"""Every strategy on a random PilotNet and random frames: it runs (or says why it cannot), its
+artifact reloads in a fresh process and predicts the same, and it does what it says."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import onnx
+import pytest
+import torch
+
+from pilotlab.data.frames import FrameSet
+from pilotlab.predictor import load_predictor
+from pilotlab.strategies import STRATEGIES
+
+CUDA_ONLY = {"tensorrt"}
+INT8 = {"static_quant", "qat", "prune_quant", "onnxruntime_int8"}
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def inputs(folder: Path, count: int = 6) -> np.ndarray:
+    return np.ascontiguousarray(FrameSet.load(folder).inputs(np.arange(count)).numpy())
+
+
+def baseline_output(trained: Path, batch: np.ndarray) -> np.ndarray:
+    from pilotlab.models import load_checkpoint
+    model, _ = load_checkpoint(trained / "model.pt")
+    with torch.no_grad():
+        return model(torch.from_numpy(batch)).numpy()
+
+
+@pytest.mark.parametrize("name", sorted(STRATEGIES))
+def test_strategy_runs_or_says_why_not(name, artifacts):
+    folder, result = artifacts[name]
+    if name in CUDA_ONLY:
+        assert isinstance(result, str) and "CUDA" in result, result
+        return
+    assert isinstance(result, dict), result
+    meta = json.loads((folder / "artifact.json").read_text())
+    assert meta["strategy"] == name and meta["labels"] and meta["arch"] == "pilotnet"
+    assert meta["input"]["shape"] == [None, 3, 66, 200]
+    assert (folder / meta["file"]).exists() and result["size_mb"] > 0
+
+
+def test_reloads_in_a_fresh_process_and_predicts_the_same(artifacts, test_frames, tmp_path):
+    batch = inputs(test_frames)
+    np.save(tmp_path / "batch.npy", batch)
+    runnable = {name: str(folder) for name, (folder, result) in artifacts.items() if isinstance(result, dict)}
+    script = (
+        "import json, sys, numpy as np\n"
+        "from pilotlab.predictor import load_predictor\n"
+        "folders = json.loads(sys.argv[1]); batch = np.load(sys.argv[2])\n"
+        "for name, folder in folders.items():\n"
+        "    np.save(f'{sys.argv[3]}/{name}.npy', load_predictor(folder, 'cpu1').predict(batch))\n")
+    subprocess.run([sys.executable, "-c", script, json.dumps(runnable), str(tmp_path / "batch.npy"), str(tmp_path)],
+                   check=True, cwd=ROOT, env={"PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "PATH": "/usr/bin"})
+    for name, folder in runnable.items():
+        here = load_predictor(folder, "cpu1").predict(batch)
+        there = np.load(tmp_path / f"{name}.npy")
+        assert here.shape == (len(batch), 2) and here.dtype == np.float32
+        np.testing.assert_allclose(there, here, rtol=1e-5, atol=1e-6, err_msg=name)
+
+
+@pytest.mark.parametrize("name", ["torchscript", "onnxruntime", "bf16", "fp16", "dynamic_quant",
+                                  "onnxruntime_int8", "static_quant"])
+def test_strategies_without_finetuning_keep_the_function(name, artifacts, trained, test_frames):
+    batch = inputs(test_frames)
+    tolerance = {"bf16": 0.03, "fp16": 0.01}.get(name, 0.02 if name in INT8 | {"dynamic_quant"} else 1e-4)
+    predicted = load_predictor(artifacts[name][0], "cpu1").predict(batch)
+    np.testing.assert_allclose(predicted, baseline_output(trained, batch), atol=tolerance)
+
+
+@pytest.mark.parametrize("name", sorted(INT8))
+def test_int8_artifacts_are_about_4x_smaller(name, artifacts):
+    ratio = artifacts["baseline"][1]["size_mb"] / artifacts[name][1]["size_mb"]
+    assert 3.5 < ratio < 4.5, ratio
+
+
+def test_dynamic_quant_shrinks_the_fully_connected_layers(artifacts):
+    ratio = artifacts["baseline"][1]["size_mb"] / artifacts["dynamic_quant"][1]["size_mb"]
+    assert 2.8 < ratio < 4.5, ratio       # convs stay fp32 (ONNX Runtime's dynamic int8 convs are slow)
+
+
+def test_local_prune_has_the_configured_sparsity_per_layer(artifacts):
+    from pilotlab.models import load_checkpoint
+    folder, result = artifacts["local_prune"]
+    model, _ = load_checkpoint(folder / "model.pt")
+    for name, module in model.named_modules():
+        if isinstance(module, (torch.nn.Conv2d, torch.nn.Linear)):
+            expected = 0.3 if isinstance(module, torch.nn.Conv2d) else 0.5
+            sparsity = float((module.weight == 0).float().mean())
+            assert abs(sparsity - expected) < 0.02, (name, sparsity)
+    assert result["layer_sparsity"]["features.0"] == pytest.approx(0.3, abs=0.02)
+
+
+def test_global_prune_has_the_configured_overall_sparsity(artifacts):
+    assert artifacts["global_prune"][1]["sparsity"] == pytest.approx(0.3, abs=1e-3)
+
+
+def test_prune_quant_keeps_its_zeros_through_quantization(artifacts):
+    folder, _ = artifacts["prune_quant"]
+    model = onnx.load(str(folder / "model.onnx"))
+    weights = [onnx.numpy_helper.to_array(t) for t in model.graph.initializer
+               if t.data_type == onnx.TensorProto.INT8 and len(t.dims) >= 2]
+    zeros = sum(int((w == 0).sum()) for w in weights) / sum(w.size for w in weights)
+    assert zeros >= 0.48, zeros           # conv 30% / linear 50%, weighted by size: ~0.48
+
+
+def test_structured_prune_really_shrinks_the_network(artifacts):
+    result = artifacts["structured_prune"][1]
+    assert result["params"] < 0.6 * result["params_before"]
+    assert result["size_mb"] < 0.6 * artifacts["baseline"][1]["size_mb"]
+    assert result["kept_channels"]["features.0"] == round(24 * 0.7)
+
+
+def test_cluster_leaves_at_most_k_distinct_weights_per_layer(artifacts):
+    result = artifacts["cluster"][1]
+    assert max(result["distinct_weights"].values()) <= 16
+
+
+def test_half_precision_is_not_applicable_without_native_support(trained, tmp_path):
+    from matrix.kinds import NotApplicable
+    from pilotlab.hardware import cpu_flags
+    from pilotlab.strategies import StrategySource, apply_strategy
+    if {"avx512_bf16", "amx_bf16"} & cpu_flags():
+        pytest.skip("this CPU computes bf16 natively")
+    with pytest.raises(NotApplicable, match="no native bfloat16"):
+        apply_strategy("bf16", {}, StrategySource(trained / "model.pt", tmp_path))

@@ -1,0 +1,47 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from pilotlab.columns import BY_NAME
+from pilotlab.data.frames import FrameSet, LabelRanges
+from pilotlab.models import load_checkpoint
+from pilotlab.strategies import StrategySource, apply_strategy
+from pilotlab.offline import TimingSettings, evaluate_offline, measure_latency
+
+QUICK = TimingSettings(warmup_runs=5, warmup_seconds=0.0, min_runs=30, max_seconds=0.5, block=10,
+                       throughput_batch=8, throughput_seconds=0.1)
+
+
+@pytest.fixture(scope="module")
+def baseline(trained, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("baseline")
+    apply_strategy("baseline", {}, StrategySource(trained / "model.pt", folder))
+    return folder
+
+
+def test_offline_metrics_of_the_baseline(baseline, trained, test_frames):
+    folder = baseline
+    test = FrameSet.load(test_frames)
+    result = evaluate_offline(folder, "cpu1", test, QUICK)
+    assert set(result) <= set(BY_NAME)
+    model, checkpoint = load_checkpoint(trained / "model.pt")
+    with torch.no_grad():
+        predicted = model(test.inputs(np.arange(len(test)))).numpy()
+    ranges = LabelRanges.from_dict(checkpoint["labels"])
+    errors = (predicted - ranges.normalise(np.asarray(test.labels))) ** 2
+    physical = (ranges.denormalise(predicted) - np.asarray(test.labels)) ** 2
+    assert result["mse"] == pytest.approx(errors.mean(), rel=1e-5)
+    assert result["mse_v"] == pytest.approx(errors[:, 0].mean(), rel=1e-5)
+    assert result["mse_w_phys"] == pytest.approx(physical[:, 1].mean(), rel=1e-5)
+    assert result["threads"] == 1 and result["test_frames"] == len(test) and result["throughput_batch"] == 8
+    assert 0 < result["latency_ms"] <= result["latency_p90_ms"] <= result["latency_p99_ms"]
+    assert result["latency_runs"] >= 30 and result["throughput_ips"] > 0 and result["size_mb"] > 5
+    assert result["peak_mem_mb"] >= 0
+
+
+def test_latency_stops_when_the_median_is_stable():
+    result = measure_latency(lambda batch: None, np.zeros(1, np.float32),
+                             TimingSettings(warmup_seconds=0, min_runs=100, block=50, max_seconds=10))
+    assert 100 <= result["latency_runs"] < 20_000
