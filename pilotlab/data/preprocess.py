@@ -6,6 +6,7 @@ live camera image (through `DrivePreprocessor`), so a network sees at drive time
 in training. `to_input` turns such frames into the network's float tensor.
 
     pre = DrivePreprocessor.from_checkpoint(checkpoint)   # the dict load_checkpoint returns
+    # (or DrivePreprocessor.from_settings(meta.preprocess, meta.labels) for an optimized artifact)
     inputs = pre(rgb_image)                                 # [1, 3 × frames, 66, 200] float32
     v, w = pre.commands(model(inputs))                      # physical (m/s, rad/s)
 """
@@ -126,11 +127,20 @@ class DrivePreprocessor:
     @classmethod
     def from_checkpoint(cls, checkpoint: Mapping[str, Any]) -> DrivePreprocessor:
         """From the dict `pilotlab.models.load_checkpoint` returns (its "preprocess" and "labels")."""
-        settings = dict(checkpoint.get("preprocess") or {})
-        frames = int(settings.pop("frames", 1))
-        if "labels" not in checkpoint:
+        if not checkpoint.get("labels"):
             raise PilotlabError("checkpoint has no 'labels' ranges; it was not written by the train job")
-        return cls(PreprocessConfig(**settings), LabelRanges.from_dict(checkpoint["labels"]), frames)
+        return cls.from_settings(checkpoint.get("preprocess") or {}, checkpoint["labels"])
+
+    @classmethod
+    def from_settings(cls, preprocess: Mapping[str, Any], labels: Mapping[str, Any]) -> DrivePreprocessor:
+        """From a checkpoint's "preprocess" (PreprocessConfig fields and "frames") and "labels"."""
+        settings = dict(preprocess)
+        frames = int(settings.pop("frames", 1))
+        unknown = sorted(set(settings) - {f.name for f in dataclasses.fields(PreprocessConfig)})
+        if unknown:
+            raise PilotlabError(f"preprocess settings {', '.join(unknown)} are unknown; expected the fields of "
+                                "PreprocessConfig and 'frames' (as the train job writes them)")
+        return cls(PreprocessConfig(**settings), LabelRanges.from_dict(labels), frames)
 
     def reset(self) -> None:
         """Forget earlier frames (call at the start of each drive)."""

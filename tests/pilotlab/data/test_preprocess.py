@@ -88,3 +88,11 @@ def test_drive_preprocessor_gives_what_training_saw():
 def test_drive_preprocessor_needs_label_ranges():
     with pytest.raises(PilotlabError, match="checkpoint has no 'labels' ranges"):
         DrivePreprocessor.from_checkpoint({"preprocess": PreprocessConfig().as_dict()})
+
+
+def test_drive_preprocessor_from_an_optimized_artifacts_settings():
+    ranges = {"v": [0.0, 10.0], "w": [-2.0, 2.0]}
+    live = DrivePreprocessor.from_settings({**PreprocessConfig(crop_top=0.4).as_dict(), "frames": 2}, ranges)
+    assert live.frames == 2 and live.config.crop_top == 0.4 and live(images(1, 480, 640)[0]).shape == (1, 6, 66, 200)
+    with pytest.raises(PilotlabError, match="preprocess settings size are unknown"):
+        DrivePreprocessor.from_settings({"crop_top": 0.5, "size": [200, 66]}, ranges)
