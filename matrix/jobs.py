@@ -80,6 +80,7 @@ class Job:
     params: Mapping[str, Any] = field(default_factory=dict)
     deps: Mapping[str, Job | tuple[Job, ...]] = field(default_factory=dict)
     inputs: Mapping[str, InputFile] = field(default_factory=dict)
+    labels: Mapping[str, Any] = field(default_factory=dict)   # descriptive only, not in the key
 
     def __post_init__(self):
         canonical_json(self.params)  # fail at construction, naming nothing random
@@ -87,6 +88,7 @@ class Job:
         object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
         object.__setattr__(self, "deps", MappingProxyType(deps))
         object.__setattr__(self, "inputs", MappingProxyType(dict(self.inputs)))
+        object.__setattr__(self, "labels", MappingProxyType(dict(self.labels)))
 
     def __hash__(self) -> int:
         return hash(self.key)
@@ -120,4 +122,4 @@ class Job:
         return {"key": self.key, "kind": self.kind, "name": self.name, "params": dict(self.params),
                 "deps": self.dep_keys(), "dep_names": {d.key: d.name for d in self.dep_jobs()},
                 "inputs": {role: {"path": f.path, "sha256": f.sha256} for role, f in self.inputs.items()},
-                "code": self.code}
+                "code": self.code, "labels": dict(self.labels)}

@@ -49,10 +49,10 @@ class JobContext:
     name: str
     params: Mapping[str, Any]
     deps: Mapping[str, DepResult | tuple[DepResult, ...]]
-    inputs: Mapping[str, Path]     # the user's input files, by role (their content is in the key)
     out: Path                      # the job's artifact folder (empty, writable)
     cache: Path                    # a store-wide scratch folder for caches shared between jobs
     log: logging.Logger
+    inputs: Mapping[str, Path] = field(default_factory=dict)  # user files by role (content in the key)
     _progress: ProgressFn = field(default=lambda **_: None, repr=False)
 
     def progress(self, completed: float, total: float | None = None, description: str | None = None) -> None:

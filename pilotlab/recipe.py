@@ -63,8 +63,10 @@ class CircuitSpec(Strict):
 
 
 class AugmentSpec(Strict):
-    flip: bool = True
+    """Training-time augmentation (pilotlab.data.augment.AugmentConfig)."""
+    flip: bool = False
     oversample_curves: float = Field(0.0, ge=0, description="extra weight of curve frames (0: none)")
+    curve_threshold: float = Field(0.3, ge=0, le=1)
     color_jitter: float = Field(0.0, ge=0, le=1)
     blur: float = Field(0.0, ge=0, le=1)
     affine: float = Field(0.0, ge=0, le=1)
@@ -79,6 +81,8 @@ class ModelSpec(Strict):
     lr: float = Field(1e-3, gt=0)
     patience: int | None = Field(5, ge=1)
     val_fraction: float = Field(0.2, ge=0, lt=1)
+    val_by: Literal["recording", "block"] = "recording"
+    labels: Literal["auto"] | dict[str, list[float]] = "auto"
     seed: int = 0
     augment: AugmentSpec = AugmentSpec()
 

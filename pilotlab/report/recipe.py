@@ -1,0 +1,93 @@
+"""A recipe's report from the job store: one row per evaluated cell, whatever state it is in.
+
+Cells that have not run show as "failed: not run yet" (or the failure's reason), never as zeros.
+The report is rewritten only when something it shows changed (a stamp over the recipe text, every
+job's key and status, and the report code), so a warm rerun stays quick.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from matrix.engine import make_plan, slug
+from matrix.fingerprint import code_fingerprint
+from matrix.recipe import Recipe
+from matrix.store import Store, read_json
+from pilotlab.report.data import Host, ReportData, package_versions, pick_metrics
+from pilotlab.report.writer import write_report
+
+STAMP = ".stamp"
+
+
+def report_folder(recipe: Recipe) -> Path:
+    return Path(recipe.config.report.folder) / slug(recipe.name)
+
+
+def report_after_run(recipe: Recipe, summary, store: Store) -> Path | None:
+    """After `pilotlab run`: refresh the report if anything it shows changed."""
+    from pilotlab.domain import DOMAIN
+    return write_recipe_report(recipe, store, DOMAIN, force=False)
+
+
+def write_recipe_report(recipe: Recipe, store: Store, domain, force: bool = True) -> Path | None:
+    plan = make_plan(recipe, domain, store)
+    jobs = [status.job for status in plan.statuses]
+    folder = report_folder(recipe)
+    stamp = _stamp(recipe, jobs, store)
+    if not force and read_json(folder / STAMP) == stamp:
+        return None
+    write_report(build_report_data(recipe, jobs, store), folder)
+    (folder / STAMP).write_text(json.dumps(stamp))
+    return folder
+
+
+def build_report_data(recipe: Recipe, jobs: list, store: Store) -> ReportData:
+    rows = [_row(job, store) for job in jobs if job.kind in ("offline", "online")]
+    histories = {job.name.removeprefix("train "): _history(job, store) for job in jobs if job.kind == "train"}
+    return ReportData.from_dict({
+        "recipe_name": recipe.name, "description": recipe.description, "recipe_text": recipe.text,
+        "versions": package_versions(), "host": _host(jobs, store), "date": datetime.now().isoformat(timespec="seconds"),
+        "rows": rows, "histories": {name: h for name, h in histories.items() if h}})
+
+
+def _row(job, store: Store) -> dict[str, Any]:
+    identity = dict(job.labels)
+    result = store.result(job.key)
+    row = {**identity, "kind": job.kind, "job_keys": {job.kind: job.key}}
+    if result is None:
+        failure = store.failure(job.key)
+        return {**row, "status": "failed", "reason": failure["error"] if failure else "not run yet"}
+    if result["status"] != "ok":
+        return {**row, "status": result["status"], "reason": result.get("reason") or "?"}
+    value = result.get("value", {})
+    row |= {"status": "ok", **pick_metrics(value)}
+    if value.get("trajectory"):
+        row["trajectory"] = str(store.artifacts(job.key) / value["trajectory"])
+    return row
+
+
+def _history(job, store: Store) -> list[dict]:
+    history = read_json(store.artifacts(job.key) / "history.json")
+    return history if isinstance(history, list) else []
+
+
+def _host(jobs: list, store: Store) -> Host:
+    """The host the timings were measured on (from the timing jobs), else this machine."""
+    for job in jobs:
+        result = store.result(job.key) if job.kind == "offline" else None
+        host = (result or {}).get("value", {}).get("host")
+        if host:
+            return Host(cpu=host.get("cpu") or "unknown CPU", cores=host.get("cores"), gpu=host.get("gpu"))
+    return Host.detect()
+
+
+def _stamp(recipe: Recipe, jobs: list, store: Store) -> str:
+    digest = hashlib.sha256(recipe.text.encode())
+    digest.update(code_fingerprint(["pilotlab.report"]).encode())
+    for job in jobs:
+        result = store.result(job.key) if job.kind in ("offline", "online", "train") else None
+        digest.update(f"{job.key}:{(result or {}).get('status', 'missing')}\n".encode())
+    return digest.hexdigest()
