@@ -7,7 +7,8 @@ params (defaults in brackets):
   epochs [20], batch_size [64], lr [1e-3], seed [0]
   patience [5]             early stopping: epochs without a better validation loss (null: never)
   val_fraction [0.2]       share of frames held out for validation (0: none)
-  val_by ["recording"]     "recording": whole recordings held out; "block": the last part of each
+  val_by ["auto"]          "recording": whole recordings held out; "block": the last part of each;
+                           "auto": by recording with 3 or more recordings, else by block
   augment [{}]             AugmentConfig fields: flip, oversample_curves, curve_threshold,
                            color_jitter, blur, affine
   labels ["auto"]          normalisation ranges {"v": [lo, hi], "w": [lo, hi]}, or "auto": v from its
@@ -43,7 +44,7 @@ from pilotlab.training import FitConfig, evaluate, fit, mean_predictor_mse
 CODE = ["pilotlab.training", "pilotlab.data.augment", "pilotlab.data.split", "pilotlab.data.frames",
         "pilotlab.models.registry"]
 DEFAULTS: dict[str, Any] = {"arch": "pilotnet", "options": {}, "epochs": 20, "batch_size": 64, "lr": 1e-3,
-                            "seed": 0, "patience": 5, "val_fraction": 0.2, "val_by": "recording",
+                            "seed": 0, "patience": 5, "val_fraction": 0.2, "val_by": "auto",
                             "augment": {}, "labels": "auto"}
 
 
