@@ -92,7 +92,12 @@ def preprocess(image: np.ndarray, config: PreprocessConfig, encoding: str = "rgb
     Cropping first means only the kept rows are resized; the colour conversion happens after the
     resize, on the small frame, which gives the same result because the resize is per channel.
     """
-    cropped = image[config.rows(image.shape[0])]
+    return finish(image[config.rows(image.shape[0])], config, encoding, out)
+
+
+def finish(cropped: np.ndarray, config: PreprocessConfig, encoding: str = "rgb8",
+           out: np.ndarray | None = None) -> np.ndarray:
+    """`preprocess` after the crop: for readers that fetch only the kept rows."""
     if encoding == "rgb8":
         return resize(cropped, config.width, config.height, config.interpolation, out)
     small = resize(cropped, config.width, config.height, config.interpolation)
