@@ -15,7 +15,7 @@ def graph_of(jobs: Iterable) -> tuple[dict[str, list[str]], dict[str, object]]:
     """({key: [dep keys]}, {key: job}) for `jobs` and everything they depend on."""
     graph: dict[str, list[str]] = {}
     by_key: dict[str, object] = {}
-    stack = list(jobs)
+    stack = list(reversed(list(jobs)))  # popped in the given order, so ties keep it
     while stack:
         job = stack.pop()
         if job.key in by_key:
@@ -23,7 +23,7 @@ def graph_of(jobs: Iterable) -> tuple[dict[str, list[str]], dict[str, object]]:
         by_key[job.key] = job
         deps = job.dep_jobs()
         graph[job.key] = list(dict.fromkeys(d.key for d in deps))
-        stack.extend(deps)
+        stack.extend(reversed(deps))
     return graph, by_key
 
 

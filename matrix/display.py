@@ -100,7 +100,7 @@ class RichDisplay(NullDisplay):
         reason = f" [dim]{escape(outcome.reason)}[/]" if outcome.reason else ""
         took = f" [dim]{outcome.duration_s:.1f}s[/]" if outcome.duration_s else ""
         self.progress.console.print(f"{SYMBOLS.get(outcome.status, '?')} {escape(outcome.name)}{took}{reason}",
-                                    highlight=False)
+                                    highlight=False, soft_wrap=True)
 
     def stop(self) -> None:
         self.progress.stop()

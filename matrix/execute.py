@@ -133,6 +133,8 @@ def _drive(schedule: Schedule, pool: _Pool, summary: RunSummary, keep_going: boo
         for future in finished:
             job = running.pop(future)
             outcome = _outcome(job, future)
+            if outcome.status == FAILED and pool.store.failure(job.key) is None:
+                pool.store.record_failure(job.key, {"error": outcome.reason, "spec": job.spec()})
             if outcome.status == BUSY:
                 display.job_waiting(job)
                 schedule.retry_later(job.key)

@@ -1,3 +1,4 @@
 from pilotlab.cli import main
 
-raise SystemExit(main())
+if __name__ == "__main__":  # a guard: spawned worker processes import this module again
+    raise SystemExit(main())

@@ -207,13 +207,34 @@ def _check_model(recipe: Recipe, name: str, spec: ModelSpec) -> None:
 
 
 def online_jobs(planner: Planner, optimize: Job, combination: dict, hardware: str) -> list[Job]:
-    from pilotlab.online.plan import online_jobs as plan_online
-    return plan_online(planner, optimize, combination, hardware)
+    model, strategy, circuit = combination["model"], combination["strategy"], str(combination["circuit"])
+    labels = {"model": model, "strategy": strategy, "hardware": hardware}
+    return [_lap(planner, f"online {model}/{strategy} on {hardware}", labels, hardware, circuit, direction,
+                 {"brain": "network"}, {"artifact": optimize})
+            for direction in planner.config.online.directions]
 
 
 def reference_jobs(planner: Planner) -> list[Job]:
-    from pilotlab.online.plan import reference_jobs as plan_references
-    return plan_references(planner)
+    """The explicit brain and the expert on every (hardware, circuit) the matrix drives."""
+    cells = {(str(c.get("hardware", "cpu")), str(c["circuit"])) for c in planner.recipe.combinations
+             if "circuit" in c}
+    return [_lap(planner, f"online {brain} on {hardware}", {"model": "reference", "strategy": brain,
+                                                            "hardware": hardware},
+                 hardware, circuit, direction, {"brain": brain}, {})
+            for brain in planner.config.online.references for hardware, circuit in sorted(cells)
+            for direction in planner.config.online.directions]
+
+
+def _lap(planner: Planner, name: str, labels: dict, hardware: str, circuit: str, direction: str,
+         brain: dict, deps: dict) -> Job:
+    from pilotlab.hardware import host_fingerprint
+    online = planner.config.online
+    params, inputs = planner.circuit_param(circuit, ["matrix", "circuit"])
+    params |= {**brain, "direction": direction, "hardware": planner.profile(hardware).as_dict(),
+               "host": host_fingerprint(), "timing": online.timing, "control_hz": online.control_hz,
+               "timeout_s": online.timeout_s, "repetitions": online.repetitions, "video": online.video}
+    return Job("online", f"{name} at {circuit} {direction}", params, deps=deps, inputs=inputs,
+               labels={**labels, "circuit": circuit, "direction": direction})
 
 
 def plan(recipe: Recipe) -> list[Job]:

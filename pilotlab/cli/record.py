@@ -14,7 +14,7 @@ def register(subparsers) -> None:
         description="The expert drives the circuit in the pybullet simulator; camera frames, commands and odometry "
                     "go to a rosbag stamped in simulated time. Raw 640x480 frames at 10 Hz take about 9 MB per "
                     "simulated second (a lap of simple_circuit: ~430 MB); --compressed png keeps them lossless "
-                    "in ~1%% of that. Ctrl-C stops early and leaves a valid bag.")
+                    "in ~1% of that. Ctrl-C stops early and leaves a valid bag.")
     parser.add_argument("--circuit", required=True, help="circuit name (pilotlab circuit list) or CSV path")
     parser.add_argument("--direction", choices=("cw", "ccw"), default="cw")
     parser.add_argument("--laps", type=float, default=1.0, help="laps to drive (fractions allowed)")

@@ -14,11 +14,13 @@ Params (all JSON; only `circuit` is required):
     noise        float  fraction of time the expert swerves and recovers (default 0; 0.1 is a good dose)
     renderer     str    "ground" (default, fast) | "pybullet" (TinyRenderer, the reference, slow at 640x480)
     start        float|str  metres along the lap to start at, or "random" (default 0)
-    max_seconds  float|null stop after this much simulated time (default: the circuit's timeout × laps)
+    max_seconds  float|null stop after this much simulated time (default: the circuit's timeout × laps,
+                            at least one lap's)
 
 Result: the RecordSummary fields (frames, commands, odometry, sim_seconds, wall_seconds, distance_m,
-laps_completed, termination, bytes, mean/max_distance_to_line_m, average_speed, ...) with `path`
-relative to ctx.out ("recording.bag" or "recording"), plus `topics` (role -> topic).
+laps_completed, termination, bytes, mean/max_distance_to_line_m, average_speed, ...), `bag` (and
+`path`, the same): the bag relative to ctx.out ("recording.bag" or "recording"), plus `topics`
+(role -> topic). A `frames` job that depends on it reads `artifacts / result["bag"]`.
 
 A circuit given as a CSV is an input file: its content should be part of the job key
 (`pilotlab.circuits.csv_path_of(name)` says which file, None for built-ins).
@@ -60,7 +62,7 @@ def run_record(ctx: JobContext) -> dict:
     if summary.interrupted:
         raise PilotlabError(f"{label}: interrupted after {summary.frames} frames")
     result = summary.as_dict()
-    result["path"] = name
+    result["bag"] = result["path"] = name
     result["topics"] = {"image": bagwriter.COMPRESSED_TOPIC if spec.compressed else bagwriter.IMAGE_TOPIC,
                         "cmd_vel": bagwriter.CMD_TOPIC, "odom": bagwriter.ODOM_TOPIC,
                         "metadata": bagwriter.METADATA_TOPIC}

@@ -38,36 +38,34 @@ class CarSpec:
     version: int = 1
 
     def urdf(self) -> str:
-        """The car as URDF text: base_link is the chassis, centred between the axles."""
-        half = self.wheelbase / 2
-        body_z = 0.05  # the chassis floor, 5 cm above the axles (base_link sits at axle height)
+        """The car as URDF text: base_link is the chassis, centred between the axles at axle height."""
+        half, floor = self.wheelbase / 2, 0.05  # the chassis floor is 5 cm above the axles
+        body = (self.body_length, self.body_width, self.body_height)
         wheels = "".join(self._wheel(name, x, y) for name, x, y in (
             ("rear_left", -half, self.track / 2), ("rear_right", -half, -self.track / 2)))
         steered = "".join(self._steered_wheel(name, half, y) for name, y in (
             ("front_left", self.track / 2), ("front_right", -self.track / 2)))
+        visuals = "".join(_box_visual(xyz, size, rgba) for xyz, size, rgba in (
+            ((0, 0, floor + self.body_height / 2), body, "0.8 0.05 0.05 1"),                        # monocoque
+            ((half + 0.45, 0, floor + 0.05), (0.25, self.track + self.wheel_width, 0.05), "0.1 0.1 0.1 1"),  # front wing
+            ((-half - 0.35, 0, floor + 0.6), (0.3, self.track, 0.05), "0.1 0.1 0.1 1")))            # rear wing
         return f"""<?xml version="1.0"?>
 <robot name="pilotlab_f1">
   <link name="base_link">
-    <inertial><origin xyz="0 0 0"/><mass value="{self.body_mass}"/>
-      <inertia ixx="{self.body_mass * (self.body_width**2 + self.body_height**2) / 12:.3f}" iyy="{self.body_mass * (self.body_length**2 + self.body_height**2) / 12:.3f}"
-               izz="{self.body_mass * (self.body_length**2 + self.body_width**2) / 12:.3f}" ixy="0" ixz="0" iyz="0"/></inertial>
-    <visual><origin xyz="0 0 {body_z + self.body_height / 2:.3f}"/><geometry><box size="{self.body_length} {self.body_width} {self.body_height}"/></geometry>
-      <material name="body"><color rgba="0.8 0.05 0.05 1"/></material></visual>
-    <visual><origin xyz="{half + 0.45:.3f} 0 {body_z + 0.05:.3f}"/><geometry><box size="0.25 {self.track + self.wheel_width} 0.05"/></geometry>
-      <material name="wing"><color rgba="0.1 0.1 0.1 1"/></material></visual>
-    <visual><origin xyz="{-half - 0.35:.3f} 0 {body_z + 0.6:.3f}"/><geometry><box size="0.3 {self.track} 0.05"/></geometry>
-      <material name="wing"/></visual>
-    <collision><origin xyz="0 0 {body_z + self.body_height / 2:.3f}"/><geometry><box size="{self.body_length} {self.body_width} {self.body_height}"/></geometry></collision>
+    {_inertial(self.body_mass, _box_inertia(self.body_mass, *body))}{visuals}
+    <collision><origin xyz="0 0 {floor + self.body_height / 2:.3f}"/>
+      <geometry><box size="{' '.join(map(str, body))}"/></geometry></collision>
   </link>{wheels}{steered}
 </robot>
 """
 
     def _wheel_link(self, name: str) -> str:
+        """A wheel: a cylinder to look at, a sphere to roll on (pybullet's cylinder contacts chatter)."""
         m, r, w = self.wheel_mass, self.wheel_radius, self.wheel_width
-        i_axis, i_side = m * r * r / 2, m * (3 * r * r + w * w) / 12
+        side = m * (3 * r * r + w * w) / 12
         return f"""
   <link name="{name}_wheel">
-    <inertial><mass value="{m}"/><inertia ixx="{i_side:.4f}" iyy="{i_axis:.4f}" izz="{i_side:.4f}" ixy="0" ixz="0" iyz="0"/></inertial>
+    {_inertial(m, (side, m * r * r / 2, side))}
     <visual><origin rpy="1.5708 0 0"/><geometry><cylinder radius="{r}" length="{w}"/></geometry>
       <material name="tyre"><color rgba="0.05 0.05 0.05 1"/></material></visual>
     <collision><geometry><sphere radius="{r}"/></geometry></collision>
@@ -81,7 +79,7 @@ class CarSpec:
     def _steered_wheel(self, name: str, x: float, y: float) -> str:
         return f"""
   <link name="{name}_knuckle">
-    <inertial><mass value="1.0"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    {_inertial(1.0, (0.01, 0.01, 0.01))}
   </link>
   <joint name="{name}_steer" type="revolute"><parent link="base_link"/><child link="{name}_knuckle"/>
     <origin xyz="{x} {y} 0"/><axis xyz="0 0 1"/>
@@ -89,6 +87,22 @@ class CarSpec:
             + self._wheel_link(name) + f"""
   <joint name="{name}_axle" type="continuous"><parent link="{name}_knuckle"/><child link="{name}_wheel"/>
     <origin xyz="0 0 0"/><axis xyz="0 1 0"/></joint>"""
+
+
+def _box_inertia(mass: float, x: float, y: float, z: float) -> tuple[float, float, float]:
+    return mass * (y * y + z * z) / 12, mass * (x * x + z * z) / 12, mass * (x * x + y * y) / 12
+
+
+def _inertial(mass: float, diagonal: tuple[float, float, float]) -> str:
+    ixx, iyy, izz = diagonal
+    return (f'<inertial><mass value="{mass}"/><inertia ixx="{ixx:.4f}" iyy="{iyy:.4f}" izz="{izz:.4f}" '
+            'ixy="0" ixz="0" iyz="0"/></inertial>')
+
+
+def _box_visual(xyz, size, rgba: str) -> str:
+    return (f'\n    <visual><origin xyz="{" ".join(f"{v:.3f}" for v in xyz)}"/>'
+            f'<geometry><box size="{" ".join(f"{v:.3f}" for v in size)}"/></geometry>'
+            f'<material name="c{rgba.replace(" ", "_").replace(".", "")}"><color rgba="{rgba}"/></material></visual>')
 
 
 class Car:

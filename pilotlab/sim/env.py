@@ -18,10 +18,11 @@ reset options (all optional): `circuit` (name or CSV path; changing it rebuilds 
 `control_period`. The same seed and options give the same run, step for step.
 
 Episodes end (terminated) when the laps are completed, when the car's centre leaves the road (unless
-`stop_off_road=False`), or when it is trapped (less than 1 m of progress in `trapped_s` seconds, or
-tipped over); they are truncated at the timeout (BehaviorMetrics' per-circuit timeout × laps). The
-reward is the progress along the red line during the step, in metres. `info` holds everything
-BehaviorMetrics' metrics need; see `INFO_KEYS`.
+`stop_off_road=False`: then `info["off_road"]` just flags it), or when it is trapped (less than 1 m of
+progress in `trapped_s` seconds, or tipped over); they are truncated at the timeout (BehaviorMetrics'
+per-circuit timeout × laps, at least one lap's). The reward is the progress along the red line during
+the step, in metres. `info` holds everything BehaviorMetrics' metrics need; see `INFO_KEYS`.
+A reset with no options returns to the constructor's circuit, direction, laps and timeout.
 """
 from __future__ import annotations
 
@@ -80,11 +81,11 @@ class DrivingEnv:
         self.car: Car | None = None
         self._renderer = None
         self.circuit = self._load_circuit(circuit, direction)
-        self.np_random = np.random.default_rng()
+        self.np_random, self._seeded = np.random.default_rng(), False
 
     # -- Gymnasium API ----------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        if seed is not None or not hasattr(self, "_seeded"):
+        if seed is not None or not self._seeded:  # as Gymnasium: a later reset without a seed goes on
             self.np_random, self._seeded = np.random.default_rng(seed), True
         options = dict(options or {})
         unknown = set(options) - {"circuit", "direction", "start", "lateral", "heading", "speed", "laps",
@@ -95,7 +96,7 @@ class DrivingEnv:
         self.circuit = self._load_circuit(settings["circuit"], settings["direction"])
         self.control_period = float(settings["control_period"])
         self.laps = float(settings["laps"])
-        self.timeout_s = settings["timeout_s"] or self.circuit.timeout_s * self.laps
+        self.timeout_s = settings["timeout_s"] or self.circuit.timeout_s * max(self.laps, 1.0)
         self._build_world()
         self._place_car(options)
         return self._observe(True), self._info()
@@ -109,16 +110,10 @@ class DrivingEnv:
         duration = self.control_period if duration is None else float(duration)
         if duration <= 0:
             raise PilotlabError(f"a step must last a positive time, got duration={duration}")
-        self.car.apply(v, w)
-        substeps = max(1, round(duration * self.physics_hz))
-        self.world.step(substeps)
-        self._physics_steps += substeps
-        self._steps += 1
-        self._last_dt = substeps / self.physics_hz
         before = self._progress
-        self._track()
-        termination = self._termination()
-        self._termination_reason = termination
+        self.car.apply(v, w)
+        self._advance(duration)
+        self._termination_reason = termination = self._termination()
         truncated = termination == "timeout"
         terminated = termination is not None and not truncated
         return self._observe(render), self._progress - before, terminated, truncated, self._info()
@@ -180,6 +175,14 @@ class DrivingEnv:
         self._s, self._progress, self._lap_times = self._start_s, 0.0, []
         self._progress_marks: list[tuple[float, float]] = [(0.0, 0.0)]
         self._termination_reason = None
+        self._track()
+
+    def _advance(self, duration: float) -> None:
+        substeps = max(1, round(duration * self.physics_hz))
+        self.world.step(substeps)
+        self._physics_steps += substeps
+        self._steps += 1
+        self._last_dt = substeps / self.physics_hz
         self._track()
 
     def _track(self) -> None:

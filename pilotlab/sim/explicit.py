@@ -2,9 +2,9 @@
 
 The classic BehaviorMetrics baseline: threshold red in HSV, find the line's centre in bands of rows
 below the horizon, steer with a PD controller on the nearest band that sees the line, and slow down
-when the bands further ahead say a curve is coming. When the line is lost it keeps turning the way it last saw
-it, slowly. It reads a full camera frame (horizon across the middle); rows are fractions of the
-height, so any frame size works.
+when the bands further ahead say a curve is coming. When the line is lost it keeps turning, slowly,
+the way it last saw it. It reads a full camera frame (horizon across the middle); rows are fractions
+of the height, so any frame size works.
 """
 from __future__ import annotations
 

@@ -47,7 +47,7 @@ class RecordSpec:
     noise: float = 0.0               # fraction of time the expert spends swerving
     renderer: str = "ground"         # ground (fast) | pybullet (reference, ~50x slower at 640x480)
     start: float | str = 0.0         # metres along the lap, or "random" (from the seed)
-    max_seconds: float | None = None  # stop after this much simulated time (default: the lap timeout)
+    max_seconds: float | None = None  # stop after this much simulated time (default: circuit timeout × laps)
     version: int = 1
 
     def check(self) -> None:
@@ -148,9 +148,10 @@ def _drive(env: DrivingEnv, spec: RecordSpec, bag: BagWriter, interrupt: dict, p
         distances.append(info["distance_to_line"])
         obs, _, terminated, truncated, info = env.step(swerves(command, info, env.control_period), render=False)
         steps += 1
-        if progress is not None:
+        done = terminated or truncated or interrupt["stop"]
+        if progress is not None and (steps % 10 == 0 or done):
             progress(max(info["progress"], 0.0), total, bag.counts[bag.image_topic])
-        if terminated or truncated or interrupt["stop"]:
+        if done:
             break
     return {"commands": steps, "sim_time": info["sim_time"], "progress": info["progress"],
             "laps_completed": info["laps_completed"], "termination": info["termination"],

@@ -29,7 +29,7 @@ def fill_polygon(image: np.ndarray, polygon: np.ndarray, colour, mask: np.ndarra
     if len(polygon) < 3:
         return
     shift = 4
-    points = np.round((polygon + 0.5) * (1 << shift)).astype(np.int32)  # fillPoly: pixel centres at +0.5
+    points = np.round(polygon * (1 << shift)).astype(np.int32)
     if mask is None:
         cv2.fillPoly(image, [points], colour, lineType=cv2.LINE_8, shift=shift)
         return

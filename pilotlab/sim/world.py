@@ -24,7 +24,7 @@ CHUNK_POINTS = 400          # centreline points per mesh (pybullet limits the ve
 # that the line is never hidden by the road, even where two stretches of road overlap.
 ROAD_SINK_M = 0.003
 WALL_HEIGHT_M, WALL_THICKNESS_M, WALL_GAP_M = 0.6, 0.3, 0.5
-WALL_BOXES_PER_BODY = 64
+WALL_BOXES_PER_BODY = 16  # pybullet crashes on shape arrays of more than about 20
 
 
 def _rgba(rgb) -> list[float]:
@@ -40,6 +40,19 @@ def strip_mesh(left: np.ndarray, right: np.ndarray, z: float) -> tuple[list, lis
     # Two triangles per quad, counter-clockwise seen from above for a band driven along +arc.
     triangles = np.stack([i, count + i, count + i + 1, i, count + i + 1, i + 1], axis=1)
     return vertices.tolist(), triangles.reshape(-1).tolist()
+
+
+def mesh_points(circuit: Circuit, max_turn: float = 0.02, max_step: float = 2.0) -> np.ndarray:
+    """Indices of the centreline points to keep as mesh vertices: a new one whenever the heading has
+    turned by `max_turn` radians or `max_step` metres have passed since the last one."""
+    turns = np.abs(circuit.curvature) * (circuit.length / len(circuit.points))
+    kept, turned, travelled = [0], 0.0, 0.0
+    for i in range(1, len(circuit.points)):
+        turned, travelled = turned + turns[i], travelled + circuit.length / len(circuit.points)
+        if turned >= max_turn or travelled >= max_step:
+            kept.append(i)
+            turned, travelled = 0.0, 0.0
+    return np.array(kept)
 
 
 class World:
@@ -81,10 +94,14 @@ class World:
                          spinningFriction=0.0, physicsClientId=self.client)
 
     def _add_road(self) -> None:
+        """Road and line bands as meshes, with vertices only where the line bends (TinyRenderer's cost
+        grows with the triangle count): a chord then strays less than 1 cm from the line."""
         circuit, half_line = self.circuit, LINE_WIDTH_M / 2
-        bands = ((circuit.road_width / 2, -circuit.road_width / 2, -ROAD_SINK_M, ROAD), (half_line, -half_line, 0.0, LINE))
-        for start in range(0, len(circuit.points), CHUNK_POINTS):
-            index = np.arange(start, min(start + CHUNK_POINTS, len(circuit.points)) + 1) % len(circuit.points)
+        kept = mesh_points(circuit)
+        bands = ((circuit.road_width / 2, -circuit.road_width / 2, -ROAD_SINK_M, ROAD),
+                 (half_line, -half_line, 0.0, LINE))
+        for start in range(0, len(kept), CHUNK_POINTS):
+            index = kept[np.arange(start, min(start + CHUNK_POINTS, len(kept)) + 1) % len(kept)]
             for left, right, z, colour in bands:
                 vertices, triangles = strip_mesh(circuit.offset_line(left)[index], circuit.offset_line(right)[index], z)
                 shape = p.createVisualShape(p.GEOM_MESH, vertices=vertices, indices=triangles, rgbaColor=_rgba(colour),

@@ -1,5 +1,5 @@
-"""Shared fixtures: a randomly initialised PilotNet checkpoint (as the train job writes it) and small
-random FrameSets (as frames jobs write them)."""
+"""Shared fixtures: a randomly initialised PilotNet checkpoint (as the train job writes it), small
+random FrameSets (as frames jobs write them), and a tiny circuit (a 110 m stadium CSV)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -10,6 +10,7 @@ import torch
 
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.models import build_model, save_checkpoint
+from tests.pilotlab.tracks import stadium, write_csv
 
 RANGES = LabelRanges((0.0, 12.0), (-1.5, 1.5))
 
@@ -46,3 +47,7 @@ def test_frames(tmp_path_factory) -> Path:
     return folder
 
 
+@pytest.fixture
+def stadium_csv(tmp_path) -> str:
+    """A 110 m clockwise stadium (two 30 m straights, 8 m radius bends) as a user circuit CSV."""
+    return str(write_csv(tmp_path / "stadium.csv", stadium()))

@@ -38,7 +38,7 @@ def test_a_bag_recorded_by_a_record_job(tmp_path):
     artifacts = tmp_path / "record-out"
     artifacts.mkdir()
     drive_bag(artifacts / "lap.bag", "ros1", images(3))
-    record = DepResult(key="rec", kind="record", params={}, result={"bag": "lap.bag"}, artifacts=artifacts)
+    record = DepResult(key="rec", kind="record", params={}, result={"path": "lap.bag"}, artifacts=artifacts)
     ctx = context(tmp_path, "frames", "frames-rec", deps={"bag": record})
     assert run(ctx)["frames"] == 3 and len(FrameSet.load(ctx.out)) == 3
 
@@ -54,7 +54,7 @@ def test_exactly_one_source_and_known_params(tmp_path):
     drive_bag(tmp_path / "a.bag", "ros1", images(2))
     with pytest.raises(PilotlabError, match="reads exactly one recording .* it was given 0"):
         run(context(tmp_path, "frames", "none"))
-    record = DepResult(key="rec", kind="record", params={}, result={"bag": "a.bag"}, artifacts=tmp_path)
+    record = DepResult(key="rec", kind="record", params={}, result={"path": "a.bag"}, artifacts=tmp_path)
     with pytest.raises(PilotlabError, match="it was given 2"):
         run(context(tmp_path, "frames", "two", deps={"bag": record}, inputs={"bag": tmp_path / "a.bag"}))
     with pytest.raises(PilotlabError, match="frames job has no param.s. crop; known: command_topic, crop_bottom"):

@@ -1,0 +1,124 @@
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+
+from pilotlab.cli import main
+from pilotlab.errors import PilotlabError
+from pilotlab.sim.bagwriter import CMD_TOPIC, COMPRESSED_TOPIC, IMAGE_TOPIC, METADATA_TOPIC, ODOM_TOPIC
+from pilotlab.sim.record import RecordSpec, record
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def read_bag(path):
+    """{topic: [(bag time ns, message)]} of a ROS1 or ROS2 bag."""
+    messages = {}
+    with AnyReader([Path(path)]) as reader:
+        for connection, timestamp, raw in reader.messages():
+            messages.setdefault(connection.topic, []).append((timestamp, reader.deserialize(raw, connection.msgtype)))
+    return messages
+
+
+def stamp_ns(message):
+    return message.header.stamp.sec * 10**9 + message.header.stamp.nanosec
+
+
+@pytest.mark.parametrize("format", ["ros1", "ros2"])
+def test_a_recorded_bag_has_the_configured_messages(stadium_csv, tmp_path, format):
+    spec = RecordSpec(circuit=stadium_csv, direction="ccw", laps=0.2, seed=5, width=64, height=48, rate_hz=5,
+                      format=format)
+    summary = record(spec, tmp_path / "run")
+    assert summary.path == str(tmp_path / ("run.bag" if format == "ros1" else "run"))
+    assert summary.termination == "lap_completed" and not summary.interrupted
+    messages = read_bag(summary.path)
+    assert set(messages) == {IMAGE_TOPIC, CMD_TOPIC, ODOM_TOPIC, METADATA_TOPIC}
+    images, commands, odometry = messages[IMAGE_TOPIC], messages[CMD_TOPIC], messages[ODOM_TOPIC]
+    assert len(commands) == len(odometry) == summary.commands
+    assert len(images) == summary.frames == -(-summary.commands // 4)  # 20 Hz commands, 5 Hz frames
+    # Stamped in simulated time: commands every 50 ms from 0, frames every 200 ms, header = bag time.
+    assert [t for t, _ in commands] == [i * 50_000_000 for i in range(len(commands))]
+    assert [t for t, _ in images] == [i * 200_000_000 for i in range(len(images))]
+    assert all(stamp_ns(m) == t for t, m in images + odometry)
+    image = images[3][1]
+    assert (image.width, image.height, image.encoding, image.step) == (64, 48, "rgb8", 192)
+    frame = image.data.reshape(48, 64, 3)
+    assert np.any(np.all(frame == (205, 30, 30), axis=2))  # the red line is in the picture
+    v, w = commands[-1][1].linear.x, commands[-1][1].angular.z
+    assert 3.0 < v < 14.0 and abs(w) < 3.0
+    odom = odometry[-1][1]
+    assert odom.header.frame_id == "odom" and odom.child_frame_id == "base_link" and odom.twist.twist.linear.x > 3
+    meta = json.loads(messages[METADATA_TOPIC][0][1].data)
+    assert (meta["circuit"], meta["direction"], meta["seed"], meta["rate_hz"]) == ("stadium", "ccw", 5, 5)
+
+
+def test_the_same_seed_gives_identical_messages(stadium_csv, tmp_path):
+    spec = RecordSpec(circuit=stadium_csv, laps=0.15, seed=2, width=40, height=30, noise=0.3, start="random")
+    first, second = record(spec, tmp_path / "a.bag"), record(spec, tmp_path / "b.bag")
+    other = record(dataclasses.replace(spec, seed=3), tmp_path / "c.bag")
+    a, b, c = read_bag(first.path), read_bag(second.path), read_bag(other.path)
+    for topic in (IMAGE_TOPIC, CMD_TOPIC, ODOM_TOPIC):
+        assert [t for t, _ in a[topic]] == [t for t, _ in b[topic]]
+        assert [repr(m) for _, m in a[topic]] == [repr(m) for _, m in b[topic]]
+    assert repr(a[ODOM_TOPIC][0][1]) != repr(c[ODOM_TOPIC][0][1])  # another seed, another random start
+
+
+def test_compressed_images_decode_to_the_frames(stadium_csv, tmp_path):
+    raw = record(RecordSpec(circuit=stadium_csv, laps=0.05, width=64, height=48, rate_hz=20), tmp_path / "raw")
+    png = record(RecordSpec(circuit=stadium_csv, laps=0.05, width=64, height=48, rate_hz=20, compressed="png",
+                            format="ros2"), tmp_path / "png")
+    jpeg = record(RecordSpec(circuit=stadium_csv, laps=0.05, width=64, height=48, rate_hz=20, compressed="jpeg"),
+                  tmp_path / "jpeg")
+    frames = [m.data.reshape(48, 64, 3) for _, m in read_bag(raw.path)[IMAGE_TOPIC]]
+    for summary, tolerance in ((png, 0), (jpeg, 40)):
+        compressed = read_bag(summary.path)[COMPRESSED_TOPIC]
+        assert len(compressed) == len(frames) and IMAGE_TOPIC not in read_bag(summary.path)
+        assert compressed[0][1].format.startswith("rgb8; ")
+        decoded = cv2.cvtColor(cv2.imdecode(compressed[5][1].data, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+        assert np.percentile(np.abs(decoded.astype(int) - frames[5]), 99) <= tolerance
+    assert png.bytes < raw.bytes
+
+
+def test_bad_settings_are_refused(stadium_csv, tmp_path):
+    with pytest.raises(PilotlabError, match="rate_hz must divide the control rate 20 Hz"):
+        record(RecordSpec(circuit=stadium_csv, rate_hz=3), tmp_path / "x")
+    with pytest.raises(PilotlabError, match="unknown bag format"):
+        record(RecordSpec(circuit=stadium_csv, format="mcap"), tmp_path / "x")
+    (tmp_path / "exists.bag").write_text("")
+    with pytest.raises(PilotlabError, match="already exists"):
+        record(RecordSpec(circuit=stadium_csv), tmp_path / "exists.bag")
+
+
+def test_cli_record_writes_a_bag(stadium_csv, tmp_path, capsys):
+    status = main(["record", "--circuit", stadium_csv, "--laps", "0.05", "--out", str(tmp_path / "cli"),
+                   "--size", "32x24", "--rate", "20", "--format", "ros2"])
+    assert status == 0
+    assert "frames" in capsys.readouterr().out
+    assert len(read_bag(tmp_path / "cli")[IMAGE_TOPIC]) > 5
+
+
+def test_ctrl_c_leaves_a_valid_readable_bag(tmp_path):
+    out = tmp_path / "interrupted.bag"
+    command = [sys.executable, "-m", "pilotlab", "record", "--circuit", "montreal", "--out", str(out),
+               "--size", "64x48", "--rate", "20"]
+    process = subprocess.Popen(command, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline = time.time() + 60
+    while not (out.exists() and out.stat().st_size > 500_000) and time.time() < deadline:
+        time.sleep(0.1)  # until it has recorded for a while (the ROS1 writer flushes 1 MB chunks)
+    process.send_signal(signal.SIGINT)
+    output, _ = process.communicate(timeout=60)
+    assert process.returncode == 130, output
+    assert "interrupted" in output
+    messages = read_bag(out)
+    assert 5 < len(messages[IMAGE_TOPIC]) <= len(messages[CMD_TOPIC])
+    assert messages[CMD_TOPIC][-1][0] < 272.8e9  # stopped long before the end of the lap
