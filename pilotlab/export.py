@@ -6,6 +6,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+from matrix.store import Store
 from pilotlab.errors import PilotlabError
 from pilotlab.strategies.artifact import META_FILE, ArtifactMeta, read_meta
 
@@ -69,28 +70,16 @@ def readme(meta: ArtifactMeta, result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def find_job(store: Path, key: str) -> Path:
-    """The job folder of `key` (a unique prefix is enough) in a store laid out as
-    `<store>/jobs/<key[:2]>/<key>/`."""
-    if len(key) < 2:
-        raise PilotlabError(f"job key {key!r} is too short; give at least 2 characters")
-    matches = sorted((Path(store) / "jobs" / key[:2]).glob(f"{key}*"))
-    if not matches:
-        raise PilotlabError(f"no job {key!r} in the store {store} (set --store or $PILOTLAB_STORE)")
-    if len(matches) > 1:
-        raise PilotlabError(f"job key {key!r} is ambiguous in {store}: "
-                            f"{', '.join(m.name[:12] for m in matches[:5])}…; give more characters")
-    return matches[0]
-
-
-def export_job(store: Path, key: str, out_dir: Path) -> Path:
-    job = find_job(store, key)
-    result_file = job / "result.json"
-    if not result_file.exists():
-        raise PilotlabError(f"job {job.name[:12]} has no result yet (not run, or still running)")
-    result = json.loads(result_file.read_text())
-    if not (job / "artifacts" / META_FILE).exists():
-        status = result.get("status") or result.get("reason") or "it wrote no artifact.json"
-        raise PilotlabError(f"job {job.name[:12]} is not an optimized artifact ({status}); "
-                            "export the key of an optimize job")
-    return export_artifact(job / "artifacts", result.get("result", result), out_dir)
+def export_job(store: Store, key_prefix: str, out_dir: Path) -> Path:
+    """Export the optimize job `key_prefix` (a unique prefix is enough) from the engine's store."""
+    key = store.find(key_prefix)
+    spec, stored = store.spec(key) or {}, store.result(key)
+    if stored is None:
+        raise PilotlabError(f"job {key[:12]} has no result (it failed or has not run; see `pilotlab status`)")
+    if spec.get("kind") != "optimize":
+        raise PilotlabError(f"job {key[:12]} is a {spec.get('kind')!r} job ({spec.get('name', '')}); "
+                            "export the key of an optimize job (`pilotlab status` lists them)")
+    if stored.get("status") != "ok":
+        raise PilotlabError(f"job {key[:12]} ({spec.get('name', '')}) produced no artifact: "
+                            f"{stored.get('status')}: {stored.get('reason', '')}")
+    return export_artifact(store.artifacts(key), stored.get("value") or {}, out_dir)

@@ -47,13 +47,13 @@ def evaluate_offline(artifact_dir: Path, hardware: HardwareProfile | dict | str,
     frames = max(1, predictor.meta.input_shape[1] // 3)
     result = {"size_mb": artifact_size_mb(artifact_dir), "threads": predictor.threads,
               "test_frames": len(test), **mse_metrics(predictor, test, frames, settings.mse_batch)}
-    result.update(measure_throughput(predictor, test_batch(test, settings.throughput_batch, frames), settings))
+    result.update(measure_throughput(predictor, sample_batch(test, settings.throughput_batch, frames), settings))
     result["peak_mem_mb"] = memory.peak_mb()
-    result.update(measure_latency(predictor.predict, test_batch(test, 1, frames), settings))
+    result.update(measure_latency(predictor.predict, sample_batch(test, 1, frames), settings))
     return result
 
 
-def test_batch(test: FrameSet, size: int, frames: int) -> np.ndarray:
+def sample_batch(test: FrameSet, size: int, frames: int) -> np.ndarray:
     """`size` frames of the test set (repeated if it is smaller), C-contiguous float32."""
     index = np.arange(size) % len(test)
     return np.ascontiguousarray(test.inputs(index, frames).numpy())

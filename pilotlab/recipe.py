@@ -81,7 +81,7 @@ class ModelSpec(Strict):
     lr: float = Field(1e-3, gt=0)
     patience: int | None = Field(5, ge=1)
     val_fraction: float = Field(0.2, ge=0, lt=1)
-    val_by: Literal["recording", "block"] = "recording"
+    val_by: Literal["auto", "recording", "block"] = "auto"   # auto: by recording with 3+ recordings, else by block
     labels: Literal["auto"] | dict[str, list[float]] = "auto"
     seed: int = 0
     augment: AugmentSpec = AugmentSpec()

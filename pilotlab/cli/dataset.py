@@ -41,13 +41,13 @@ def run_inspect(args: argparse.Namespace) -> int:
 
 def print_inspection(info: dict) -> None:
     from rich.console import Console
-    from rich.table import Table
+    from rich.table import Column, Table
 
     console = Console()
     console.print(f"[bold]{info['path']}[/bold]  {info['format']}, {info['messages']} messages, "
                   f"{info['duration_s']:.1f} s")
     if info["topics"]:
-        table = Table("topic", "type", "messages", "rate (Hz)")
+        table = Table(*(Column(name, overflow="fold") for name in ("topic", "type", "messages", "rate (Hz)")))
         for topic in info["topics"]:
             table.add_row(topic["name"], topic["type"], str(topic["count"]), f"{topic['rate_hz'] or 0:.1f}")
         console.print(table)
@@ -60,7 +60,8 @@ def print_inspection(info: dict) -> None:
                       f"v {commands['v'][0]:.3f} .. {commands['v'][1]:.3f} m/s, "
                       f"w {commands['w'][0]:.3f} .. {commands['w'][1]:.3f} rad/s")
     else:
-        console.print("no command topic found (name it with --command-topic)")
+        console.print(f"no commands: the bag has no {info['command_topic']} of type geometry_msgs/Twist or "
+                      "TwistStamped (name the command topic with --command-topic)")
 
 
 def run_convert(args: argparse.Namespace) -> int:

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 
@@ -11,14 +10,14 @@ def register(subparsers) -> None:
                                    description=__doc__)
     parser.add_argument("key", help="the optimize job's key (a unique prefix is enough)")
     parser.add_argument("--out", required=True, type=Path, help="folder to create")
-    parser.add_argument("--store", type=Path, default=None,
-                        help="job store (default: $PILOTLAB_STORE or .pilotlab)")
+    parser.add_argument("--store", help="job store folder (default: $PILOTLAB_STORE, else .pilotlab)")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from matrix.engine import open_store
+    from pilotlab.domain import DOMAIN
     from pilotlab.export import export_job
-    store = args.store or Path(os.environ.get("PILOTLAB_STORE", ".pilotlab"))
-    out = export_job(store, args.key, args.out)
+    out = export_job(open_store(DOMAIN, args.store), args.key, args.out)
     print(f"exported to {out} (see {out / 'README.md'})")
     return 0

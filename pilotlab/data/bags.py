@@ -13,10 +13,13 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+import apsw
 import numpy as np
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
+from pilotlab.data import sqlite_images
+from pilotlab.data.folder import is_dataset_folder, read_folder
 from pilotlab.data.frames import FrameSet
 from pilotlab.data.images import IMAGE_TYPES, encoding_of, frame_from_message, image_size
 from pilotlab.data.preprocess import PreprocessConfig
@@ -135,14 +138,15 @@ def read_commands(reader: AnyReader, path: Path, topic: str) -> tuple[np.ndarray
     return np.asarray(stamps, np.int64), np.asarray(labels, np.float32).reshape(-1, 2)
 
 
-def default_workers() -> int:
-    """Threads that resize frames beside the reading thread (cv2 releases the GIL)."""
-    return max(0, min(2, len(os.sched_getaffinity(0))))
-
-
 def read_bag(path: Path | str, preprocess: PreprocessConfig, topics: Topics = Topics(), *,
              workers: int | None = None, progress: Progress | None = None) -> FrameSet:
-    """Every image at or after the first command, preprocessed, with the command in force."""
+    """Every image at or after the first command, preprocessed, with the command in force.
+
+    `workers` (None: what measured fastest on 2 cores, tests/pilotlab/data/test_benchmark.py):
+    raw images in a sqlite3 bag are read and resized by that many threads (default 2: sqlite and
+    OpenCV release the GIL); other bags are read by this thread, and `workers` threads resize
+    beside it (default 0: rosbags' reading holds the GIL, and threads only added overhead).
+    """
     path = Path(path)
     with open_bag(path) as reader:
         cmd_stamps, commands = read_commands(reader, path, topics.command)
@@ -151,21 +155,34 @@ def read_bag(path: Path | str, preprocess: PreprocessConfig, topics: Topics = To
         name, msgtype, connections = find_topic(reader, path, topics.image, "image_topic",
                                                 IMAGE_TYPES, DEFAULT_IMAGE_TOPICS)
         total = sum(c.msgcount for c in connections)
-        stream = messages(reader, path, connections, start=int(cmd_stamps[0]))
-        decoder = _Decoder(preprocess, msgtype, f"{path}, topic {name}", total,
-                           default_workers() if workers is None else workers, progress)
-        stamps, first = decoder.run(stream)
+        where, start = f"{path}, topic {name}", int(cmd_stamps[0])
+        database = sqlite_images.applies(path, reader, msgtype)
+        threads = min(2, len(os.sched_getaffinity(0))) if workers is None else max(1, workers)
+        decoded = (_read_sqlite(database, name, where, start, preprocess, threads, progress) if database else
+                   _Decoder(preprocess, msgtype, where, total, workers or 0, progress).run(
+                       messages(reader, path, connections, start=start)))
+    frames, stamps, encoding, size = decoded
     if not len(stamps):
         raise BagError(f"{path}: no image on {name!r} at or after the first command on {topics.command!r}; "
                        "the recording has no labelled frames, record it again")
     index = np.searchsorted(cmd_stamps, stamps, side="right") - 1
-    frames = decoder.frames[:len(stamps)]
     meta = {"source": str(path), "format": bag_format(path), "image_topic": name, "image_type": msgtype,
-            "encoding": encoding_of(first, msgtype),
-            "image_size": list(image_size(first, msgtype, f"{path}, topic {name}")),
-            "command_topic": topics.command, "frames": len(stamps), "dropped": total - len(stamps),
-            "start_ns": int(stamps[0]), "end_ns": int(stamps[-1]), "preprocess": preprocess.as_dict()}
+            "encoding": encoding, "image_size": size, "command_topic": topics.command,
+            "frames": len(stamps), "dropped": total - len(stamps), "start_ns": int(stamps[0]),
+            "end_ns": int(stamps[-1]), "preprocess": preprocess.as_dict()}
     return FrameSet(frames, commands[index], np.zeros(len(stamps), np.int32), meta)
+
+
+Decoded = tuple[np.ndarray, np.ndarray, str, list[int]]   # frames, time stamps, encoding, [h, w]
+
+
+def _read_sqlite(database: Path, topic: str, where: str, start: int, config: PreprocessConfig,
+                 threads: int, progress: Progress | None) -> Decoded:
+    try:
+        frames, stamps, first = sqlite_images.read_images(database, topic, where, start, config, threads, progress)
+    except apsw.Error as error:
+        raise corrupt(database, _describe(error)) from None
+    return frames, stamps, first.encoding if first else "", [first.height, first.width] if first else []
 
 
 class _Decoder:
@@ -181,8 +198,7 @@ class _Decoder:
         for i, msg in chunk:
             frame_from_message(msg, self.msgtype, self.config, self.where, out=self.frames[i])
 
-    def run(self, stream: Iterator[tuple[int, object]]) -> tuple[np.ndarray, object]:
-        """(time stamps of the decoded frames, the first message)."""
+    def run(self, stream: Iterator[tuple[int, object]]) -> Decoded:
         stamps, chunk, pending, first = [], [], [], None
         pool = ThreadPoolExecutor(self.workers) if self.workers else None
         try:
@@ -203,7 +219,10 @@ class _Decoder:
             if pool:
                 pool.shutdown(cancel_futures=True)
         self.progress(len(stamps), len(stamps))
-        return np.asarray(stamps, np.int64), first
+        if first is None:
+            return self.frames[:0], np.zeros(0, np.int64), "", []
+        size = list(image_size(first, self.msgtype, self.where))
+        return self.frames[:len(stamps)], np.asarray(stamps, np.int64), encoding_of(first, self.msgtype), size
 
     def _submit(self, pool: ThreadPoolExecutor | None, chunk: list, pending: list[Future]) -> None:
         if pool is None:
@@ -215,8 +234,6 @@ class _Decoder:
 
 def read_frames(path: Path | str, preprocess: PreprocessConfig, topics: Topics = Topics(), **kwargs) -> FrameSet:
     """A bag, or a DeepLearningStudio dataset folder (`data.csv` + images), as a FrameSet."""
-    from pilotlab.data.folder import is_dataset_folder, read_folder
-
     path = Path(path)
     if is_dataset_folder(path):
         return read_folder(path, preprocess, progress=kwargs.get("progress"))

@@ -35,7 +35,7 @@ def inspect_bag(path: Path, command_topic: str = COMMAND_TOPIC) -> dict[str, Any
                         "v": _range(labels[:, 0]), "w": _range(labels[:, 1])}
         return {"path": str(path), "format": bag_format(path), "messages": reader.message_count,
                 "start_ns": reader.start_time, "end_ns": reader.end_time, "duration_s": round(seconds, 3),
-                "topics": topics, "images": images, "commands": commands}
+                "topics": topics, "images": images, "command_topic": command_topic, "commands": commands}
 
 
 def _first_image(reader, path: Path, topic: str) -> dict[str, Any]:
@@ -53,5 +53,5 @@ def inspect_folder(path: Path) -> dict[str, Any]:
             "end_ns": rows[-1].stamp_ns, "duration_s": round(seconds, 3),
             "topics": [], "images": {"data.csv": {"type": "png", "encoding": "png",
                                                   "size": list(load_image(rows[0].image).shape[:2])}},
-            "commands": {"topic": "data.csv", "count": len(rows), "v": _range(labels[:, 0]),
+            "command_topic": "data.csv", "commands": {"topic": "data.csv", "count": len(rows), "v": _range(labels[:, 0]),
                          "w": _range(labels[:, 1])}}

@@ -6,6 +6,7 @@ live camera image (through `DrivePreprocessor`), so a network sees at drive time
 in training. `to_input` turns such frames into the network's float tensor.
 
     pre = DrivePreprocessor.from_checkpoint(checkpoint)   # the dict load_checkpoint returns
+    # (or DrivePreprocessor.from_settings(meta.preprocess, meta.labels) for an optimized artifact)
     inputs = pre(rgb_image)                                 # [1, 3 × frames, 66, 200] float32
     v, w = pre.commands(model(inputs))                      # physical (m/s, rad/s)
 """
@@ -24,7 +25,7 @@ import torch
 from pilotlab.data.frames import LabelRanges
 from pilotlab.errors import PilotlabError
 
-INTERPOLATIONS = {"area": cv2.INTER_AREA, "linear": cv2.INTER_LINEAR}
+INTERPOLATIONS = ("fast_area", "area", "linear")
 ENCODINGS = ("rgb8", "bgr8", "mono8")
 
 
@@ -36,7 +37,7 @@ class PreprocessConfig:
     crop_bottom: float = 1.0
     width: int = 200
     height: int = 66
-    interpolation: str = "area"      # "area" (cv2.INTER_AREA) or "linear" (cv2's default, DLS's)
+    interpolation: str = "fast_area"  # see `resize`
 
     def __post_init__(self):
         if not 0.0 <= self.crop_top < self.crop_bottom <= 1.0:
@@ -62,6 +63,27 @@ class PreprocessConfig:
         return slice(top, max(bottom, top + 1))
 
 
+def resize(image: np.ndarray, width: int, height: int, interpolation: str,
+           out: np.ndarray | None = None) -> np.ndarray:
+    """Downscale with anti-aliasing.
+
+    - "area": cv2.INTER_AREA, each output pixel the exact average of the input area it covers
+      (about 0.7 ms for 640×240 -> 200×66 on one core here);
+    - "fast_area": halve by averaging 2×2 blocks (INTER_AREA at exactly half size, OpenCV's fast
+      path) while the image is at least twice the target size, then bilinear to the size: within
+      about one grey level of "area" and 5-8 times faster here;
+    - "linear": cv2.INTER_LINEAR straight to the size (DeepLearningStudio's cv2.resize default);
+      cheapest, but it skips most pixels when shrinking 3×, so thin lines alias.
+    """
+    if interpolation == "area":
+        return cv2.resize(image, (width, height), dst=out, interpolation=cv2.INTER_AREA)
+    if interpolation == "fast_area":
+        while image.shape[1] >= 2 * width and image.shape[0] >= 2 * height:
+            even = image[:image.shape[0] // 2 * 2, :image.shape[1] // 2 * 2]
+            image = cv2.resize(even, (even.shape[1] // 2, even.shape[0] // 2), interpolation=cv2.INTER_AREA)
+    return cv2.resize(image, (width, height), dst=out, interpolation=cv2.INTER_LINEAR)
+
+
 def preprocess(image: np.ndarray, config: PreprocessConfig, encoding: str = "rgb8",
                out: np.ndarray | None = None) -> np.ndarray:
     """Crop and resize one camera image to a uint8 [height, width, 3] RGB frame.
@@ -70,12 +92,15 @@ def preprocess(image: np.ndarray, config: PreprocessConfig, encoding: str = "rgb
     Cropping first means only the kept rows are resized; the colour conversion happens after the
     resize, on the small frame, which gives the same result because the resize is per channel.
     """
-    size = (config.width, config.height)
-    cropped = image[config.rows(image.shape[0])]
-    interpolation = INTERPOLATIONS[config.interpolation]
+    return finish(image[config.rows(image.shape[0])], config, encoding, out)
+
+
+def finish(cropped: np.ndarray, config: PreprocessConfig, encoding: str = "rgb8",
+           out: np.ndarray | None = None) -> np.ndarray:
+    """`preprocess` after the crop: for readers that fetch only the kept rows."""
     if encoding == "rgb8":
-        return cv2.resize(cropped, size, dst=out, interpolation=interpolation)
-    small = cv2.resize(cropped, size, interpolation=interpolation)
+        return resize(cropped, config.width, config.height, config.interpolation, out)
+    small = resize(cropped, config.width, config.height, config.interpolation)
     if encoding == "bgr8":
         return cv2.cvtColor(small, cv2.COLOR_BGR2RGB, dst=out)
     if encoding == "mono8":
@@ -107,11 +132,20 @@ class DrivePreprocessor:
     @classmethod
     def from_checkpoint(cls, checkpoint: Mapping[str, Any]) -> DrivePreprocessor:
         """From the dict `pilotlab.models.load_checkpoint` returns (its "preprocess" and "labels")."""
-        settings = dict(checkpoint.get("preprocess") or {})
-        frames = int(settings.pop("frames", 1))
-        if "labels" not in checkpoint:
+        if not checkpoint.get("labels"):
             raise PilotlabError("checkpoint has no 'labels' ranges; it was not written by the train job")
-        return cls(PreprocessConfig(**settings), LabelRanges.from_dict(checkpoint["labels"]), frames)
+        return cls.from_settings(checkpoint.get("preprocess") or {}, checkpoint["labels"])
+
+    @classmethod
+    def from_settings(cls, preprocess: Mapping[str, Any], labels: Mapping[str, Any]) -> DrivePreprocessor:
+        """From a checkpoint's "preprocess" (PreprocessConfig fields and "frames") and "labels"."""
+        settings = dict(preprocess)
+        frames = int(settings.pop("frames", 1))
+        unknown = sorted(set(settings) - {f.name for f in dataclasses.fields(PreprocessConfig)})
+        if unknown:
+            raise PilotlabError(f"preprocess settings {', '.join(unknown)} are unknown; expected the fields of "
+                                "PreprocessConfig and 'frames' (as the train job writes them)")
+        return cls(PreprocessConfig(**settings), LabelRanges.from_dict(labels), frames)
 
     def reset(self) -> None:
         """Forget earlier frames (call at the start of each drive)."""

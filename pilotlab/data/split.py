@@ -1,8 +1,10 @@
 """Validation splits that never put frames of one run on both sides at random.
 
-- by "recording" (default): whole recordings are held out, about `fraction` of the frames;
+- by "recording": whole recordings are held out, about `fraction` of the frames;
 - by "block": the last `fraction` of every recording is held out (one contiguous stretch each),
-  for when every recording is needed in training (for example one run per circuit).
+  for when every recording is needed in training (for example one run per circuit);
+- "auto" (default): by recording when there are at least 3 recordings (so at least two stay in
+  training), else by block.
 A single recording cannot be split by recording; it is split by block, and the split says so.
 """
 from __future__ import annotations
@@ -13,7 +15,8 @@ import numpy as np
 
 from pilotlab.errors import PilotlabError
 
-SPLITS = ("recording", "block")
+SPLITS = ("auto", "recording", "block")
+AUTO_MIN_RECORDINGS = 3
 
 
 @dataclass(frozen=True)
@@ -24,7 +27,7 @@ class Split:
     val_recordings: list[int]  # recordings held out whole (by recording)
 
 
-def split_validation(recording: np.ndarray, fraction: float, by: str = "recording", seed: int = 0) -> Split:
+def split_validation(recording: np.ndarray, fraction: float, by: str = "auto", seed: int = 0) -> Split:
     recording = np.asarray(recording)
     if by not in SPLITS:
         raise PilotlabError(f"validation split {by!r} is not one of {', '.join(SPLITS)}")
@@ -34,6 +37,8 @@ def split_validation(recording: np.ndarray, fraction: float, by: str = "recordin
     if fraction == 0.0:
         return Split(everything, everything[:0], "none", [])
     runs = np.unique(recording)
+    if by == "auto":
+        by = "recording" if len(runs) >= AUTO_MIN_RECORDINGS else "block"
     if by == "recording" and len(runs) > 1:
         return _by_recording(recording, runs, fraction, seed)
     return _by_block(recording, runs, fraction)

@@ -3,7 +3,9 @@
 Where the recording comes from (exactly one):
   inputs["bag"]      a user's ROS1 .bag, ROS2 bag folder (or its .db3 / .mcap) or DeepLearningStudio
                      dataset folder; an input file, so its content is in the job key;
-  deps["bag"]        a `record` job; its artifacts folder holds the bag at `result["path"]`;
+  deps["bag"]        a `record` job; its artifacts folder holds the bag at `result["bag"]` (or
+                     `result["path"]`), and its `result["topics"]` ({"image", "cmd_vel"}) are the
+                     default topics;
   params["path"]     the same as inputs["bag"], for jobs built by hand (not hashed: prefer inputs).
 
 params (all optional):
@@ -11,7 +13,7 @@ params (all optional):
   command_topic: str   default: /F1ROS/cmd_vel (geometry_msgs/Twist or TwistStamped)
   crop_top: 0.5, crop_bottom: 1.0      rows kept, as fractions of the image height
   width: 200, height: 66               frame size after resizing
-  interpolation: "area" | "linear"     cv2.INTER_AREA (default) or INTER_LINEAR
+  interpolation: "fast_area" (default) | "area" | "linear"   see pilotlab.data.preprocess.resize
   label: str                           a name for the recording (shown in logs and results)
 
 artifacts: a FrameSet (frames.npy uint8 [N, 66, 200, 3] RGB, labels.npy float32 [N, 2] physical v, w,
@@ -47,15 +49,24 @@ def recording_path(ctx: JobContext) -> Path:
         sources.append(Path(ctx.inputs["bag"]))
     if "bag" in ctx.deps:
         dep = ctx.dep("bag")
-        if "path" not in dep.result:
-            raise PilotlabError(f"{ctx.name}: dependency {dep.name or dep.key} has no 'path' (the bag) in its result")
-        sources.append(Path(dep.artifacts) / dep.result["path"])
+        relative = dep.result.get("bag") or dep.result.get("path")
+        if not relative:
+            raise PilotlabError(f"{ctx.name}: dependency {dep.name or dep.key} names no bag in its result "
+                                "(expected 'bag' or 'path', relative to its artifacts)")
+        sources.append(Path(dep.artifacts) / relative)
     if not sources and ctx.params.get("path"):
         sources.append(Path(ctx.params["path"]))
     if len(sources) != 1:
         raise PilotlabError(f"{ctx.name}: a frames job reads exactly one recording (an input 'bag', a "
                             f"'bag' dependency or a 'path' param); it was given {len(sources)}")
     return sources[0]
+
+
+def job_topics(ctx: JobContext) -> Topics:
+    """Topics named in params, else those a record dependency reports, else the conventions'."""
+    recorded = dict(ctx.dep("bag").result.get("topics") or {}) if "bag" in ctx.deps else {}
+    return Topics(ctx.params.get("image_topic") or recorded.get("image"),
+                  ctx.params.get("command_topic") or recorded.get("cmd_vel") or COMMAND_TOPIC)
 
 
 def check_params(ctx: JobContext) -> None:
@@ -81,7 +92,7 @@ def run_frames(ctx: JobContext) -> dict[str, Any]:
     check_params(ctx)
     path = recording_path(ctx)
     config = PreprocessConfig.from_params(ctx.params)
-    topics = Topics(ctx.params.get("image_topic"), ctx.params.get("command_topic") or COMMAND_TOPIC)
+    topics = job_topics(ctx)
     label = ctx.params.get("label") or path.name
     ctx.log.info("reading %s", path)
     started = time.perf_counter()

@@ -5,6 +5,8 @@ params:
     options    dict  the recipe's `strategies.<strategy>` section (unknown options are errors)
     hardware   dict  the target profile {"name", "device", "threads"} where the strategy depends on
                      it (fp16, bf16, tensorrt); optional, default the `cpu` profile
+    host       dict  (optional) host fingerprint; only part of the key (the planner adds it for
+                     hardware-dependent strategies), not read by the handler
 deps:
     model        the train job; its artifacts hold `model.pt` (pilotlab.models.save_checkpoint)
     calibration  (optional group) frames jobs whose artifacts are FrameSet folders: the training

@@ -7,7 +7,8 @@ params (defaults in brackets):
   epochs [20], batch_size [64], lr [1e-3], seed [0]
   patience [5]             early stopping: epochs without a better validation loss (null: never)
   val_fraction [0.2]       share of frames held out for validation (0: none)
-  val_by ["recording"]     "recording": whole recordings held out; "block": the last part of each
+  val_by ["auto"]          "recording": whole recordings held out; "block": the last part of each;
+                           "auto": by recording with 3 or more recordings, else by block
   augment [{}]             AugmentConfig fields: flip, oversample_curves, curve_threshold,
                            color_jitter, blur, affine
   labels ["auto"]          normalisation ranges {"v": [lo, hi], "w": [lo, hi]}, or "auto": v from its
@@ -35,7 +36,7 @@ import torch
 from matrix.kinds import JobContext, job_kind
 from pilotlab.data.augment import AugmentConfig
 from pilotlab.data.frames import FrameSet, LabelRanges
-from pilotlab.data.split import split_validation
+from pilotlab.data.split import Split, split_validation
 from pilotlab.errors import PilotlabError
 from pilotlab.models import MODELS, build_model, input_frames, make_config, save_checkpoint
 from pilotlab.training import FitConfig, evaluate, fit, mean_predictor_mse
@@ -43,7 +44,7 @@ from pilotlab.training import FitConfig, evaluate, fit, mean_predictor_mse
 CODE = ["pilotlab.training", "pilotlab.data.augment", "pilotlab.data.split", "pilotlab.data.frames",
         "pilotlab.models.registry"]
 DEFAULTS: dict[str, Any] = {"arch": "pilotnet", "options": {}, "epochs": 20, "batch_size": 64, "lr": 1e-3,
-                            "seed": 0, "patience": 5, "val_fraction": 0.2, "val_by": "recording",
+                            "seed": 0, "patience": 5, "val_fraction": 0.2, "val_by": "auto",
                             "augment": {}, "labels": "auto"}
 
 
@@ -102,31 +103,47 @@ def validation_scores(model, train: FrameSet, val: FrameSet, ranges: LabelRanges
             **{f"val_{k}_mean_predictor": v for k, v in mean.items()}}
 
 
+def split_frames(ctx: JobContext, data: FrameSet, p: dict) -> tuple[FrameSet, FrameSet, Split]:
+    split = split_validation(data.recording, p["val_fraction"], p["val_by"], p["seed"])
+    if not len(split.train):
+        raise PilotlabError(f"{ctx.name}: no frames left to train on after holding out val_fraction = "
+                            f"{p['val_fraction']} of {len(data)}; lower val_fraction or record more")
+    return data.subset(split.train), data.subset(split.val), split
+
+
+def make_model(p: dict) -> tuple[torch.nn.Module, Any, FitConfig]:
+    """The freshly initialised (seeded) model, its config, and how to fit it."""
+    torch.manual_seed(p["seed"])
+    config = make_config(p["arch"], p["options"])
+    fit_config = FitConfig(epochs=p["epochs"], batch_size=p["batch_size"], lr=p["lr"], seed=p["seed"],
+                           frames=input_frames(config), patience=p["patience"],
+                           augment=AugmentConfig.from_params(p["augment"]))
+    return build_model(p["arch"], config), config, fit_config
+
+
+def summarise(model, history: list[dict], data: FrameSet, train: FrameSet, val: FrameSet, split: Split,
+              ranges: LabelRanges, fit_config: FitConfig, seconds: float) -> dict[str, Any]:
+    return {**validation_scores(model, train, val, ranges, fit_config.frames),
+            "train_loss": history[-1]["train_loss"], "epochs_run": len(history),
+            "best_epoch": next((r["epoch"] for r in history if r.get("best")), len(history)),
+            "stopped_early": len(history) < fit_config.epochs,
+            "params": sum(t.numel() for t in model.parameters()), "train_frames": len(train),
+            "val_frames": len(val), "recordings": int(len(np.unique(data.recording))),
+            "val_recordings": split.val_recordings, "val_by": split.by, "labels": ranges.as_dict(),
+            "frames": fit_config.frames, "seconds": round(seconds, 2), "checkpoint": "model.pt"}
+
+
 @job_kind("train", code=CODE, code_for=arch_modules)
 def run_train(ctx: JobContext) -> dict[str, Any]:
     p = settings(ctx)
     data, preprocess = load_frames(ctx)
-    split = split_validation(data.recording, p["val_fraction"], p["val_by"], p["seed"])
-    train, val = data.subset(split.train), data.subset(split.val)
+    train, val, split = split_frames(ctx, data, p)
     ranges = label_ranges(p["labels"], data)
-    torch.manual_seed(p["seed"])
-    config = make_config(p["arch"], p["options"])
-    model = build_model(p["arch"], config)
-    fit_config = FitConfig(epochs=p["epochs"], batch_size=p["batch_size"], lr=p["lr"], seed=p["seed"],
-                           frames=input_frames(config), patience=p["patience"],
-                           augment=AugmentConfig.from_params(p["augment"]))
+    model, config, fit_config = make_model(p)
     on_batch, on_epoch = progress_callbacks(ctx, p["epochs"])
     started = time.perf_counter()
     history = fit(model, train, ranges, fit_config, val=val, on_epoch=on_epoch, on_batch=on_batch)
-    seconds = time.perf_counter() - started
-    result = {**validation_scores(model, train, val, ranges, fit_config.frames),
-              "train_loss": history[-1]["train_loss"], "epochs_run": len(history),
-              "best_epoch": next((r["epoch"] for r in history if r.get("best")), len(history)),
-              "stopped_early": len(history) < p["epochs"],
-              "params": sum(t.numel() for t in model.parameters()), "train_frames": len(train),
-              "val_frames": len(val), "recordings": int(len(np.unique(data.recording))),
-              "val_recordings": split.val_recordings, "val_by": split.by, "labels": ranges.as_dict(),
-              "frames": fit_config.frames, "seconds": round(seconds, 2), "checkpoint": "model.pt"}
+    result = summarise(model, history, data, train, val, split, ranges, fit_config, time.perf_counter() - started)
     save_checkpoint(ctx.out / "model.pt", model, p["arch"], config, labels=ranges.as_dict(),
                     preprocess={**preprocess, "frames": fit_config.frames}, history=history,
                     training={**p, "fit": dataclasses.asdict(fit_config)}, result=result)

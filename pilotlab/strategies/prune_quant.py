@@ -18,6 +18,7 @@ class PruneQuantConfig:
     version: int = 1
     conv: float = 0.3
     linear: float = 0.5
+    calibration_frames: int = 256    # observed before quantization-aware fine-tuning
     finetune_epochs: int = 2         # after pruning, and again with fake quantization
     lr: float = 1e-4
     batch_size: int = 64

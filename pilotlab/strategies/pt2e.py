@@ -42,6 +42,7 @@ def static_quant(config: StaticQuantConfig, source: StrategySource) -> dict:
 @dataclass(frozen=True)
 class QatConfig:
     version: int = 1
+    calibration_frames: int = 256    # observed before fine-tuning, so ranges start calibrated
     finetune_epochs: int = 2
     lr: float = 1e-4
     batch_size: int = 64
@@ -58,6 +59,9 @@ def quantization_aware_finetune(model: nn.Module, source: StrategySource, config
     """Insert fake-quant, fine-tune, convert, save. `keep_zeros` keeps pruned weights at zero."""
     from torchao.quantization.pt2e.quantize_pt2e import convert_pt2e, prepare_qat_pt2e
     prepared = prepare_qat_pt2e(export_graph(model.train(), source.input_shape), x86_quantizer(qat=True))
+    with torch.no_grad():   # start from calibrated ranges (and have ranges even with 0 epochs)
+        for batch in source.calibration_batches(config.calibration_frames):
+            prepared(batch)
     if keep_zeros:
         freeze_zeros(prepared)
     trainable = _TrainEvalSwitch(prepared)

@@ -1,10 +1,9 @@
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 
+from matrix.store import Store
 from pilotlab.cli import main
 from pilotlab.errors import PilotlabError
 from pilotlab.export import export_artifact
@@ -12,15 +11,18 @@ from pilotlab.predictor import load_predictor
 from pilotlab.strategies import StrategySource, apply_strategy
 
 
+KEY = "ab12" + "0" * 60
+
+
 @pytest.fixture(scope="module")
 def store(trained, frames, tmp_path_factory):
-    """A store laid out as the engine's: jobs/<key[:2]>/<key>/{spec.json, result.json, artifacts/}."""
-    root = tmp_path_factory.mktemp("store")
-    job = root / "jobs" / "ab" / ("ab12" + "0" * 60)
-    result = apply_strategy("onnxruntime", {}, StrategySource(trained / "model.pt", job / "artifacts", (frames,)))
-    (job / "result.json").write_text(json.dumps(result))
-    (job / "spec.json").write_text(json.dumps({"kind": "optimize", "params": {"strategy": "onnxruntime"}}))
-    return root
+    """The engine's store holding one optimize job, committed as the engine commits it."""
+    store = Store(tmp_path_factory.mktemp("store"))
+    work = store.new_workdir(KEY)
+    value = apply_strategy("onnxruntime", {}, StrategySource(trained / "model.pt", work / "artifacts", (frames,)))
+    store.commit(KEY, work, {"key": KEY, "kind": "optimize", "name": "optimize pilotnet/onnxruntime"},
+                 {"status": "ok", "reason": "", "value": value})
+    return store.root
 
 
 def test_export_cli_copies_the_artifact_with_a_readme(store, tmp_path, capsys):
@@ -30,13 +32,13 @@ def test_export_cli_copies_the_artifact_with_a_readme(store, tmp_path, capsys):
     assert "onnxruntime.InferenceSession" in readme or "ort.InferenceSession" in readme
     assert "[N, 3, 66, 200]" in readme and "RGB in [0, 1]" in readme and "rad/s" in readme
     batch = np.random.default_rng(0).random((2, 3, 66, 200), dtype=np.float32)
-    source = store / "jobs" / "ab" / ("ab12" + "0" * 60) / "artifacts"
+    source = Store(store).artifacts(KEY)
     np.testing.assert_array_equal(load_predictor(out, "cpu1").predict(batch),
                                   load_predictor(source, "cpu1").predict(batch))
 
 
 def test_export_errors_say_what_to_do(store, tmp_path, capsys):
-    assert main(["export", "ff", "--out", str(tmp_path / "x"), "--store", str(store)]) == 2
-    assert "no job 'ff'" in capsys.readouterr().err
+    assert main(["export", "ffff", "--out", str(tmp_path / "x"), "--store", str(store)]) == 2
+    assert "no job 'ffff'" in capsys.readouterr().err
     with pytest.raises(PilotlabError, match="not a pilotlab artifact"):
         export_artifact(tmp_path, {}, tmp_path / "y")

@@ -10,11 +10,26 @@ from pilotlab.errors import PilotlabError
 from tests.pilotlab.data.bagfiles import images
 
 
-def test_crops_the_lower_half_and_resizes_to_200x66_with_inter_area():
-    camera = images(1, 480, 640)[0]
+def test_crops_the_lower_half_and_resizes_to_200x66():
+    camera = images(1, 480, 640, seed=3)[0]
+    area = cv2.resize(camera[240:480], (200, 66), interpolation=cv2.INTER_AREA)
+    np.testing.assert_array_equal(preprocess(camera, PreprocessConfig(interpolation="area")), area)
     frame = preprocess(camera, PreprocessConfig())
     assert frame.shape == (66, 200, 3) and frame.dtype == np.uint8
-    np.testing.assert_array_equal(frame, cv2.resize(camera[240:480], (200, 66), interpolation=cv2.INTER_AREA))
+    halved = cv2.resize(camera[240:480], (320, 120), interpolation=cv2.INTER_AREA)
+    np.testing.assert_array_equal(frame, cv2.resize(halved, (200, 66), interpolation=cv2.INTER_LINEAR))
+    assert np.abs(frame.astype(int) - area).mean() < 1.0
+
+
+def test_fast_area_keeps_a_thin_line_wherever_it_is_and_linear_does_not():
+    def faintest_line(mode):
+        reds = []
+        for column in range(300, 316):
+            camera = np.full((480, 640, 3), 100, np.uint8)
+            camera[:, column:column + 2] = (255, 0, 0)              # a 2-pixel red line
+            reds.append(int(preprocess(camera, PreprocessConfig(interpolation=mode))[..., 0].max()))
+        return min(reds)
+    assert faintest_line("area") > 140 and faintest_line("fast_area") > 140 and faintest_line("linear") == 100
 
 
 def test_crop_and_interpolation_are_configurable():
@@ -33,7 +48,7 @@ def test_the_upper_half_does_not_matter():
 @pytest.mark.parametrize("fields, problem", [
     ({"crop_top": 0.6, "crop_bottom": 0.5}, "need 0 <= crop_top < crop_bottom <= 1"),
     ({"width": 0}, "width and height must be >= 1"),
-    ({"interpolation": "cubic"}, "is not one of area, linear"),
+    ({"interpolation": "cubic"}, "is not one of fast_area, area, linear"),
 ])
 def test_bad_settings_are_refused(fields, problem):
     with pytest.raises(PilotlabError, match=problem):
@@ -73,3 +88,11 @@ def test_drive_preprocessor_gives_what_training_saw():
 def test_drive_preprocessor_needs_label_ranges():
     with pytest.raises(PilotlabError, match="checkpoint has no 'labels' ranges"):
         DrivePreprocessor.from_checkpoint({"preprocess": PreprocessConfig().as_dict()})
+
+
+def test_drive_preprocessor_from_an_optimized_artifacts_settings():
+    ranges = {"v": [0.0, 10.0], "w": [-2.0, 2.0]}
+    live = DrivePreprocessor.from_settings({**PreprocessConfig(crop_top=0.4).as_dict(), "frames": 2}, ranges)
+    assert live.frames == 2 and live.config.crop_top == 0.4 and live(images(1, 480, 640)[0]).shape == (1, 6, 66, 200)
+    with pytest.raises(PilotlabError, match="preprocess settings size are unknown"):
+        DrivePreprocessor.from_settings({"crop_top": 0.5, "size": [200, 66]}, ranges)

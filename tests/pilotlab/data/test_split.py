@@ -40,7 +40,12 @@ def test_no_validation():
 
 
 def test_bad_split_settings():
-    with pytest.raises(PilotlabError, match="validation split 'random' is not one of recording, block"):
+    with pytest.raises(PilotlabError, match="validation split .random. is not one of auto, recording, block"):
         split_validation(np.zeros(5), 0.2, "random")
     with pytest.raises(PilotlabError, match="val_fraction = 1.0 must be at least 0 and below 1"):
         split_validation(np.zeros(5), 1.0)
+
+
+def test_auto_holds_out_recordings_only_when_two_stay_in_training():
+    assert split_validation(np.repeat([0, 1], 10), 0.2).by == "block"
+    assert split_validation(np.repeat([0, 1, 2], 10), 0.2).by == "recording"

@@ -29,10 +29,11 @@ def recording(tmp_path, name, seed, n=24):
     return finished(ctx, KINDS.get("frames").handler(ctx)), cameras
 
 
-@pytest.fixture
-def frames_deps(tmp_path):
+@pytest.fixture(scope="module")
+def frames_deps(tmp_path_factory):
     torch.set_num_threads(1)
-    return [recording(tmp_path, f"run{i}", seed=i) for i in range(4)]
+    folder = tmp_path_factory.mktemp("recordings")
+    return [recording(folder, f"run{i}", seed=i) for i in range(4)]
 
 
 def test_train_job_writes_a_checkpoint_the_brain_can_drive_with(tmp_path, frames_deps):
@@ -54,7 +55,7 @@ def test_train_job_writes_a_checkpoint_the_brain_can_drive_with(tmp_path, frames
     model, checkpoint = load_checkpoint(ctx.out / "model.pt")
     assert checkpoint["arch"] == "pilotnet" and checkpoint["labels"] == result["labels"]
     assert checkpoint["preprocess"] == {"version": 1, "crop_top": 0.5, "crop_bottom": 1.0, "width": 200,
-                                        "height": 66, "interpolation": "area", "frames": 1}
+                                        "height": 66, "interpolation": "fast_area", "frames": 1}
     brain = DrivePreprocessor.from_checkpoint(checkpoint)
     (val_run,) = result["val_recordings"]
     dep, cameras = frames_deps[val_run]
