@@ -138,13 +138,15 @@ class DrivePreprocessor:
 
     @classmethod
     def from_settings(cls, preprocess: Mapping[str, Any], labels: Mapping[str, Any]) -> DrivePreprocessor:
-        """From a checkpoint's "preprocess" (PreprocessConfig fields and "frames") and "labels"."""
+        """From a checkpoint's "preprocess" (PreprocessConfig fields, "frames", "frame_interval_s")
+        and "labels"."""
         settings = dict(preprocess)
         frames = int(settings.pop("frames", 1))
+        settings.pop("frame_interval_s", None)  # the brain's concern: how far apart stacked frames are
         unknown = sorted(set(settings) - {f.name for f in dataclasses.fields(PreprocessConfig)})
         if unknown:
             raise PilotlabError(f"preprocess settings {', '.join(unknown)} are unknown; expected the fields of "
-                                "PreprocessConfig and 'frames' (as the train job writes them)")
+                                "PreprocessConfig, 'frames' and 'frame_interval_s' (as the train job writes them)")
         return cls(PreprocessConfig(**settings), LabelRanges.from_dict(labels), frames)
 
     def reset(self) -> None:

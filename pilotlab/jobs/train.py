@@ -69,7 +69,16 @@ def load_frames(ctx: JobContext) -> tuple[FrameSet, dict[str, Any]]:
     if len(settings_seen) != 1:
         raise PilotlabError(f"{ctx.name}: its frames jobs were preprocessed differently "
                             f"({'; '.join(sorted(settings_seen))}); give them the same crop and size")
-    return FrameSet.concat(sets), sets[0].meta.get("preprocess") or {}
+    preprocess = {**(sets[0].meta.get("preprocess") or {}), "frame_interval_s": frame_interval(sets)}
+    return FrameSet.concat(sets), preprocess
+
+
+def frame_interval(sets: list[FrameSet]) -> float | None:
+    """The median spacing of consecutive frames in simulated seconds (temporal brains stack frames
+    this far apart at drive time)."""
+    gaps = [(s.meta["end_ns"] - s.meta["start_ns"]) / 1e9 / (len(s) - 1) for s in sets
+            if len(s) > 1 and "end_ns" in s.meta and "start_ns" in s.meta]
+    return round(float(np.median(gaps)), 6) if gaps else None
 
 
 def label_ranges(spec: Any, data: FrameSet) -> LabelRanges:

@@ -71,7 +71,8 @@ class StrategySource:
     @property
     def input_shape(self) -> tuple:
         config = self.checkpoint.get("config", {})
-        return (None, config.get("channels", 3), config.get("height", 66), config.get("width", 200))
+        channels = config.get("channels", 3) * int(config.get("frames", 1))  # temporal models stack frames
+        return (None, channels, config.get("height", 66), config.get("width", 200))
 
     @property
     def frames(self) -> int:

@@ -55,7 +55,8 @@ def test_train_job_writes_a_checkpoint_the_brain_can_drive_with(tmp_path, frames
     model, checkpoint = load_checkpoint(ctx.out / "model.pt")
     assert checkpoint["arch"] == "pilotnet" and checkpoint["labels"] == result["labels"]
     assert checkpoint["preprocess"] == {"version": 1, "crop_top": 0.5, "crop_bottom": 1.0, "width": 200,
-                                        "height": 66, "interpolation": "fast_area", "frames": 1}
+                                        "height": 66, "interpolation": "fast_area", "frames": 1,
+                                        "frame_interval_s": pytest.approx(0.1, abs=0.01)}
     brain = DrivePreprocessor.from_checkpoint(checkpoint)
     (val_run,) = result["val_recordings"]
     dep, cameras = frames_deps[val_run]

@@ -73,8 +73,6 @@ def test_frame_stack_picks_the_nearest_frames_in_time():
     assert stack.times == [0.15, 0.21, 0.5]  # older frames than the stack can reach are dropped
 
 
-@pytest.mark.xfail(strict=True, reason="StrategySource.input_shape reads config['channels']; PilotNetStacked's config "
-                   "has 'frames' (fix in pilotlab/strategies/registry.py: 3 * models.input_frames(config))")
 def test_the_baseline_strategy_keeps_a_stacked_models_input(stacked_artifact, tmp_path):
     from pilotlab.strategies import StrategySource, apply_strategy
     apply_strategy("baseline", {}, StrategySource(stacked_artifact / "model.pt", tmp_path / "out"))
