@@ -215,9 +215,10 @@ def online_jobs(planner: Planner, optimize: Job, combination: dict, hardware: st
 
 
 def reference_jobs(planner: Planner) -> list[Job]:
-    """The explicit brain and the expert on every (hardware, circuit) the matrix drives."""
+    """The explicit brain and the expert on every CPU profile and circuit the matrix drives (they
+    use no GPU, so a CUDA profile adds nothing)."""
     cells = {(str(c.get("hardware", "cpu")), str(c["circuit"])) for c in planner.recipe.combinations
-             if "circuit" in c}
+             if "circuit" in c and planner.profile(str(c.get("hardware", "cpu"))).device == "cpu"}
     return [_lap(planner, f"online {brain} on {hardware}", {"model": "reference", "strategy": brain,
                                                             "hardware": hardware},
                  hardware, circuit, direction, {"brain": brain}, {})

@@ -88,8 +88,13 @@ def resolve_profile(hardware: HardwareProfile | dict | str | None) -> HardwarePr
     return make_profile(hardware)
 
 
-def load_predictor(artifact_dir: Path, hardware: HardwareProfile | dict | str | None = None) -> Predictor:
-    """Load the artifact in `artifact_dir` to run on `hardware` (threads applied to this process)."""
+def load_predictor(artifact_dir: Path, hardware: HardwareProfile | dict | str | None = None, *,
+                   spin: bool = True) -> Predictor:
+    """Load the artifact in `artifact_dir` to run on `hardware` (threads applied to this process).
+
+    `spin=False` stops ONNX Runtime's worker threads from busy-waiting between calls: needed when the
+    predictor shares the CPU with other work (the simulator in a closed loop), where spinning threads
+    would steal its cores; timing benchmarks keep the default."""
     artifact_dir = Path(artifact_dir)
     meta = read_meta(artifact_dir)
     profile = resolve_profile(hardware)
@@ -98,7 +103,7 @@ def load_predictor(artifact_dir: Path, hardware: HardwareProfile | dict | str | 
     apply_profile(profile)
     path = artifact_dir / meta.file
     if meta.runtime == "onnxruntime":
-        return OnnxPredictor(meta, profile, _ort_session(path, meta, profile))
+        return OnnxPredictor(meta, profile, _ort_session(path, meta, profile, spin))
     if meta.runtime == "torch":
         return TorchPredictor(meta, profile, _torch_module(path, meta, profile))
     raise PilotlabError(f"{artifact_dir}: unknown runtime {meta.runtime!r} in artifact.json")
@@ -116,9 +121,11 @@ def _torch_module(path: Path, meta: ArtifactMeta, profile: HardwareProfile):
     return module.to(profile.device).eval()
 
 
-def _ort_session(path: Path, meta: ArtifactMeta, profile: HardwareProfile):
+def _ort_session(path: Path, meta: ArtifactMeta, profile: HardwareProfile, spin: bool = True):
     import onnxruntime
     options = onnxruntime.SessionOptions()
+    if not spin:
+        options.add_session_config_entry("session.intra_op.allow_spinning", "0")
     options.graph_optimization_level = onnxruntime.GraphOptimizationLevel.ORT_ENABLE_ALL
     options.execution_mode = onnxruntime.ExecutionMode.ORT_SEQUENTIAL
     options.intra_op_num_threads = profile.cpu_threads

@@ -111,7 +111,8 @@ def make_brain(ctx: JobContext, p: Mapping[str, Any], profile) -> tuple[brains.B
                                 "takes no artifact (drop one of them)")
         artifact = ctx.dep("artifact")
         interval = p["frame_interval_ms"] / 1000 if p["frame_interval_ms"] else None
-        brain = brains.NetworkBrain(predictor.load_predictor(artifact.artifacts, profile), frame_interval_s=interval)
+        brain = brains.NetworkBrain(predictor.load_predictor(artifact.artifacts, profile, spin=False),
+                                   frame_interval_s=interval)
         return brain, artifact.result.get("strategy", brain.name)
     if p["brain"] in (None, "network"):
         names = ", ".join(brains.REFERENCE_BRAINS.names())
