@@ -18,7 +18,6 @@ from matrix.recipe import Recipe
 from matrix.store import Store, read_json
 from pilotlab.report.data import Claim, Host, ReportData, package_versions, pick_metrics
 from pilotlab.report.studies import compare
-from pilotlab.report.writer import write_report
 
 STAMP = ".stamp"
 
@@ -40,6 +39,7 @@ def write_recipe_report(recipe: Recipe, store: Store, domain, force: bool = True
     stamp = _stamp(recipe, jobs, store)
     if not force and read_json(folder / STAMP) == stamp:
         return None
+    from pilotlab.report.writer import write_report  # matplotlib: only when the report is rewritten
     write_report(build_report_data(recipe, jobs, store), folder)
     (folder / STAMP).write_text(json.dumps(stamp))
     return folder
