@@ -1,6 +1,7 @@
 """A recipe's report from the job store: one row per evaluated cell, whatever state it is in.
 
-Cells that have not run show as "failed: not run yet" (or the failure's reason), never as zeros.
+Cells that have not run show as failed with the reason (their own failure, a failed dependency, or
+"not run yet"), never as zeros.
 The report is rewritten only when something it shows changed (a stamp over the recipe text, every
 job's key and status, and the report code), so a warm rerun stays quick.
 """
@@ -66,7 +67,7 @@ def _row(job, store: Store) -> dict[str, Any]:
     row = {**identity, "kind": job.kind, "job_keys": {job.kind: job.key}}
     if result is None:
         failure = store.failure(job.key)
-        return {**row, "status": "failed", "reason": failure["error"] if failure else "not run yet"}
+        return {**row, "status": "failed", "reason": failure["error"] if failure else _why_not_run(job, store)}
     if result["status"] != "ok":
         return {**row, "status": result["status"], "reason": result.get("reason") or "?"}
     value = result.get("value", {})
@@ -74,6 +75,21 @@ def _row(job, store: Store) -> dict[str, Any]:
     if value.get("trajectory"):
         row["trajectory"] = str(store.artifacts(job.key) / value["trajectory"])
     return row
+
+
+def _why_not_run(job, store: Store) -> str:
+    """"dependency failed: <name>: <error>" when a job upstream failed, else "not run yet"."""
+    stack, seen = list(job.dep_jobs()), set()
+    while stack:
+        dep = stack.pop()
+        if dep.key in seen:
+            continue
+        seen.add(dep.key)
+        failure = store.failure(dep.key) if store.result(dep.key) is None else None
+        if failure is not None:
+            return f"dependency failed: {dep.name}: {failure.get('error', '?')}"
+        stack.extend(dep.dep_jobs())
+    return "not run yet"
 
 
 def _history(job, store: Store) -> list[dict]:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from matrix.kinds import NotApplicable
-from pilotlab.hardware import cpu_flags
+from pilotlab.hardware import check_available, cpu_flags
 from pilotlab.strategies.artifact import save_torchscript
 from pilotlab.strategies.registry import StrategySource, register_strategy
 
@@ -43,6 +43,7 @@ def fp16(config: HalfConfig, source: StrategySource) -> dict:
 
 def save_half(config: HalfConfig, source: StrategySource, strategy: str, dtype: torch.dtype) -> dict:
     device = source.hardware.device
+    check_available(source.hardware)  # a CUDA target on a host without one: not applicable
     native = native_support(dtype, device)
     if not native and not config.allow_emulated:
         raise NotApplicable(f"{strategy}: {device} here has no native {dtype_name(dtype)} arithmetic "
