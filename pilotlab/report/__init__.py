@@ -6,5 +6,5 @@
 See `pilotlab.report.data` for the fields of `ReportData` and how to build it from job results.
 """
 from pilotlab.report.data import (HistoryPoint, Host, ReportData, ReportDataError, ReportRow,  # noqa: F401
-                                  package_versions, pick_metrics)
+                                  Spread, package_versions, pick_metrics, pick_spread)
 from pilotlab.report.writer import ReportPaths, write_report  # noqa: F401
