@@ -99,6 +99,13 @@ class Spread(_Frozen):
         return None if _unmeasured(value) else value
 
 
+class Claim(_Frozen):
+    """A published claim checked against this report's figures (pilotlab.report.studies)."""
+    claim: str
+    verdict: Literal["holds", "does not hold", "not testable here"]
+    found: str
+
+
 class ReportRow(_Frozen):
     """One evaluated cell: an offline evaluation or a closed-loop lap of one optimised model."""
     model: str
@@ -206,6 +213,8 @@ class ReportData(_Frozen):
     baseline: str = "baseline"               # the strategy the ratios are taken against
     rows: tuple[ReportRow, ...] = ()
     histories: dict[str, tuple[HistoryPoint, ...]] = Field(default_factory=dict)   # model -> epochs
+    comparison_title: str = ""               # "Compared with the 2022 study", when the recipe asks for one
+    comparison: tuple[Claim, ...] = ()
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> ReportData:

@@ -16,7 +16,8 @@ from matrix.engine import make_plan, slug
 from matrix.fingerprint import code_fingerprint
 from matrix.recipe import Recipe
 from matrix.store import Store, read_json
-from pilotlab.report.data import Host, ReportData, package_versions, pick_metrics, pick_spread
+from pilotlab.report.data import Claim, Host, ReportData, package_versions, pick_metrics, pick_spread
+from pilotlab.report.studies import compare
 from pilotlab.report.writer import write_report
 
 STAMP = ".stamp"
@@ -47,10 +48,16 @@ def write_recipe_report(recipe: Recipe, store: Store, domain, force: bool = True
 def build_report_data(recipe: Recipe, jobs: list, store: Store) -> ReportData:
     rows = [_row(job, store) for job in jobs if job.kind in ("offline", "online")]
     histories = {job.name.removeprefix("train "): _history(job, store) for job in jobs if job.kind == "train"}
-    return ReportData.from_dict({
+    data = ReportData.from_dict({
         "recipe_name": recipe.name, "description": recipe.description, "recipe_text": recipe.text,
         "versions": package_versions(), "host": _host(jobs, store), "date": datetime.now().isoformat(timespec="seconds"),
         "rows": rows, "histories": {name: h for name, h in histories.items() if h}})
+    study = recipe.config.report.compare_with
+    if study is None:
+        return data
+    title, checks = compare(data, study)
+    return data.model_copy(update={"comparison_title": title,
+                                   "comparison": tuple(Claim(**vars(check)) for check in checks)})
 
 
 def _row(job, store: Store) -> dict[str, Any]:
