@@ -168,9 +168,11 @@ def _group_pictures(pictures) -> list[tuple[str, list[Picture]]]:
 def _caption(row: ReportRow) -> str:
     if row.status != "ok":
         return f"{row.status.replace('_', ' ')}: {row.reason}"
-    done = row.get("lap_completed")
+    done, laps = row.get("lap_completed"), row.spread_of("lap_completed")
     if done is None:
         return "lap not measured"
+    if laps is not None and laps.completed is not None:
+        return f"{laps.completed} of {laps.runs} laps completed"
     if done:
         seconds = row.get("lap_seconds")
         return f"lap completed in {seconds:.1f} s" if seconds is not None else "lap completed"

@@ -7,7 +7,7 @@ from PIL import Image
 
 from pilotlab.columns import BY_NAME
 from pilotlab.report import ReportData, write_report
-from tests.pilotlab.report.toy import offline_row, repeated_rows, small_dict, study_dict
+from tests.pilotlab.report.toy import draw_trajectory, offline_row, repeated_rows, small_dict, study_dict
 
 OFFLINE_HEADER = ("| Method | Model size (MB) | MSE | Inference time (ms) | Throughput (images/s) "
                   "| Size × | Speed-up × | MSE Δ |")
@@ -159,13 +159,16 @@ def test_the_same_data_gives_byte_identical_files(tmp_path):
 
 
 def test_repeated_laps_show_their_spread_in_both_pages_and_the_results_files(tmp_path):
-    paths = write_report(ReportData.from_dict(small_dict(repeated_rows())), tmp_path / "report")
+    rows = repeated_rows()
+    rows[1]["trajectory"] = str(draw_trajectory(tmp_path / "qat.png", wobble=1.0))
+    paths = write_report(ReportData.from_dict(small_dict(rows)), tmp_path / "report")
     readme, page = paths.readme.read_text(), paths.html.read_text()
     assert "| baseline | ✓ 3/3, 47.8 ± 0.4 s | 8.95 ± 0.12 | 0.213 ± 0.0004 | — | — | — |" in readme
     assert "| qat | ✗ 2/3, 87 % | 8.41 ± 0.30 | 0.510 ± 0.000 | — | — | — |" in readme
     assert "| local_prune | ✓ 47.8 s | 8.95 | 0.213 | — | — | — |" in readme      # one run: as before
     assert "mean ± sample standard deviation over the runs" in readme and "mean ± sample standard" in page
     assert all(len(set(shape)) == 1 for shape in table_shapes(render_markdown(readme)))
+    assert "| qat — 2 of 3 laps completed |" in readme                              # the picture's caption
     for text in ("✓ 3/3, 47.8 ± 0.4 s", "8.95 ± 0.12", "✗ 2/3, 87 %", "✓ 47.8 s"):
         assert f">{text}</td>" in page
     baseline, lost, single = read_csv(paths.csv)

@@ -72,9 +72,11 @@ def test_swerves_take_the_car_off_the_line_and_it_comes_back(stadium_csv):
     with DrivingEnv(stadium_csv, camera=None, laps=2) as env:
         calm, _ = drive_expert(env, noise=0.0)
         noisy, _ = drive_expert(env, noise=0.3, seed=1)
-    assert max(i["distance_to_line"] for i in noisy) > 2 * max(i["distance_to_line"] for i in calm)
+    distances = np.array([i["distance_to_line"] for i in noisy])
+    assert distances.max() > 0.7 and distances.max() > 3 * max(i["distance_to_line"] for i in calm)
     assert noisy[-1]["termination"] == "lap_completed" and not any(i["off_road"] for i in noisy)
-    assert noisy[-1]["distance_to_line"] < 0.5  # recovered
+    first = int(np.argmax(distances > 0.6))
+    assert distances[first:].min() < 0.2  # it came back
 
 
 def test_swerves_are_bounded_by_the_road_edge_and_the_bends_ahead():
