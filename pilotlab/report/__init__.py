@@ -6,7 +6,7 @@
 See `pilotlab.report.data` for the fields of `ReportData` and how to build it from job results.
 """
 from pilotlab.report.data import (HistoryPoint, Host, ReportData, ReportDataError, ReportRow,  # noqa: F401
-                                  package_versions, pick_metrics)
+                                  Spread, package_versions, pick_metrics, pick_spread)
 
 _WRITER = ("ReportPaths", "write_report")
 

@@ -17,7 +17,7 @@ from matrix.engine import make_plan, slug
 from matrix.fingerprint import code_fingerprint
 from matrix.recipe import Recipe
 from matrix.store import Store, read_json
-from pilotlab.report.data import Claim, Host, ReportData, package_versions, pick_metrics
+from pilotlab.report.data import Claim, Host, ReportData, package_versions, pick_metrics, pick_spread
 from pilotlab.report.studies import compare
 
 STAMP = ".stamp"
@@ -68,12 +68,20 @@ def _row(job, store: Store) -> dict[str, Any]:
     if result is None:
         failure = store.failure(job.key)
         return {**row, "status": "failed", "reason": failure["error"] if failure else _why_not_run(job, store)}
+    return row | row_from_result(result, store.artifacts(job.key))
+
+
+def row_from_result(result: dict[str, Any], artifacts: Path) -> dict[str, Any]:
+    """The report fields of a finished job: status (and reason), its metrics, their spread over
+    repeated laps (online jobs), and the trajectory picture, a path under the job's `artifacts`."""
     if result["status"] != "ok":
-        return {**row, "status": result["status"], "reason": result.get("reason") or "?"}
+        return {"status": result["status"], "reason": result.get("reason") or "?"}
     value = result.get("value", {})
-    row |= {"status": "ok", **pick_metrics(value)}
+    row = {"status": "ok", **pick_metrics(value)}
+    if spread := pick_spread(value):
+        row["spread"] = spread
     if value.get("trajectory"):
-        row["trajectory"] = str(store.artifacts(job.key) / value["trajectory"])
+        row["trajectory"] = str(artifacts / value["trajectory"])
     return row
 
 
