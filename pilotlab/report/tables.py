@@ -177,12 +177,22 @@ def _table(data: ReportData, kind: str, hardware: str, place: str, rows: list[Re
            headers: tuple[str, ...], cells_of: Callable) -> Table:
     order = {s: i for i, s in enumerate(data.strategies())}
     rows = sorted(rows, key=lambda r: (data.models().index(r.model), order[r.strategy]))
+    where = "test set" if kind == "offline" else "circuit"
+    title = f"{hardware} · {where} {place}"
+    if _all_alike_and_not_measured(rows):  # e.g. every CUDA cell on a host without a GPU: one line
+        methods = ", ".join(method_label(r, data) for r in rows)
+        note = f"{rows[0].status.replace('_', ' ')} for all {len(rows)} methods ({methods}): {rows[0].reason}"
+        return Table(title, kind, hardware, place, headers, (), (note,))
     baselines = {r.model: r for r in rows if r.strategy == data.baseline and r.status == "ok"}
     notes = tuple(f"No usable {data.baseline!r} row for {model} here: ratios are not shown."
                   for model in _unique(r.model for r in rows) if model not in baselines) if kind == "offline" else ()
     table_rows = tuple(TableRow(method_label(r, data), r, cells_of(r, baselines.get(r.model)), _note(r)) for r in rows)
-    where = "test set" if kind == "offline" else "circuit"
-    return Table(f"{hardware} · {where} {place}", kind, hardware, place, headers, table_rows, notes)
+    return Table(title, kind, hardware, place, headers, table_rows, notes)
+
+
+def _all_alike_and_not_measured(rows: list[ReportRow]) -> bool:
+    return len(rows) > 1 and rows[0].status != "ok" and \
+        all((r.status, r.reason) == (rows[0].status, rows[0].reason) for r in rows)
 
 
 def _note(row: ReportRow) -> str:

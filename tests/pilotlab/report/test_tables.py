@@ -68,3 +68,23 @@ def test_plus_minus_gives_the_std_the_decimals_of_the_mean():
     assert plus_minus("8.95", 0.1234) == "8.95 ± 0.12" and plus_minus("47.8", 0.41) == "47.8 ± 0.4"
     assert plus_minus("1,234", 56.7) == "1,234 ± 57" and plus_minus("0.213", 0.00004) == "0.213 ± 0.00004"
     assert plus_minus("20.0", 0.0) == "20.0 ± 0.0"
+
+
+def test_a_table_whose_cells_all_share_one_reason_is_one_line():
+    reason = "hardware 'cuda' needs a CUDA GPU; this host has none"
+    rows = [offline_row(s, hardware="cuda", status="not_applicable", reason=reason)
+            for s in ("baseline", "static_quant", "qat")] + [offline_row("baseline", size_mb=6.1)]
+    tables = {t.hardware: t for t in build_tables(ReportData.from_dict(small_dict(rows)), "offline")}
+    assert tables["cuda"].rows == ()
+    assert tables["cuda"].notes == (f"not applicable for all 3 methods (baseline, static_quant, qat): {reason}",)
+    assert len(tables["cpu1"].rows) == 1
+
+
+def test_the_summary_groups_cells_that_were_not_run_by_reason():
+    from pilotlab.report.summary import summarise
+    rows = [offline_row(s, hardware="cuda", status="not_applicable", reason="no GPU") for s in ("baseline", "qat")]
+    rows += [offline_row("static_quant", status="not_applicable", reason="no fbgemm")]
+    [finding] = [f for f in summarise(ReportData.from_dict(small_dict(rows))) if f.label.startswith("Not applicable")]
+    assert finding.label == "Not applicable (3)"
+    assert finding.text == ("no GPU — 2 cells: baseline, qat on cuda; "
+                            "static_quant on cpu1, simple_circuit (offline): no fbgemm")
