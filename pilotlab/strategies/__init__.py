@@ -9,7 +9,8 @@ import sys
 from types import ModuleType
 
 from pilotlab.strategies import (  # noqa: F401  (each module registers its strategies)
-    baseline, cluster, cuda, half, onnx_runtime, prune, prune_quant, pt2e, structured_prune, torchscript,
+    baseline, cluster, cuda, half, onnx_runtime, prune, prune_quant, pt2e, structured_prune,
+    structured_prune_int8, torchscript,
 )
 from pilotlab.strategies.registry import (  # noqa: F401
     STRATEGIES, StrategySource, apply_strategy, make_strategy_config, register_strategy,
