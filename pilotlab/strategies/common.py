@@ -84,20 +84,3 @@ def require_cuda_target(source: StrategySource, strategy: str) -> None:
     if source.hardware.device != "cuda":
         raise NotApplicable(f"{strategy} runs on a CUDA hardware target; {source.hardware.name!r} is a CPU profile")
     check_available(source.hardware)
-
-
-def multiply_accumulates(model: nn.Module, input_shape: tuple) -> int:
-    """Multiply-accumulates per image of the conv/linear layers (what bounds CPU inference time)."""
-    import torch
-    counts: list[int] = []
-
-    def count(module: nn.Module, _inputs, output) -> None:
-        counts.append(output[0].numel() * module.weight[0].numel())   # weight[0]: one output's inputs
-    hooks = [m.register_forward_hook(count) for _, m in weight_layers(model)]
-    try:
-        with torch.no_grad():
-            model.eval()(torch.zeros(1, *input_shape[1:]))
-    finally:
-        for hook in hooks:
-            hook.remove()
-    return sum(counts)

@@ -20,7 +20,7 @@ from torch import nn
 from matrix.kinds import NotApplicable
 from pilotlab.errors import PilotlabError
 from pilotlab.strategies.artifact import example_batch
-from pilotlab.strategies.common import finetune, multiply_accumulates, save_float_model, weight_layers
+from pilotlab.strategies.common import finetune, save_float_model, weight_layers
 from pilotlab.strategies.prune import check_fraction
 from pilotlab.strategies.registry import StrategySource, register_strategy
 
@@ -169,3 +169,19 @@ def check_same_function(model: nn.Module, masked: nn.Module, input_shape: tuple)
     if not torch.allclose(expected, actual, rtol=1e-3, atol=1e-5):
         raise NotApplicable("structured_prune: removing channels changed the network's function "
                             "(an activation between layers does not map 0 to 0?)")
+
+
+def multiply_accumulates(model: nn.Module, input_shape: tuple) -> int:
+    """Multiply-accumulates per image of the conv/linear layers (what bounds CPU inference time)."""
+    counts: list[int] = []
+
+    def count(module: nn.Module, _inputs, output) -> None:
+        counts.append(output[0].numel() * module.weight[0].numel())   # weight[0]: one output's inputs
+    hooks = [m.register_forward_hook(count) for _, m in weight_layers(model)]
+    try:
+        with torch.no_grad():
+            model.eval()(torch.zeros(1, *input_shape[1:]))
+    finally:
+        for hook in hooks:
+            hook.remove()
+    return sum(counts)

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pilotlab.strategies.common import finetune, multiply_accumulates
+from pilotlab.strategies.common import finetune
 from pilotlab.strategies.onnx_runtime import OnnxRuntimeInt8Config, quantize_int8
 from pilotlab.strategies.prune import check_fraction
 from pilotlab.strategies.registry import StrategySource, register_strategy
-from pilotlab.strategies.structured_prune import check_multiple, remove_channels
+from pilotlab.strategies.structured_prune import check_multiple, multiply_accumulates, remove_channels
 
 
 @dataclass(frozen=True)
