@@ -14,7 +14,7 @@ deps:
 result:
     strategy, strategy_version, options (the full config), format, runtime, dtype, device, file,
     size_mb, plus the strategy's own figures (sparsity, params, nonzero_params, layer_sparsity,
-    calibration_frames, finetune history, kept_channels, macs, distinct_weights, native...)
+    calibration_frames, finetune history, kept_channels, distinct_weights, native...)
 artifacts: the artifact folder (model file + artifact.json), loadable with
     pilotlab.predictor.load_predictor.
 
