@@ -6,6 +6,7 @@ strategy's jobs and nothing else. Files are hashed by content (sha256), remember
 """
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib.util
 import os
@@ -60,6 +61,52 @@ def _module_files_text(origin: Path) -> str:
         return origin.read_text(encoding="utf-8")
     files = sorted(origin.parent.rglob("*.py"))
     return "".join(f"# {f.relative_to(origin.parent)}\n{f.read_text(encoding='utf-8')}" for f in files)
+
+
+def module_closure(name: str, within: str, exclude: Iterable[str] = ()) -> list[str]:
+    """`name` and the modules below package `within` that it imports, transitively (imports inside
+    functions included), found by reading the source: nothing is imported, so a domain can name the
+    code behind a job without loading the heavy libraries that code uses. Modules in `exclude` (and
+    what only they import) are left out: shared code a kind fingerprints anyway."""
+    found: list[str] = []
+    pending, skip = [name], set(exclude)
+    while pending:
+        module = pending.pop()
+        if module not in found and module not in skip:
+            found.append(module)
+            pending += _imported_modules(module, within)
+    return found
+
+
+def _imported_modules(name: str, within: str) -> list[str]:
+    """The modules below package `within` that `name`'s source imports."""
+    origin = _module_origin(name)
+    package = name if origin.name == "__init__.py" else name.rpartition(".")[0]
+    modules = []
+    for node in ast.walk(ast.parse(origin.read_text(encoding="utf-8"), str(origin))):
+        if isinstance(node, ast.Import):
+            modules += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = importlib.util.resolve_name("." * node.level + (node.module or ""), package)
+            modules += [base] + [f"{base}.{alias.name}" for alias in node.names]
+    return [m for m in modules if m.startswith(within + ".") and _is_source(m)]
+
+
+def _is_source(name: str) -> bool:
+    """Whether `name` is a module or package (`from m import f` also yields `m.f`, which is none),
+    found on disk: no module but the packages above it is imported."""
+    parent, _, leaf = name.rpartition(".")
+    if not parent:
+        return importlib.util.find_spec(name) is not None
+    folder = _module_origin(parent).parent if _is_package(parent) else None
+    return folder is not None and ((folder / f"{leaf}.py").is_file() or (folder / leaf / "__init__.py").is_file())
+
+
+def _is_package(name: str) -> bool:
+    try:
+        return _module_origin(name).name == "__init__.py"
+    except (MatrixError, ModuleNotFoundError):
+        return False
 
 
 def clear_caches() -> None:

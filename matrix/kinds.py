@@ -1,9 +1,13 @@
 """Job kinds: the domain registers a handler per kind; the engine runs it in a worker.
 
-    @job_kind("train", code=[pilotlab.train, pilotlab.models])
+    @job_kind("train", code=["pilotlab.training", "pilotlab.models"])
     def run_train(ctx: JobContext) -> dict:
+        from pilotlab.training import fit   # heavy libraries: in the handler, not to plan
         ...                      # read ctx.params, ctx.deps["data"].artifacts, write into ctx.out
         return {"val_mse": 0.01} # JSON-serialisable result
+
+Code is best named by module name: it is fingerprinted from its file without being imported, so
+planning (which imports every kind's module) stays quick.
 
 A handler raises `NotApplicable(reason)` when the job cannot run on this hardware: the result is
 recorded (and cached) as "not applicable: reason", and jobs that depend on it get the same status
@@ -71,7 +75,7 @@ class JobContext:
 
 
 Handler = Callable[[JobContext], Mapping[str, Any]]
-CodeSources = Iterable[ModuleType | Callable | type]
+CodeSources = Iterable[str | ModuleType | Callable | type]   # module names, or what a module defines
 
 
 @dataclass(frozen=True)

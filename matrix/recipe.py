@@ -111,6 +111,8 @@ def _message(err: dict, path: list, model: type) -> str:
                 f"expected one of: {', '.join(sorted(known)) or '(none)'}")
     if kind == "missing":
         return f"missing required key {path[-1]!r}"
+    if kind == "value_error":  # a domain validator's own sentence
+        return err["msg"].removeprefix("Value error, ")
     given = err.get("input")
     shown = repr(given) if not isinstance(given, (dict, list)) else type(given).__name__
     return f"{err['msg']} (got {shown})"

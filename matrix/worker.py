@@ -9,6 +9,8 @@ from __future__ import annotations
 import contextlib
 import importlib
 import logging
+import os
+import sys
 import time
 import traceback
 from collections.abc import Callable, Iterable
@@ -21,11 +23,13 @@ from matrix.store import LOG, Store
 OK, NOT_APPLICABLE, FAILED, BUSY, DONE_ELSEWHERE = "ok", "not_applicable", "failed", "busy", "done_elsewhere"
 
 _progress_sink: Callable[[str, dict], None] | None = None
+_capture_fds = False  # our own pool workers run one job at a time, so they may take over fds 1 and 2
 
 
 def init_worker(kind_modules: Iterable[str], progress_queue: Any = None) -> None:
     """Process-pool initializer: register the domain's job kinds; send progress to the driver."""
-    global _progress_sink
+    global _progress_sink, _capture_fds
+    _capture_fds = True
     for module in kind_modules:
         importlib.import_module(module)
     if progress_queue is not None:
@@ -126,12 +130,35 @@ def _job_log(path: Path, spec: dict):
     logger.addHandler(handler)
     try:
         stream = handler.stream
-        with contextlib.redirect_stdout(stream), contextlib.redirect_stderr(stream):
+        with _captured_fds(stream), contextlib.redirect_stdout(stream), contextlib.redirect_stderr(stream):
             logger.info("%s %s (%s)", spec["kind"], spec["name"], spec["key"])
             yield logger
     finally:
         logger.removeHandler(handler)
         handler.close()
+
+
+@contextlib.contextmanager
+def _captured_fds(stream):
+    """In our own worker processes, send file descriptors 1 and 2 to the job's log too, so what
+    C libraries and other loggers print (warnings of torch, ONNX Runtime, pybullet) lands there
+    instead of on the run's display. (Dask workers may run several jobs in threads: not there.)"""
+    if not _capture_fds:
+        yield
+        return
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = os.dup(1), os.dup(2)
+    try:
+        os.dup2(stream.fileno(), 1)
+        os.dup2(stream.fileno(), 2)
+        yield
+    finally:
+        stream.flush()
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        os.close(saved[0])
+        os.close(saved[1])
 
 
 def _progress_for(key: str) -> Callable[..., None]:

@@ -14,6 +14,7 @@ timings measured on another machine are never shown as this one's.
 """
 from __future__ import annotations
 
+import glob
 import os
 import platform
 from dataclasses import asdict, dataclass
@@ -121,7 +122,16 @@ def cpu_flags() -> frozenset[str]:
     return frozenset()
 
 
+# Device files a GPU driver creates (NVIDIA, NVIDIA Jetson, AMD ROCm, WSL2): without any of them
+# torch cannot see a GPU, so the host fingerprint (needed to plan) is had without importing torch.
+GPU_DEVICE_FILES = ("/dev/nvidia*", "/dev/nvhost-*", "/dev/nvgpu", "/dev/kfd", "/dev/dxg")
+
+
+@cache
 def gpu_name() -> str | None:
+    """The first CUDA GPU's name as torch sees it; None without one."""
+    if not any(glob.glob(pattern) for pattern in GPU_DEVICE_FILES):
+        return None
     import torch
     return torch.cuda.get_device_name(0) if torch.cuda.is_available() else None
 

@@ -15,6 +15,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from matrix.errors import did_you_mean
+
 
 class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -109,6 +111,15 @@ class OnlineSpec(Strict):
 
 class ReportSpec(Strict):
     folder: str = "reports"
+    compare_with: str | None = None   # a study whose claims are checked (pilotlab.report.studies)
+
+    @model_validator(mode="after")
+    def _known_study(self):
+        from pilotlab.report.studies import STUDIES
+        if self.compare_with is not None and self.compare_with not in STUDIES:
+            raise ValueError(f"unknown study {self.compare_with!r}{did_you_mean(self.compare_with, STUDIES)}; "
+                             f"known: {', '.join(STUDIES.names())}")
+        return self
 
 
 SECTIONS: dict[str, tuple[Any, Any]] = {

@@ -11,10 +11,12 @@ import json
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
+
+if TYPE_CHECKING:
+    import torch
 
 
 @dataclass(frozen=True)
@@ -107,6 +109,7 @@ class FrameSet:
 
     def inputs(self, index: np.ndarray, frames: int = 1) -> torch.Tensor:
         """float32 [len(index), 3 × frames, H, W] in [0, 1] (the network's input)."""
+        import torch  # only here: planning imports this module (via the strategy registry) and needs no torch
         index = np.asarray(index)
         if frames == 1:
             batch = np.asarray(self.frames[index])

@@ -26,15 +26,16 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from matrix.kinds import JobContext, job_kind
-from pilotlab.data.bags import Topics, read_frames
-from pilotlab.data.preprocess import PreprocessConfig
 from pilotlab.data.topics import COMMAND_TOPIC
 from pilotlab.errors import PilotlabError
+
+if TYPE_CHECKING:  # bag readers and OpenCV: imported by the handler, not to plan
+    from pilotlab.data.bags import Topics
 
 CODE = ["pilotlab.data.bags", "pilotlab.data.images", "pilotlab.data.preprocess", "pilotlab.data.folder",
         "pilotlab.data.frames", "pilotlab.data.topics"]
@@ -64,6 +65,7 @@ def recording_path(ctx: JobContext) -> Path:
 
 def job_topics(ctx: JobContext) -> Topics:
     """Topics named in params, else those a record dependency reports, else the conventions'."""
+    from pilotlab.data.bags import Topics
     recorded = dict(ctx.dep("bag").result.get("topics") or {}) if "bag" in ctx.deps else {}
     return Topics(ctx.params.get("image_topic") or recorded.get("image"),
                   ctx.params.get("command_topic") or recorded.get("cmd_vel") or COMMAND_TOPIC)
@@ -89,6 +91,8 @@ def summary(frameset, seconds: float) -> dict[str, Any]:
 
 @job_kind("frames", code=CODE)
 def run_frames(ctx: JobContext) -> dict[str, Any]:
+    from pilotlab.data.bags import read_frames
+    from pilotlab.data.preprocess import PreprocessConfig
     check_params(ctx)
     path = recording_path(ctx)
     config = PreprocessConfig.from_params(ctx.params)

@@ -53,23 +53,21 @@ result:
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
-
-import cv2
+from typing import TYPE_CHECKING, Any
 
 from matrix.kinds import JobContext, job_kind
-from pilotlab import predictor
-from pilotlab.circuits import circuit as circuit_module
-from pilotlab.circuits import geometry, registry
-from pilotlab.data import frames, preprocess
 from pilotlab.errors import PilotlabError
 from pilotlab.hardware import check_available, describe_host, host_fingerprint, profile_from_dict
-from pilotlab.online import brains, drive, evaluate, media, metrics, trajectory
-from pilotlab.sim import camera, car, env, expert, explicit, render, world
-from pilotlab.strategies import artifact as artifact_format
 
-CODE = [brains, drive, evaluate, media, metrics, trajectory, predictor, artifact_format, preprocess, frames, env, car,
-        camera, render, world, expert, explicit, circuit_module, geometry, registry]
+if TYPE_CHECKING:  # the simulator, OpenCV, torch, matplotlib: imported by the handler, not to plan
+    from pilotlab.online import brains, evaluate
+
+CODE = ["pilotlab.online.brains", "pilotlab.online.drive", "pilotlab.online.evaluate", "pilotlab.online.media",
+        "pilotlab.online.metrics", "pilotlab.online.trajectory", "pilotlab.predictor", "pilotlab.strategies.artifact",
+        "pilotlab.data.preprocess", "pilotlab.data.frames", "pilotlab.sim.env", "pilotlab.sim.car",
+        "pilotlab.sim.camera", "pilotlab.sim.render", "pilotlab.sim.world", "pilotlab.sim.expert",
+        "pilotlab.sim.explicit", "pilotlab.circuits.circuit", "pilotlab.circuits.geometry",
+        "pilotlab.circuits.registry"]
 DEFAULTS: dict[str, Any] = {
     "brain": None, "brain_options": {}, "hardware": {"name": "cpu"}, "host": None, "circuit": None, "direction": "cw",
     "laps": 1.0, "timing": "latency", "control_hz": 20.0, "timeout_s": None, "repetitions": None,
@@ -89,6 +87,7 @@ def settings(ctx: JobContext) -> dict[str, Any]:
 
 
 def online_spec(p: Mapping[str, Any]) -> evaluate.OnlineSpec:
+    from pilotlab.online import drive, evaluate
     starts = p["starts"] if isinstance(p["starts"], str) else tuple(p["starts"])
     repetitions = p["repetitions"] or (1 if isinstance(starts, str) else len(starts))
     camera_size = {**DEFAULTS["camera"], **(p["camera"] or {})}
@@ -105,6 +104,8 @@ def online_spec(p: Mapping[str, Any]) -> evaluate.OnlineSpec:
 
 def make_brain(ctx: JobContext, p: Mapping[str, Any], profile) -> tuple[brains.Brain, str]:
     """The brain and the strategy name of the report row."""
+    from pilotlab import predictor
+    from pilotlab.online import brains
     if "artifact" in ctx.deps:
         if p["brain"] not in (None, "network"):
             raise PilotlabError(f"{ctx.name}: has an artifact dependency and brain={p['brain']!r}; a reference brain "
@@ -136,6 +137,8 @@ def gpu_resources(params: Mapping[str, Any]) -> dict[str, float]:
 
 @job_kind("online", code=CODE, exclusive=True, resources_for=gpu_resources)
 def run_online(ctx: JobContext) -> dict[str, Any]:
+    import cv2
+    from pilotlab.online import evaluate
     p = settings(ctx)
     spec = online_spec(p)
     profile = profile_from_dict(p["hardware"])

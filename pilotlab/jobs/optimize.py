@@ -24,17 +24,16 @@ The code fingerprint is the shared strategy machinery plus the module of this jo
 from __future__ import annotations
 
 from matrix.kinds import JobContext, job_kind
-from pilotlab import training
 from pilotlab.hardware import BUILTIN, profile_from_dict
-from pilotlab.strategies import artifact, common, fold, registry, strategy_modules
+from pilotlab.strategies import SHARED, strategy_modules
 from pilotlab.strategies.registry import StrategySource, apply_strategy
 
 
-def strategy_code(params) -> list:
+def strategy_code(params) -> list[str]:
     return strategy_modules(params["strategy"])
 
 
-@job_kind("optimize", code=[registry, artifact, common, fold, training], code_for=strategy_code)
+@job_kind("optimize", code=[*SHARED, "pilotlab.training"], code_for=strategy_code)
 def run_optimize(ctx: JobContext) -> dict:
     hardware = profile_from_dict(ctx.params["hardware"]) if ctx.params.get("hardware") else BUILTIN["cpu"]
     calibration = ctx.dep_group("calibration") if "calibration" in ctx.deps else ()

@@ -28,21 +28,26 @@ A circuit given as a CSV is an input file: its content should be part of the job
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 from matrix.kinds import JobContext, job_kind
-from pilotlab.circuits import circuit as circuit_module
-from pilotlab.circuits import geometry, registry
 from pilotlab.errors import PilotlabError
-from pilotlab.sim import bagwriter, camera, car, env, expert, record, render, world
 
-PARAMS = {f.name for f in dataclasses.fields(record.RecordSpec)} - {"version"}
+if TYPE_CHECKING:  # the simulator (pybullet, OpenCV, rosbags): imported by the handler, not to plan
+    from pilotlab.sim import record
+
+CODE = ["pilotlab.sim.record", "pilotlab.sim.bagwriter", "pilotlab.sim.env", "pilotlab.sim.expert", "pilotlab.sim.car",
+        "pilotlab.sim.camera", "pilotlab.sim.render", "pilotlab.sim.world", "pilotlab.circuits.circuit",
+        "pilotlab.circuits.geometry", "pilotlab.circuits.registry"]
 
 
 def record_spec(params) -> record.RecordSpec:
     """A RecordSpec from job params; unknown params are an error."""
-    unknown = sorted(set(params) - PARAMS)
+    from pilotlab.sim import record
+    known = {f.name for f in dataclasses.fields(record.RecordSpec)} - {"version"}
+    unknown = sorted(set(params) - known)
     if unknown:
-        raise PilotlabError(f"record job: unknown param(s) {', '.join(unknown)}; known: {', '.join(sorted(PARAMS))}")
+        raise PilotlabError(f"record job: unknown param(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
     if "circuit" not in params:
         raise PilotlabError("record job: the param 'circuit' is required")
     values = dict(params)
@@ -51,9 +56,9 @@ def record_spec(params) -> record.RecordSpec:
     return record.RecordSpec(**values)
 
 
-@job_kind("record", code=[record, bagwriter, env, expert, car, camera, render, world, circuit_module, geometry,
-                          registry])
+@job_kind("record", code=CODE)
 def run_record(ctx: JobContext) -> dict:
+    from pilotlab.sim import bagwriter, record
     spec = record_spec(ctx.params)
     name = "recording.bag" if spec.format == "ros1" else "recording"
     label = f"recording {spec.circuit} {spec.direction}"

@@ -25,21 +25,23 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import sys
 import time
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
 
+from matrix.fingerprint import module_closure
 from matrix.kinds import JobContext, job_kind
-from pilotlab.data.augment import AugmentConfig
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.data.split import Split, split_validation
 from pilotlab.errors import PilotlabError
 from pilotlab.models import MODELS, build_model, input_frames, make_config, save_checkpoint
-from pilotlab.training import FitConfig, evaluate, fit, mean_predictor_mse
+
+if TYPE_CHECKING:  # torch and the training loop are imported by the handler: planning imports this module
+    import torch
+
+    from pilotlab.training import FitConfig
 
 CODE = ["pilotlab.training", "pilotlab.data.augment", "pilotlab.data.split", "pilotlab.data.frames",
         "pilotlab.models.registry"]
@@ -48,10 +50,11 @@ DEFAULTS: dict[str, Any] = {"arch": "pilotnet", "options": {}, "epochs": 20, "ba
                             "augment": {}, "labels": "auto"}
 
 
-def arch_modules(params: Mapping[str, Any]) -> list:
-    """The modules that define the arch (its class and the classes it builds on)."""
+def arch_modules(params: Mapping[str, Any]) -> list[str]:
+    """The modules that define the arch: its network's, the model modules that one imports (the
+    networks it builds on, the configs), read from the source without importing them."""
     entry = MODELS.get(params.get("arch", DEFAULTS["arch"]))
-    return [sys.modules[c.__module__] for c in entry.module_cls.__mro__ if c.__module__.startswith("pilotlab.")]
+    return module_closure(entry.network_module, "pilotlab.models", exclude=["pilotlab.models.registry"])
 
 
 def settings(ctx: JobContext) -> dict[str, Any]:
@@ -107,6 +110,7 @@ def progress_callbacks(ctx: JobContext, epochs: int):
 def validation_scores(model, train: FrameSet, val: FrameSet, ranges: LabelRanges, frames: int) -> dict:
     if not len(val):
         return {}
+    from pilotlab.training import evaluate, mean_predictor_mse
     scores, mean = evaluate(model, val, ranges, frames=frames), mean_predictor_mse(train, val, ranges)
     return {**{f"val_{k}": v for k, v in scores.items()},               # val_mse, val_mse_v, val_mse_w
             **{f"val_{k}_mean_predictor": v for k, v in mean.items()}}
@@ -122,6 +126,9 @@ def split_frames(ctx: JobContext, data: FrameSet, p: dict) -> tuple[FrameSet, Fr
 
 def make_model(p: dict) -> tuple[torch.nn.Module, Any, FitConfig]:
     """The freshly initialised (seeded) model, its config, and how to fit it."""
+    import torch
+    from pilotlab.data.augment import AugmentConfig
+    from pilotlab.training import FitConfig
     torch.manual_seed(p["seed"])
     config = make_config(p["arch"], p["options"])
     fit_config = FitConfig(epochs=p["epochs"], batch_size=p["batch_size"], lr=p["lr"], seed=p["seed"],
@@ -144,6 +151,7 @@ def summarise(model, history: list[dict], data: FrameSet, train: FrameSet, val: 
 
 @job_kind("train", code=CODE, code_for=arch_modules)
 def run_train(ctx: JobContext) -> dict[str, Any]:
+    from pilotlab.training import fit
     p = settings(ctx)
     data, preprocess = load_frames(ctx)
     train, val, split = split_frames(ctx, data, p)

@@ -1,6 +1,6 @@
-"""Driving networks: camera image(s) -> normalised (v, w). Importing this package registers them."""
-from pilotlab.models import pilotnet  # noqa: F401  (registers "pilotnet")
-from pilotlab.models import pilotnet_stacked  # noqa: F401  (registers "pilotnet_stacked")
+"""Driving networks: camera image(s) -> normalised (v, w). Importing this package registers them
+(their configs: the networks, and torch, are imported when a model is built)."""
+from pilotlab.models import configs  # noqa: F401  (registers "pilotnet", "pilotnet_stacked")
 from pilotlab.models.registry import (  # noqa: F401
     MODELS, build_model, input_frames, load_checkpoint, make_config, register_model, save_checkpoint,
 )

@@ -3,33 +3,21 @@
 BatchNorm on the input; convs 24, 36, 48 (5×5, stride 2) and 64, 64 (3×3); FC 1164, 100, 50, 10, 2;
 ReLU after every layer but the last. 1,595,528 parameters, 1.34 M of them in the first fully
 connected layer. DeepLearningStudio's PyTorch PilotNet has no dropout, so `dropout` defaults to 0
-(no Dropout module at all); set it to add one after the last convolution.
+(no Dropout module at all); set it to add one after the last convolution. Its config,
+`PilotNetConfig` (height, width, channels, outputs, dropout), is in configs.py.
 """
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import torch
 from torch import nn
 
-from pilotlab.models.registry import register_model
-
-
-@dataclass(frozen=True)
-class PilotNetConfig:
-    version: int = 1
-    height: int = 66
-    width: int = 200
-    channels: int = 3
-    outputs: int = 2
-    dropout: float = 0.0
+from pilotlab.models.configs import PilotNetConfig
 
 
 def _conv_out(size: int, kernel: int, stride: int) -> int:
     return (size - kernel) // stride + 1
 
 
-@register_model("pilotnet", PilotNetConfig)
 class PilotNet(nn.Module):
     def __init__(self, config: PilotNetConfig):
         super().__init__()

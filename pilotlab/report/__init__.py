@@ -6,5 +6,15 @@
 See `pilotlab.report.data` for the fields of `ReportData` and how to build it from job results.
 """
 from pilotlab.report.data import (HistoryPoint, Host, ReportData, ReportDataError, ReportRow,  # noqa: F401
-                                  package_versions, pick_metrics)
-from pilotlab.report.writer import ReportPaths, write_report  # noqa: F401
+                                  Spread, package_versions, pick_metrics, pick_spread)
+
+_WRITER = ("ReportPaths", "write_report")
+
+
+def __getattr__(name: str):
+    """The writer's names, imported on first use: it loads matplotlib (~0.5 s), which a warm
+    `pilotlab run` deciding that its report is up to date never needs."""
+    if name in _WRITER:
+        from pilotlab.report import writer
+        return getattr(writer, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -11,7 +11,9 @@
              "status": "not_applicable", "reason": "fbgemm kernels run on CPU only"},
             {"model": "pilotnet", "strategy": "baseline", "hardware": "cpu1", "kind": "online",
              "circuit": "montreal", "direction": "cw", "lap_completed": True, "average_speed": 8.4,
-             "trajectory": "/path/to/trajectory.png"},
+             "trajectory": "/path/to/trajectory.png",
+             "spread": {"average_speed": {"std": 0.12, "min": 8.3, "max": 8.5, "runs": 3},   # repeated laps
+                        "lap_completed": {"completed": 3, "runs": 3}}},
         ],
         "histories": {"pilotnet": [{"epoch": 1, "train_loss": 0.2, "val_loss": 0.3}, ...]},
     })
@@ -20,6 +22,9 @@ Metric names are exactly those of `pilotlab.columns`; an unknown name is an erro
 closest known one (`pick_metrics(job_result)` keeps only the metric keys of a job's result dict).
 A metric that was not measured is left out (None and NaN count as left out): the report shows it as
 missing, never as 0. A row whose status is not "ok" needs a one-line reason and shows no numbers.
+An online row whose lap was repeated from several start points carries the online job's `spread`
+({metric: {std, min, max, runs}}, lap_completed: {completed, runs}; `pick_spread(job_result)`): its
+metrics are then the means, and the report shows `mean ± std` and how many laps were completed.
 `baseline` (default "baseline") names the strategy the ratios are taken against.
 """
 from __future__ import annotations
@@ -80,6 +85,27 @@ class HistoryPoint(BaseModel):
     val_loss: float | None = None
 
 
+class Spread(_Frozen):
+    """How one metric varied over repeated runs: the online job's `spread[metric]`."""
+    runs: int                                # runs that measured it (lap_seconds: the completed laps)
+    std: float | None = None                 # sample standard deviation (0 for one run)
+    min: float | None = None
+    max: float | None = None
+    completed: int | None = None             # lap_completed only: the runs that completed the lap
+
+    @field_validator("std", "min", "max", mode="before")
+    @classmethod
+    def _unmeasured_is_none(cls, value: Any) -> Any:
+        return None if _unmeasured(value) else value
+
+
+class Claim(_Frozen):
+    """A published claim checked against this report's figures (pilotlab.report.studies)."""
+    claim: str
+    verdict: Literal["holds", "does not hold", "not testable here"]
+    found: str
+
+
 class ReportRow(_Frozen):
     """One evaluated cell: an offline evaluation or a closed-loop lap of one optimised model."""
     model: str
@@ -94,6 +120,7 @@ class ReportRow(_Frozen):
     job_keys: dict[str, str] = Field(default_factory=dict)   # job kind (or role) -> store key
     metrics: dict[str, MetricValue] = Field(default_factory=dict)
     trajectory: Path | None = None           # online rows: PNG of the path over the red line
+    spread: dict[str, Spread] = Field(default_factory=dict)  # online rows: metric -> its spread over runs
 
     @model_validator(mode="before")
     @classmethod
@@ -117,6 +144,15 @@ class ReportRow(_Frozen):
                                  f"metric names are those of pilotlab/columns.py")
         return {k: v for k, v in metrics.items() if not _unmeasured(v)}
 
+    @field_validator("spread", mode="before")
+    @classmethod
+    def _known_spread_metrics(cls, spread: Mapping[str, Any] | None) -> dict[str, Any]:
+        for name in spread or {}:
+            if name not in BY_NAME:
+                raise ValueError(f"spread of unknown metric {name!r}{did_you_mean(name, list(BY_NAME))}; "
+                                 f"metric names are those of pilotlab/columns.py")
+        return dict(spread or {})
+
     @field_validator("reason")
     @classmethod
     def _one_line(cls, reason: str) -> str:
@@ -132,6 +168,19 @@ class ReportRow(_Frozen):
         """The metric's value, or None when it was not measured (or the cell did not run)."""
         return self.metrics.get(name) if self.status == "ok" else None
 
+    def spread_of(self, name: str) -> Spread | None:
+        """The metric's spread when more than one run measured it (else None: a single value)."""
+        spread = self.spread.get(name) if self.status == "ok" else None
+        return spread if spread is not None and spread.runs > 1 else None
+
+    @property
+    def repetitions(self) -> int | None:
+        """How many runs the row's figures come from (None when it does not say: one)."""
+        if self.status != "ok" or not self.spread:
+            return None
+        laps = self.spread.get("lap_completed")
+        return laps.runs if laps is not None else max(s.runs for s in self.spread.values())
+
     @property
     def place(self) -> str:
         """Where it was evaluated: the circuit (and direction) online, the test set offline."""
@@ -140,9 +189,17 @@ class ReportRow(_Frozen):
         return self.test_set or self.circuit or "test set"
 
     def flat(self) -> dict[str, Any]:
-        """The tidy row as written to results.csv / results.json (metrics None when unmeasured)."""
+        """The tidy row as written to results.csv / results.json (metrics None when unmeasured), then
+        `repetitions`, `repetitions_completed` (the runs that completed the lap) and, for each metric
+        measured by more than one run, `<metric>_std`, `_min` and `_max` (see `spread_columns`)."""
         base = {name: getattr(self, name) for name in ROW_FIELDS}
-        return {**base, **{name: self.get(name) for name in BY_NAME}}
+        laps = self.spread.get("lap_completed") if self.status == "ok" else None
+        repeated = {"repetitions": self.repetitions, "repetitions_completed": laps.completed if laps else None}
+        for name in BY_NAME:
+            spread = self.spread_of(name)
+            if spread is not None and name != "lap_completed":
+                repeated |= {f"{name}_std": spread.std, f"{name}_min": spread.min, f"{name}_max": spread.max}
+        return {**base, **{name: self.get(name) for name in BY_NAME}, **repeated}
 
 
 class ReportData(_Frozen):
@@ -156,6 +213,8 @@ class ReportData(_Frozen):
     baseline: str = "baseline"               # the strategy the ratios are taken against
     rows: tuple[ReportRow, ...] = ()
     histories: dict[str, tuple[HistoryPoint, ...]] = Field(default_factory=dict)   # model -> epochs
+    comparison_title: str = ""               # "Compared with the 2022 study", when the recipe asks for one
+    comparison: tuple[Claim, ...] = ()
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> ReportData:
@@ -182,10 +241,26 @@ class ReportData(_Frozen):
     def of_kind(self, kind: Kind) -> list[ReportRow]:
         return [row for row in self.rows if row.kind == kind]
 
+    def spread_columns(self) -> list[str]:
+        """The result columns after the metrics: repetitions and repetitions_completed, then std, min and
+        max of each metric that some row measured more than once (columns.py order)."""
+        measured = {name for row in self.rows for name in BY_NAME if row.spread_of(name)} - {"lap_completed"}
+        stats = [f"{name}_{stat}" for name in BY_NAME if name in measured for stat in ("std", "min", "max")]
+        return ["repetitions", "repetitions_completed", *stats]
+
 
 def pick_metrics(result: Mapping[str, Any]) -> dict[str, Any]:
     """The metrics of pilotlab/columns.py found in a job's result dict (other keys are left behind)."""
     return {name: value for name, value in result.items() if name in BY_NAME}
+
+
+def pick_spread(result: Mapping[str, Any]) -> dict[str, Any]:
+    """The spread over repeated runs of an online job's result, for the metrics of pilotlab/columns.py
+    ({} when the result has none)."""
+    spread = result.get("spread")
+    if not isinstance(spread, Mapping):
+        return {}
+    return {name: dict(value) for name, value in spread.items() if name in BY_NAME and isinstance(value, Mapping)}
 
 
 def package_versions(packages: Iterable[str] = DEFAULT_PACKAGES) -> dict[str, str]:

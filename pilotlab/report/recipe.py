@@ -1,6 +1,7 @@
 """A recipe's report from the job store: one row per evaluated cell, whatever state it is in.
 
-Cells that have not run show as "failed: not run yet" (or the failure's reason), never as zeros.
+Cells that have not run show as failed with the reason (their own failure, a failed dependency, or
+"not run yet"), never as zeros.
 The report is rewritten only when something it shows changed (a stamp over the recipe text, every
 job's key and status, and the report code), so a warm rerun stays quick.
 """
@@ -16,8 +17,8 @@ from matrix.engine import make_plan, slug
 from matrix.fingerprint import code_fingerprint
 from matrix.recipe import Recipe
 from matrix.store import Store, read_json
-from pilotlab.report.data import Host, ReportData, package_versions, pick_metrics
-from pilotlab.report.writer import write_report
+from pilotlab.report.data import Claim, Host, ReportData, package_versions, pick_metrics, pick_spread
+from pilotlab.report.studies import compare
 
 STAMP = ".stamp"
 
@@ -39,6 +40,7 @@ def write_recipe_report(recipe: Recipe, store: Store, domain, force: bool = True
     stamp = _stamp(recipe, jobs, store)
     if not force and read_json(folder / STAMP) == stamp:
         return None
+    from pilotlab.report.writer import write_report  # matplotlib: only when the report is rewritten
     write_report(build_report_data(recipe, jobs, store), folder)
     (folder / STAMP).write_text(json.dumps(stamp))
     return folder
@@ -47,10 +49,16 @@ def write_recipe_report(recipe: Recipe, store: Store, domain, force: bool = True
 def build_report_data(recipe: Recipe, jobs: list, store: Store) -> ReportData:
     rows = [_row(job, store) for job in jobs if job.kind in ("offline", "online")]
     histories = {job.name.removeprefix("train "): _history(job, store) for job in jobs if job.kind == "train"}
-    return ReportData.from_dict({
+    data = ReportData.from_dict({
         "recipe_name": recipe.name, "description": recipe.description, "recipe_text": recipe.text,
         "versions": package_versions(), "host": _host(jobs, store), "date": datetime.now().isoformat(timespec="seconds"),
         "rows": rows, "histories": {name: h for name, h in histories.items() if h}})
+    study = recipe.config.report.compare_with
+    if study is None:
+        return data
+    title, checks = compare(data, study)
+    return data.model_copy(update={"comparison_title": title,
+                                   "comparison": tuple(Claim(**vars(check)) for check in checks)})
 
 
 def _row(job, store: Store) -> dict[str, Any]:
@@ -59,14 +67,37 @@ def _row(job, store: Store) -> dict[str, Any]:
     row = {**identity, "kind": job.kind, "job_keys": {job.kind: job.key}}
     if result is None:
         failure = store.failure(job.key)
-        return {**row, "status": "failed", "reason": failure["error"] if failure else "not run yet"}
+        return {**row, "status": "failed", "reason": failure["error"] if failure else _why_not_run(job, store)}
+    return row | row_from_result(result, store.artifacts(job.key))
+
+
+def row_from_result(result: dict[str, Any], artifacts: Path) -> dict[str, Any]:
+    """The report fields of a finished job: status (and reason), its metrics, their spread over
+    repeated laps (online jobs), and the trajectory picture, a path under the job's `artifacts`."""
     if result["status"] != "ok":
-        return {**row, "status": result["status"], "reason": result.get("reason") or "?"}
+        return {"status": result["status"], "reason": result.get("reason") or "?"}
     value = result.get("value", {})
-    row |= {"status": "ok", **pick_metrics(value)}
+    row = {"status": "ok", **pick_metrics(value)}
+    if spread := pick_spread(value):
+        row["spread"] = spread
     if value.get("trajectory"):
-        row["trajectory"] = str(store.artifacts(job.key) / value["trajectory"])
+        row["trajectory"] = str(artifacts / value["trajectory"])
     return row
+
+
+def _why_not_run(job, store: Store) -> str:
+    """"dependency failed: <name>: <error>" when a job upstream failed, else "not run yet"."""
+    stack, seen = list(job.dep_jobs()), set()
+    while stack:
+        dep = stack.pop()
+        if dep.key in seen:
+            continue
+        seen.add(dep.key)
+        failure = store.failure(dep.key) if store.result(dep.key) is None else None
+        if failure is not None:
+            return f"dependency failed: {dep.name}: {failure.get('error', '?')}"
+        stack.extend(dep.dep_jobs())
+    return "not run yet"
 
 
 def _history(job, store: Store) -> list[dict]:

@@ -114,8 +114,21 @@ def _not_run(data: ReportData, status: str, label: str) -> list[Finding]:
     rows = [r for r in data.rows if r.status == status]
     if not rows:
         return []
-    text = "; ".join(f"{method_label(r, data)} on {r.hardware}, {r.place} ({r.kind}): {r.reason}" for r in rows)
+    by_reason: dict[str, list[ReportRow]] = {}
+    for row in rows:
+        by_reason.setdefault(row.reason, []).append(row)
+    text = "; ".join(_cells_with_reason(data, reason, alike) for reason, alike in by_reason.items())
     return [Finding(f"{label} ({len(rows)})", text)]
+
+
+def _cells_with_reason(data: ReportData, reason: str, rows: list[ReportRow]) -> str:
+    """'reason — 3 cells: a, b on cuda' (one cell: 'a on cuda, montreal cw (online): reason')."""
+    if len(rows) == 1:
+        r = rows[0]
+        return f"{method_label(r, data)} on {r.hardware}, {r.place} ({r.kind}): {reason}"
+    methods = ", ".join(dict.fromkeys(method_label(r, data) for r in rows))
+    hardware = ", ".join(dict.fromkeys(r.hardware for r in rows))
+    return f"{reason} — {len(rows)} cells: {methods} on {hardware}"
 
 
 def _ties(data: ReportData, rows: list[ReportRow], winner: ReportRow, metric: str) -> str:

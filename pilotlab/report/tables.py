@@ -3,7 +3,10 @@
 Offline: Method | Model size | MSE | Inference time | Throughput | Size × | Speed-up × | MSE Δ, one
 table per hardware and test set. Simulation: Method | Lap | Average speed | Position deviation MAE |
 Brain iteration frequency | Mean inference time | Real-time factor, one table per hardware and circuit.
-Ratios are taken against the baseline strategy of the same model in the same table.
+Ratios are taken against the baseline strategy of the same model in the same table. Where a lap
+was repeated from several start points, a cell shows the mean ± the sample standard deviation over
+the runs (`8.95 ± 0.12`) and the lap cell how many laps were completed (`✓ 3/3, 47.8 ± 0.4 s`,
+`✗ 2/3, 87 %`); a single run shows its value alone, as before.
 """
 from __future__ import annotations
 
@@ -69,6 +72,16 @@ def significant(value: float, digits: int = 3) -> str:
     return f"{value:.{digits - 1 - magnitude}f}"
 
 
+def plus_minus(text: str, std: float) -> str:
+    """`text ± std`, the std given to the decimals of `text` (the mean as shown), or to one
+    significant digit where those would round it to zero."""
+    decimals = len(text.rpartition(".")[2]) if "." in text and "e" not in text else 0
+    shown = f"{std:,.{decimals}f}"
+    if std > 0 and float(shown.replace(",", "")) == 0:
+        shown = significant(std, 1)
+    return f"{text} ± {shown}"
+
+
 def method_label(row: ReportRow, data: ReportData) -> str:
     return row.strategy if len(data.models()) <= 1 else f"{row.model} · {row.strategy}"
 
@@ -79,18 +92,38 @@ def metric_cell(row: ReportRow, name: str) -> Cell:
     title = f"{name}: {column.doc}" + (f" ({column.unit})" if column.unit else "")
     if value is None:
         return Cell(MISSING, None, f"{title}: not measured", missing=True)
-    return Cell(format_value(name, value), float(value), title)
+    text, spread = format_value(name, value), row.spread_of(name)
+    if spread is None or spread.std is None or isinstance(value, bool):
+        return Cell(text, float(value), title)
+    extent = f", min {format_value(name, spread.min)}, max {format_value(name, spread.max)}"
+    return Cell(plus_minus(text, spread.std), float(value),
+                f"{title}: mean ± standard deviation of {spread.runs} runs{extent}")
 
 
 def lap_cell(row: ReportRow) -> Cell:
     done, seconds, share = row.get("lap_completed"), row.get("lap_seconds"), row.get("percentage_completed")
     if done is None:
         return Cell(MISSING, None, "lap not measured", missing=True)
+    laps = row.spread_of("lap_completed")
+    if laps is not None and laps.completed is not None:
+        return repeated_lap_cell(row, laps.completed, laps.runs)
     if done:
         text = f"✓ {format_value('lap_seconds', seconds)} s" if seconds is not None else "✓ completed"
         return Cell(text, float(seconds) if seconds is not None else 0.0, "lap completed (simulated seconds)")
     text = f"✗ {format_value('percentage_completed', share)}" if share is not None else "✗ lost"
     return Cell(text, 1e9 - float(share or 0), "lap not completed (share of the circuit driven)")
+
+
+def repeated_lap_cell(row: ReportRow, completed: int, runs: int) -> Cell:
+    """The lap cell of a lap repeated `runs` times: `✓ 3/3, 47.8 ± 0.4 s` or `✗ 2/3, 87 %`."""
+    seconds, share = row.get("lap_seconds"), row.get("percentage_completed")
+    if completed == runs:
+        timing = "" if seconds is None else ", " + metric_cell(row, "lap_seconds").text + " s"
+        return Cell(f"✓ {completed}/{runs}{timing}", float(seconds) if seconds is not None else 0.0,
+                    f"{completed} of {runs} laps completed (mean ± std of their simulated seconds)")
+    driven = "" if share is None else ", " + format_value("percentage_completed", share)
+    return Cell(f"✗ {completed}/{runs}{driven}", 1e9 - 1000 * completed - float(share or 0),
+                f"{completed} of {runs} laps completed (mean share of the circuit driven)")
 
 
 def ratio_cell(value: float | None, baseline: float | None, how: str) -> Cell:
@@ -144,12 +177,22 @@ def _table(data: ReportData, kind: str, hardware: str, place: str, rows: list[Re
            headers: tuple[str, ...], cells_of: Callable) -> Table:
     order = {s: i for i, s in enumerate(data.strategies())}
     rows = sorted(rows, key=lambda r: (data.models().index(r.model), order[r.strategy]))
+    where = "test set" if kind == "offline" else "circuit"
+    title = f"{hardware} · {where} {place}"
+    if _all_alike_and_not_measured(rows):  # e.g. every CUDA cell on a host without a GPU: one line
+        methods = ", ".join(method_label(r, data) for r in rows)
+        note = f"{rows[0].status.replace('_', ' ')} for all {len(rows)} methods ({methods}): {rows[0].reason}"
+        return Table(title, kind, hardware, place, headers, (), (note,))
     baselines = {r.model: r for r in rows if r.strategy == data.baseline and r.status == "ok"}
     notes = tuple(f"No usable {data.baseline!r} row for {model} here: ratios are not shown."
                   for model in _unique(r.model for r in rows) if model not in baselines) if kind == "offline" else ()
     table_rows = tuple(TableRow(method_label(r, data), r, cells_of(r, baselines.get(r.model)), _note(r)) for r in rows)
-    where = "test set" if kind == "offline" else "circuit"
-    return Table(f"{hardware} · {where} {place}", kind, hardware, place, headers, table_rows, notes)
+    return Table(title, kind, hardware, place, headers, table_rows, notes)
+
+
+def _all_alike_and_not_measured(rows: list[ReportRow]) -> bool:
+    return len(rows) > 1 and rows[0].status != "ok" and \
+        all((r.status, r.reason) == (rows[0].status, rows[0].reason) for r in rows)
 
 
 def _note(row: ReportRow) -> str:

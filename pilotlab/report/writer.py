@@ -74,6 +74,7 @@ def build_context(data: ReportData, out_dir: Path, plots: dict[str, tuple[Path, 
         "counts": counts,
         "offline": build_tables(data, "offline"),
         "online": build_tables(data, "online"),
+        "repeated": any((row.repetitions or 1) > 1 for row in data.of_kind("online")),
         "findings": summarise(data),
         "plots": [_plot_entry(name, png, svg, out_dir) for name, (png, svg) in plots.items()],
         "pictures": list(pictures.values()),
@@ -103,19 +104,26 @@ def copy_trajectories(data: ReportData, folder: Path) -> tuple[dict[int, Picture
     return pictures, missing
 
 
+def result_fields(data: ReportData) -> list[str]:
+    """The columns of results.csv (and keys of results.json's rows), in order."""
+    return [*ROW_FIELDS, *BY_NAME, *data.spread_columns(), *(f"job_{role}" for role in job_roles(data)), "trajectory"]
+
+
 def results_rows(data: ReportData, pictures: dict[int, Picture]) -> list[dict[str, Any]]:
-    """The tidy rows: identity, status and reason, every metric of pilotlab/columns.py, job keys, picture."""
-    roles = job_roles(data)
+    """The tidy rows: identity, status and reason, every metric of pilotlab/columns.py, the spread
+    over repeated runs, job keys, picture; every row has every column (None where there is nothing)."""
+    roles, fields = job_roles(data), result_fields(data)
     rows = []
     for index, row in enumerate(data.rows):
         keys = {f"job_{role}": row.job_keys.get(role) for role in roles}
         picture = pictures[index].relative if index in pictures else None
-        rows.append({**row.flat(), **keys, "trajectory": picture})
+        values = {**row.flat(), **keys, "trajectory": picture}
+        rows.append({field: values.get(field) for field in fields})
     return rows
 
 
 def results_csv(data: ReportData, pictures: dict[int, Picture]) -> str:
-    fields = [*ROW_FIELDS, *BY_NAME, *(f"job_{role}" for role in job_roles(data)), "trajectory"]
+    fields = result_fields(data)
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
     writer.writeheader()
@@ -160,9 +168,11 @@ def _group_pictures(pictures) -> list[tuple[str, list[Picture]]]:
 def _caption(row: ReportRow) -> str:
     if row.status != "ok":
         return f"{row.status.replace('_', ' ')}: {row.reason}"
-    done = row.get("lap_completed")
+    done, laps = row.get("lap_completed"), row.spread_of("lap_completed")
     if done is None:
         return "lap not measured"
+    if laps is not None and laps.completed is not None:
+        return f"{laps.completed} of {laps.runs} laps completed"
     if done:
         seconds = row.get("lap_seconds")
         return f"lap completed in {seconds:.1f} s" if seconds is not None else "lap completed"

@@ -134,7 +134,7 @@ def _drive(env: DrivingEnv, spec: RecordSpec, bag: BagWriter, interrupt: dict, p
     obs, info = env.reset(seed=spec.seed, options={"start": spec.start})
     bag.metadata(metadata(spec, env))
     expert = Expert(env.circuit)
-    swerves = Swerves(spec.noise, np.random.default_rng([spec.seed, 1]))
+    swerves = Swerves(spec.noise, np.random.default_rng([spec.seed, 1]), expert)
     frame_every = round(spec.control_hz / spec.rate_hz)
     total = spec.laps * env.circuit.length
     distances, steps = [], 0

@@ -1,13 +1,10 @@
 """Optimization strategies: each a frozen, versioned config plus a handler in `STRATEGIES`.
 
-Importing this package registers them all. Apply one with `apply_strategy(name, options, source)`;
-the artifact it writes is loaded with `pilotlab.predictor.load_predictor`.
+Importing this package registers them all (without importing torch: see registry.py). Apply one
+with `apply_strategy(name, options, source)`; the artifact it writes is loaded with
+`pilotlab.predictor.load_predictor`.
 """
-import ast
-import importlib
-import sys
-from types import ModuleType
-
+from matrix.fingerprint import module_closure
 from pilotlab.strategies import (  # noqa: F401  (each module registers its strategies)
     baseline, cluster, cuda, half, onnx_runtime, prune, prune_quant, pt2e, structured_prune,
     structured_prune_int8, torchscript,
@@ -20,21 +17,8 @@ SHARED = ("pilotlab.strategies.registry", "pilotlab.strategies.artifact", "pilot
           "pilotlab.strategies.fold")
 
 
-def strategy_modules(name: str) -> list[ModuleType]:
+def strategy_modules(name: str) -> list[str]:
     """The module implementing strategy `name` and the strategy modules it imports (transitively),
-    shared helpers excluded: the code whose edit must rerun this strategy's jobs."""
-    found: list[str] = []
-    pending = [STRATEGIES.get(name).module]
-    while pending:
-        module = pending.pop()
-        if module in found or module in SHARED:
-            continue
-        found.append(module)
-        pending += _strategy_imports(sys.modules.get(module) or importlib.import_module(module))
-    return [sys.modules[m] for m in found]
-
-
-def _strategy_imports(module: ModuleType) -> list[str]:
-    tree = ast.parse(open(module.__file__).read())
-    return [node.module for node in ast.walk(tree)
-            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("pilotlab.strategies.")]
+    shared helpers excluded: the code whose edit must rerun this strategy's jobs (by name, read from
+    the source, so naming it imports nothing)."""
+    return module_closure(STRATEGIES.get(name).module, "pilotlab.strategies", exclude=SHARED)

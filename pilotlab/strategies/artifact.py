@@ -25,12 +25,13 @@ import json
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
-
-import torch
-from torch import nn
+from typing import TYPE_CHECKING, Any
 
 from pilotlab.errors import PilotlabError
+
+if TYPE_CHECKING:  # torch is imported where a model is saved: reading artifact.json needs none
+    import torch
+    from torch import nn
 
 ARTIFACT_FORMAT = "pilotlab-artifact/1"
 META_FILE = "artifact.json"
@@ -95,14 +96,16 @@ def artifact_size_mb(artifact_dir: Path) -> float:
     return sum(p.stat().st_size for p in files) / 2**20
 
 
-def example_batch(input_shape: tuple, batch: int = 2, dtype=torch.float32) -> torch.Tensor:
+def example_batch(input_shape: tuple, batch: int = 2, dtype: torch.dtype | None = None) -> torch.Tensor:
     # torch.export specialises a dimension of size 1, so a dynamic batch needs an example of 2.
-    return torch.rand(batch, *input_shape[1:], generator=torch.Generator().manual_seed(0)).to(dtype)
+    import torch
+    return torch.rand(batch, *input_shape[1:], generator=torch.Generator().manual_seed(0)).to(dtype or torch.float32)
 
 
 def export_onnx(model: nn.Module, path: Path, input_shape: tuple) -> None:
     """ONNX via the torch.export-based exporter (the TorchScript one is deprecated in torch 2.x),
     with a dynamic batch dimension and the weights inside the one file (external_data=False)."""
+    import torch
     from pilotlab.strategies.fold import fold_input_norm
     model = fold_input_norm(model)
     batch = torch.export.Dim("batch", min=1)
@@ -134,10 +137,11 @@ class _quiet_onnx_exporter:
         return False
 
 
-def save_torchscript(model: nn.Module, path: Path, input_shape: tuple, dtype=torch.float32,
+def save_torchscript(model: nn.Module, path: Path, input_shape: tuple, dtype: torch.dtype | None = None,
                      device: str = "cpu") -> None:
     """Traced and frozen (weights folded in as constants, conv+relu fused): graph-level
-    optimisation without Python at run time."""
+    optimisation without Python at run time. `dtype` defaults to float32."""
+    import torch
     from pilotlab.strategies.fold import fold_input_norm
     model = fold_input_norm(model.eval())
     with torch.no_grad(), warnings.catch_warnings():

@@ -2,8 +2,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-
-from torch import nn
+from typing import TYPE_CHECKING
 
 from matrix.kinds import NotApplicable
 from pilotlab.errors import PilotlabError
@@ -11,7 +10,9 @@ from pilotlab.hardware import check_available
 from pilotlab.models import make_config, save_checkpoint
 from pilotlab.strategies.artifact import FLOAT_FORMATS, export_onnx, save_torchscript
 from pilotlab.strategies.registry import StrategySource
-from pilotlab.training import FitConfig, fit
+
+if TYPE_CHECKING:  # torch only inside the functions: strategy modules import this one to register
+    from torch import nn
 
 
 def finetune(model: nn.Module, source: StrategySource, *, epochs: int, lr: float,
@@ -19,6 +20,7 @@ def finetune(model: nn.Module, source: StrategySource, *, epochs: int, lr: float
     """Fine-tune in place on the training frames with the shared loop; [] when epochs == 0."""
     if epochs <= 0:
         return []
+    from pilotlab.training import FitConfig, fit
     source.log.info("fine-tuning %d epoch(s) on %d frames", epochs, len(source.calibration))
 
     def on_epoch(row: dict) -> None:
@@ -64,6 +66,7 @@ def write_checkpoint(model: nn.Module, source: StrategySource) -> Path:
 
 def weight_layers(model: nn.Module) -> list[tuple[str, nn.Module]]:
     """The layers pruning and clustering act on: every Conv2d and Linear, in registration order."""
+    from torch import nn
     return [(name, m) for name, m in model.named_modules() if isinstance(m, (nn.Conv2d, nn.Linear))]
 
 

@@ -10,13 +10,15 @@ Saved as frozen TorchScript in the target precision.
 from __future__ import annotations
 
 from dataclasses import dataclass
-
-import torch
+from typing import TYPE_CHECKING
 
 from matrix.kinds import NotApplicable
-from pilotlab.hardware import cpu_flags
+from pilotlab.hardware import check_available, cpu_flags
 from pilotlab.strategies.artifact import save_torchscript
 from pilotlab.strategies.registry import StrategySource, register_strategy
+
+if TYPE_CHECKING:  # torch is imported inside the functions: planning imports this module
+    import torch
 
 NATIVE_CPU_FLAGS = {"bfloat16": {"avx512_bf16", "amx_bf16"}, "float16": {"avx512_fp16", "amx_fp16"}}
 
@@ -29,16 +31,19 @@ class HalfConfig:
 
 @register_strategy("bf16", HalfConfig)
 def bf16(config: HalfConfig, source: StrategySource) -> dict:
+    import torch
     return save_half(config, source, "bf16", torch.bfloat16)
 
 
 @register_strategy("fp16", HalfConfig)
 def fp16(config: HalfConfig, source: StrategySource) -> dict:
+    import torch
     return save_half(config, source, "fp16", torch.float16)
 
 
 def save_half(config: HalfConfig, source: StrategySource, strategy: str, dtype: torch.dtype) -> dict:
     device = source.hardware.device
+    check_available(source.hardware)  # a CUDA target on a host without one: not applicable
     native = native_support(dtype, device)
     if not native and not config.allow_emulated:
         raise NotApplicable(f"{strategy}: {device} here has no native {dtype_name(dtype)} arithmetic "
@@ -52,6 +57,7 @@ def save_half(config: HalfConfig, source: StrategySource, strategy: str, dtype: 
 
 
 def native_support(dtype: torch.dtype, device: str) -> bool:
+    import torch
     if device == "cuda":
         return dtype == torch.float16 or torch.cuda.is_bf16_supported()
     return bool(NATIVE_CPU_FLAGS[dtype_name(dtype)] & cpu_flags())

@@ -9,13 +9,14 @@ really shrinks the network.
 from __future__ import annotations
 
 from dataclasses import dataclass
-
-from torch import nn
-from torch.nn.utils import prune
+from typing import TYPE_CHECKING
 
 from pilotlab.errors import PilotlabError
 from pilotlab.strategies.common import finetune, save_float_model, sparsity_report, weight_layers
 from pilotlab.strategies.registry import StrategySource, register_strategy
+
+if TYPE_CHECKING:  # torch is imported inside the functions: planning imports this module
+    from torch import nn
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,7 @@ def global_prune(config: GlobalPruneConfig, source: StrategySource) -> dict:
 
 def prune_and_finetune(model: nn.Module, source: StrategySource, config, apply_masks) -> list[dict]:
     """Mask, fine-tune with the masks on (masked weights get no gradient), then make it permanent."""
+    from torch.nn.utils import prune
     apply_masks(model)
     history = finetune(model, source, epochs=config.finetune_epochs, lr=config.lr, batch_size=config.batch_size)
     for _, layer in weight_layers(model):
@@ -66,6 +68,8 @@ def prune_and_finetune(model: nn.Module, source: StrategySource, config, apply_m
 
 
 def prune_local(model: nn.Module, conv: float, linear: float, strategy: str) -> None:
+    from torch import nn
+    from torch.nn.utils import prune
     for name, amount in (("conv", conv), ("linear", linear)):
         check_fraction(strategy, name, amount)
     for _, layer in weight_layers(model):
@@ -74,6 +78,7 @@ def prune_local(model: nn.Module, conv: float, linear: float, strategy: str) -> 
 
 
 def prune_global(model: nn.Module, amount: float, strategy: str) -> None:
+    from torch.nn.utils import prune
     check_fraction(strategy, "amount", amount)
     parameters = [(layer, "weight") for _, layer in weight_layers(model)]
     prune.global_unstructured(parameters, pruning_method=prune.L1Unstructured, amount=amount)

@@ -11,15 +11,14 @@ default), activations uint8 per tensor, all scales learnt in PyTorch.
 """
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import torch
-from torch import nn
-
-from pilotlab.strategies.artifact import export_onnx
 from pilotlab.strategies.common import finetune
 from pilotlab.strategies.registry import StrategySource, register_strategy
+
+if TYPE_CHECKING:  # torch, torchao: imported inside the functions, planning imports this module
+    from torch import nn
 
 
 @dataclass(frozen=True)
@@ -30,7 +29,9 @@ class StaticQuantConfig:
 
 @register_strategy("static_quant", StaticQuantConfig)
 def static_quant(config: StaticQuantConfig, source: StrategySource) -> dict:
+    import torch
     from torchao.quantization.pt2e.quantize_pt2e import convert_pt2e, prepare_pt2e
+    from pilotlab.strategies.pt2e_graph import export_graph, save_quantized, x86_quantizer
     prepared = prepare_pt2e(export_graph(source.load_model(), source.input_shape), x86_quantizer(qat=False))
     with torch.no_grad():
         for batch in source.calibration_batches(config.calibration_frames):
@@ -57,68 +58,19 @@ def qat(config: QatConfig, source: StrategySource) -> dict:
 def quantization_aware_finetune(model: nn.Module, source: StrategySource, config, strategy: str,
                                 keep_zeros: bool = False) -> list[dict]:
     """Insert fake-quant, fine-tune, convert, save. `keep_zeros` keeps pruned weights at zero."""
+    import torch
     from torchao.quantization.pt2e.quantize_pt2e import convert_pt2e, prepare_qat_pt2e
+    from pilotlab.strategies.pt2e_graph import (TrainEvalSwitch, export_graph, freeze_zeros, save_quantized,
+                                                x86_quantizer)
     prepared = prepare_qat_pt2e(export_graph(model.train(), source.input_shape), x86_quantizer(qat=True))
     with torch.no_grad():   # start from calibrated ranges (and have ranges even with 0 epochs)
         for batch in source.calibration_batches(config.calibration_frames):
             prepared(batch)
     if keep_zeros:
         freeze_zeros(prepared)
-    trainable = _TrainEvalSwitch(prepared)
+    trainable = TrainEvalSwitch(prepared)
     history = finetune(trainable, source, epochs=config.finetune_epochs, lr=config.lr,
                        batch_size=config.batch_size)
     trainable.eval()
     save_quantized(convert_pt2e(prepared), source, strategy)
     return history
-
-
-def export_graph(model: nn.Module, input_shape: tuple) -> torch.fx.GraphModule:
-    # A batch-2 example: torch.export specialises a batch of 1, and we want any batch size.
-    from pilotlab.strategies.artifact import example_batch
-    from pilotlab.strategies.fold import fold_input_norm
-    model = fold_input_norm(model)
-    batch = torch.export.Dim("batch", min=1)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return torch.export.export(model, (example_batch(input_shape),), dynamic_shapes=({0: batch},)).module()
-
-
-def x86_quantizer(qat: bool):
-    import torchao.quantization.pt2e.quantizer.x86_inductor_quantizer as x86
-    return x86.X86InductorQuantizer().set_global(x86.get_default_x86_inductor_quantization_config(is_qat=qat))
-
-
-def save_quantized(converted: torch.fx.GraphModule, source: StrategySource, strategy: str) -> None:
-    from torchao.quantization.pt2e import move_exported_model_to_eval
-    move_exported_model_to_eval(converted)
-    export_onnx(converted, source.out / "model.onnx", source.input_shape)
-    source.write(source.meta(strategy, format="onnx", file="model.onnx", runtime="onnxruntime", dtype="int8",
-                             extra={"quantizer": "torchao pt2e X86InductorQuantizer",
-                                    "weights": "int8 per channel", "activations": "uint8 per tensor"}))
-
-
-def freeze_zeros(model: nn.Module) -> None:
-    """Zero the gradient of weights that are exactly zero, so fine-tuning keeps a pruned pattern
-    (with a zero gradient Adam's update is zero too)."""
-    for param in model.parameters():
-        if param.dim() >= 2 and bool((param == 0).any()):
-            mask = (param != 0).to(param.dtype)
-            param.register_hook(lambda grad, mask=mask: grad * mask)
-
-
-class _TrainEvalSwitch(nn.Module):
-    """An exported graph forbids .train()/.eval(); the shared training loop calls them. Switch the
-    graph's dropout and batch-norm the way torchao says instead."""
-
-    def __init__(self, graph: torch.fx.GraphModule):
-        super().__init__()
-        self.graph = graph
-
-    def forward(self, images: torch.Tensor) -> torch.Tensor:
-        return self.graph(images)
-
-    def train(self, mode: bool = True) -> _TrainEvalSwitch:
-        from torchao.quantization.pt2e import move_exported_model_to_eval, move_exported_model_to_train
-        (move_exported_model_to_train if mode else move_exported_model_to_eval)(self.graph)
-        self.training = mode
-        return self

@@ -15,6 +15,11 @@ Options come from the recipe's `strategies:` section; an unknown option is an er
 strategy and its known options. Every handler starts from the checkpoint on disk, so no strategy
 ever sees another one's changes. A strategy that cannot run on the target hardware raises
 `matrix.NotApplicable(reason)`.
+
+Planning imports every strategy module for its name and config, so a strategy module imports torch
+(and onnxruntime, torchao...) inside the functions that use them, or from a helper module its
+handler imports, never at its top: `pilotlab plan` stays quick
+(tests/pilotlab/cli/test_light_imports.py).
 """
 from __future__ import annotations
 
@@ -24,12 +29,10 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pydantic
-import torch
-from torch import nn
 
 from matrix.registry import Registry
 from pilotlab.data.frames import FrameSet, LabelRanges
@@ -37,6 +40,10 @@ from pilotlab.errors import PilotlabError
 from pilotlab.hardware import BUILTIN, HardwareProfile
 from pilotlab.models import load_checkpoint
 from pilotlab.strategies.artifact import ArtifactMeta, artifact_size_mb, read_meta, write_meta
+
+if TYPE_CHECKING:
+    import torch
+    from torch import nn
 
 
 @dataclass

@@ -11,16 +11,10 @@ not fit is "not applicable" with the reason. The output layer keeps its two neur
 """
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass
 
-import torch
-from torch import nn
-
-from matrix.kinds import NotApplicable
 from pilotlab.errors import PilotlabError
-from pilotlab.strategies.artifact import example_batch
-from pilotlab.strategies.common import finetune, save_float_model, weight_layers
+from pilotlab.strategies.common import finetune, save_float_model
 from pilotlab.strategies.prune import check_fraction
 from pilotlab.strategies.registry import StrategySource, register_strategy
 
@@ -40,6 +34,7 @@ class StructuredPruneConfig:
 def structured_prune(config: StructuredPruneConfig, source: StrategySource) -> dict:
     check_fraction("structured_prune", "amount", config.amount)
     check_multiple("structured_prune", config.multiple_of)
+    from pilotlab.strategies.channels import multiply_accumulates, remove_channels  # torch
     model = source.load_model()
     params_before = sum(p.numel() for p in model.parameters())
     macs_before = multiply_accumulates(model, source.input_shape)
@@ -56,132 +51,3 @@ def structured_prune(config: StructuredPruneConfig, source: StrategySource) -> d
 def check_multiple(strategy: str, multiple_of: int) -> None:
     if multiple_of < 1:
         raise PilotlabError(f"strategies.{strategy}.multiple_of: {multiple_of} must be an integer ≥ 1")
-
-
-def remove_channels(model: nn.Module, amount: float, input_shape: tuple, multiple_of: int = 1) -> dict[str, int]:
-    """Shrink `model` in place; returns the channels/neurons kept per layer."""
-    layers = weight_layers(model)
-    check_chain(model, layers)
-    masked = copy.deepcopy(model)
-    kept: dict[str, int] = {}
-    for (name, _), (next_name, _) in zip(layers, layers[1:]):
-        keep = strongest_channels(model.get_submodule(name), amount, multiple_of)
-        zero_channels(masked.get_submodule(name), keep)
-        layer = model.get_submodule(name)           # already shrunk on its inputs
-        replace(model, name, shrink_outputs(layer, keep))
-        replace(model, next_name, shrink_inputs(model.get_submodule(next_name), keep, layer.weight.shape[0]))
-        kept[name] = len(keep)
-    check_same_function(model, masked, input_shape)
-    return kept
-
-
-def check_chain(model: nn.Module, layers: list[tuple[str, nn.Module]]) -> None:
-    if len(layers) < 2:
-        raise NotApplicable("structured_prune needs at least two conv/linear layers")
-    first = next(name for name, _ in layers)
-    for name, module in model.named_modules():
-        if isinstance(module, nn.modules.batchnorm._BatchNorm) and _registered_after(model, name, first):
-            raise NotApplicable(f"structured_prune: batch-norm {name!r} sits inside the layer chain; "
-                                "only an input normalisation before the first layer is supported")
-    for (name, a), (next_name, b) in zip(layers, layers[1:]):
-        if not _feeds(a, b):
-            raise NotApplicable(f"structured_prune: layer {name!r} does not feed {next_name!r} directly "
-                                "(the conv/linear layers do not form one chain)")
-
-
-def _registered_after(model: nn.Module, name: str, first: str) -> bool:
-    names = [n for n, _ in model.named_modules()]
-    return names.index(name) > names.index(first)
-
-
-def _feeds(a: nn.Module, b: nn.Module) -> bool:
-    outputs = a.out_channels if isinstance(a, nn.Conv2d) else a.out_features
-    if isinstance(b, nn.Conv2d):
-        return isinstance(a, nn.Conv2d) and b.groups == 1 and b.in_channels == outputs
-    return b.in_features % outputs == 0 and (isinstance(a, nn.Conv2d) or b.in_features == outputs)
-
-
-def strongest_channels(layer: nn.Module, amount: float, multiple_of: int = 1) -> torch.Tensor:
-    norms = layer.weight.detach().abs().flatten(1).sum(1)
-    return norms.topk(kept_count(len(norms), amount, multiple_of)).indices.sort().values
-
-
-def kept_count(channels: int, amount: float, multiple_of: int = 1) -> int:
-    """Channels kept: (1 - amount) of them, rounded to the nearest multiple of `multiple_of` (SIMD
-    kernels work on whole blocks, so a partial block costs a full one) or to the layer's own width."""
-    count = max(1, round(channels * (1 - amount)))
-    if multiple_of == 1 or channels < multiple_of:
-        return count
-    lower = max(multiple_of, count // multiple_of * multiple_of)
-    upper = min(channels, -(-count // multiple_of) * multiple_of)     # the layer's own width caps it
-    return upper if upper - count < count - lower else lower
-
-
-def zero_channels(layer: nn.Module, keep: torch.Tensor) -> None:
-    drop = torch.ones(layer.weight.shape[0], dtype=torch.bool)
-    drop[keep] = False
-    with torch.no_grad():
-        layer.weight[drop] = 0
-        if layer.bias is not None:
-            layer.bias[drop] = 0
-
-
-def shrink_outputs(layer: nn.Module, keep: torch.Tensor) -> nn.Module:
-    weight = layer.weight.detach()[keep]
-    bias = layer.bias.detach()[keep] if layer.bias is not None else None
-    return _rebuilt(layer, weight, bias)
-
-
-def shrink_inputs(layer: nn.Module, keep: torch.Tensor, channels: int) -> nn.Module:
-    """Drop the inputs fed by removed channels; a linear layer after a flatten sees each channel as
-    a block of H×W inputs (NCHW order)."""
-    weight = layer.weight.detach()
-    if isinstance(layer, nn.Linear):
-        weight = weight.reshape(weight.shape[0], channels, -1)[:, keep].flatten(1)
-    else:
-        weight = weight[:, keep]
-    bias = layer.bias.detach() if layer.bias is not None else None
-    return _rebuilt(layer, weight, bias)
-
-
-def _rebuilt(layer: nn.Module, weight: torch.Tensor, bias: torch.Tensor | None) -> nn.Module:
-    if isinstance(layer, nn.Conv2d):
-        new = nn.Conv2d(weight.shape[1], weight.shape[0], layer.kernel_size, layer.stride,
-                        layer.padding, layer.dilation, bias=bias is not None)
-    else:
-        new = nn.Linear(weight.shape[1], weight.shape[0], bias=bias is not None)
-    with torch.no_grad():
-        new.weight.copy_(weight)
-        if bias is not None:
-            new.bias.copy_(bias)
-    return new
-
-
-def replace(model: nn.Module, name: str, new: nn.Module) -> None:
-    parent, _, child = name.rpartition(".")
-    setattr(model.get_submodule(parent) if parent else model, child, new)
-
-
-def check_same_function(model: nn.Module, masked: nn.Module, input_shape: tuple) -> None:
-    batch = example_batch(input_shape, 4)
-    with torch.no_grad():
-        expected, actual = masked.eval()(batch), model.eval()(batch)
-    if not torch.allclose(expected, actual, rtol=1e-3, atol=1e-5):
-        raise NotApplicable("structured_prune: removing channels changed the network's function "
-                            "(an activation between layers does not map 0 to 0?)")
-
-
-def multiply_accumulates(model: nn.Module, input_shape: tuple) -> int:
-    """Multiply-accumulates per image of the conv/linear layers (what bounds CPU inference time)."""
-    counts: list[int] = []
-
-    def count(module: nn.Module, _inputs, output) -> None:
-        counts.append(output[0].numel() * module.weight[0].numel())   # weight[0]: one output's inputs
-    hooks = [m.register_forward_hook(count) for _, m in weight_layers(model)]
-    try:
-        with torch.no_grad():
-            model.eval()(torch.zeros(1, *input_shape[1:]))
-    finally:
-        for hook in hooks:
-            hook.remove()
-    return sum(counts)

@@ -17,7 +17,7 @@ from pilotlab.strategies.common import finetune
 from pilotlab.strategies.onnx_runtime import OnnxRuntimeInt8Config, quantize_int8
 from pilotlab.strategies.prune import check_fraction
 from pilotlab.strategies.registry import StrategySource, register_strategy
-from pilotlab.strategies.structured_prune import check_multiple, multiply_accumulates, remove_channels
+from pilotlab.strategies.structured_prune import check_multiple
 
 
 @dataclass(frozen=True)
@@ -37,6 +37,7 @@ class StructuredPruneInt8Config:
 def structured_prune_int8(config: StructuredPruneInt8Config, source: StrategySource) -> dict:
     check_fraction("structured_prune_int8", "amount", config.amount)
     check_multiple("structured_prune_int8", config.multiple_of)
+    from pilotlab.strategies.channels import multiply_accumulates, remove_channels  # torch
     model = source.load_model()
     params_before, macs_before = _params(model), multiply_accumulates(model, source.input_shape)
     kept = remove_channels(model, config.amount, source.input_shape, config.multiple_of)

@@ -171,3 +171,12 @@ def test_gc_removes_only_unreachable_jobs(tmp_path):
     assert len(garbage.keys) == 4  # the old source b, its two powers and the old total
     engine.collect_garbage(store, garbage)
     assert set(store.keys()) == keep
+
+
+def test_what_a_job_prints_at_the_fd_level_goes_to_its_log(tmp_path, capfd):
+    store = Store(tmp_path / "store")
+    plan, summary = run(recipe_file(tmp_path, c_extra=", noise: true"), store)
+    assert summary.counts() == {"ok": 10}
+    source_c = next(s.job for s in plan.statuses if s.job.name == "source c")
+    assert "C-level noise" in (store.job_dir(source_c.key) / "log.txt").read_text()
+    assert "C-level noise" not in capfd.readouterr().err

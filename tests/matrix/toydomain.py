@@ -9,6 +9,7 @@ one `total` job over all of them.
 from __future__ import annotations
 
 import json
+import os
 import time
 from typing import Any
 
@@ -25,6 +26,7 @@ class SourceConfig(pydantic.BaseModel):
     sleep: float = 0.0
     fail: bool = False
     not_applicable: bool = False
+    noise: bool = False           # write to file descriptor 2 directly, as C libraries do
 
 
 def count_execution(ctx) -> None:
@@ -36,6 +38,8 @@ def count_execution(ctx) -> None:
 @job_kind("source")
 def run_source(ctx) -> dict[str, Any]:
     count_execution(ctx)
+    if ctx.params["noise"]:
+        os.write(2, b"C-level noise\n")
     time.sleep(ctx.params["sleep"])
     if ctx.params["fail"]:
         raise RuntimeError(f"source {ctx.name} was told to fail")

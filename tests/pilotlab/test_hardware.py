@@ -58,3 +58,13 @@ def test_host_fingerprint():
     host = host_fingerprint()
     assert set(host) == {"cpu", "cores", "machine", "gpu"} and host["cores"] >= 1 and host["cpu"]
     assert str(host["cores"]) in describe_host(host)
+
+
+def test_the_gpu_name_is_torchs_wherever_a_gpu_driver_is_present(monkeypatch):
+    from pilotlab import hardware
+    expected = torch.cuda.get_device_name(0) if torch.cuda.is_available() else None
+    for device_files in (hardware.GPU_DEVICE_FILES, ("/dev/null",)):   # this host's, and "a driver here"
+        monkeypatch.setattr(hardware, "GPU_DEVICE_FILES", device_files)
+        hardware.gpu_name.cache_clear()
+        assert hardware.gpu_name() == expected
+    hardware.gpu_name.cache_clear()

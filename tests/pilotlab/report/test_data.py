@@ -2,8 +2,8 @@ import math
 
 import pytest
 
-from pilotlab.report import Host, ReportData, ReportDataError, package_versions, pick_metrics
-from tests.pilotlab.report.toy import offline_row, small_dict
+from pilotlab.report import Host, ReportData, ReportDataError, package_versions, pick_metrics, pick_spread
+from tests.pilotlab.report.toy import offline_row, repeated_rows, small_dict
 
 
 def test_metrics_may_be_flat_or_nested_and_unmeasured_ones_are_absent():
@@ -73,3 +73,32 @@ def test_pick_metrics_keeps_only_metric_names_of_a_job_result():
     assert pick_metrics(result) == {"mse": 0.07, "latency_ms": 2.0}
     row = ReportData.from_dict(small_dict([offline_row(**pick_metrics(result))])).rows[0]
     assert row.metrics == {"mse": 0.07, "latency_ms": 2.0}
+
+
+def test_a_repeated_lap_carries_its_spread_and_flattens_it_into_columns():
+    repeated, _, single = ReportData.from_dict(small_dict(repeated_rows())).rows
+    assert repeated.repetitions == 3 and repeated.spread_of("average_speed").std == 0.123
+    flat = repeated.flat()
+    assert (flat["repetitions"], flat["repetitions_completed"]) == (3, 3)
+    assert (flat["average_speed_std"], flat["average_speed_min"], flat["average_speed_max"]) == (0.123, 8.81, 9.05)
+    assert single.repetitions == 1 and single.spread_of("average_speed") is None     # one run: no spread
+    assert single.flat()["repetitions_completed"] == 1 and "average_speed_std" not in single.flat()
+    data = ReportData.from_dict(small_dict(repeated_rows()))
+    assert data.spread_columns()[:5] == ["repetitions", "repetitions_completed", "percentage_completed_std",
+                                         "percentage_completed_min", "percentage_completed_max"]
+    assert "lap_completed_std" not in data.spread_columns()
+
+
+def test_a_spread_of_an_unknown_metric_is_an_error_and_a_failed_row_shows_none():
+    row = {**repeated_rows()[0], "spread": {"avg_speed": {"std": 0.1, "runs": 3}}}
+    with pytest.raises(ReportDataError, match="spread of unknown metric 'avg_speed'.*did you mean 'average_speed'"):
+        ReportData.from_dict(small_dict([row]))
+    failed = ReportData.from_dict(small_dict([{**repeated_rows()[0], "status": "failed", "reason": "crash"}])).rows[0]
+    assert failed.spread_of("average_speed") is None and failed.repetitions is None
+
+
+def test_pick_spread_keeps_the_spread_of_known_metrics():
+    result = {"average_speed": 8.9, "spread": {"average_speed": {"std": 0.1, "min": 8.8, "max": 9.0, "runs": 2},
+                                               "speed_of_light": {"std": 0.0, "runs": 2}}}
+    assert pick_spread(result) == {"average_speed": {"std": 0.1, "min": 8.8, "max": 9.0, "runs": 2}}
+    assert pick_spread({"mse": 0.07}) == {}

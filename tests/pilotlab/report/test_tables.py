@@ -1,7 +1,7 @@
 from pilotlab.report import ReportData
 from pilotlab.report.render import code_block, markdown_escape
-from pilotlab.report.tables import build_tables, format_value, significant
-from tests.pilotlab.report.toy import offline_row, small_dict
+from pilotlab.report.tables import build_tables, format_value, plus_minus, significant
+from tests.pilotlab.report.toy import offline_row, repeated_rows, small_dict
 
 
 def test_values_read_as_a_person_expects():
@@ -51,3 +51,40 @@ def test_markdown_escape_keeps_tables_and_html_intact():
     assert markdown_escape("# title") == r"\# title" and markdown_escape("1. one") == r"1\. one"
     assert markdown_escape("1.5 ms, 2 cores") == "1.5 ms, 2 cores"
     assert code_block("a\n```\nb", "yaml") == "````yaml\na\n```\nb\n````"   # the fence outgrows the text's
+
+
+def test_repeated_laps_show_the_mean_with_its_spread_and_a_single_lap_as_before():
+    [table] = build_tables(ReportData.from_dict(small_dict(repeated_rows())), "online")
+    texts = {row.method: [cell.text for cell in row.cells[:3]] for row in table.rows}
+    assert texts["baseline"] == ["✓ 3/3, 47.8 ± 0.4 s", "8.95 ± 0.12", "0.213 ± 0.0004"]
+    assert texts["qat"] == ["✗ 2/3, 87 %", "8.41 ± 0.30", "0.510 ± 0.000"]
+    assert texts["local_prune"] == ["✓ 47.8 s", "8.95", "0.213"]
+    baseline = table.rows[0].cells
+    assert baseline[1].sort == 8.953 and "3 runs, min 8.81, max 9.05" in baseline[1].title
+    assert table.rows[1].cells[4].missing and table.rows[1].cells[4].text == "—"   # not measured stays missing
+
+
+def test_plus_minus_gives_the_std_the_decimals_of_the_mean():
+    assert plus_minus("8.95", 0.1234) == "8.95 ± 0.12" and plus_minus("47.8", 0.41) == "47.8 ± 0.4"
+    assert plus_minus("1,234", 56.7) == "1,234 ± 57" and plus_minus("0.213", 0.00004) == "0.213 ± 0.00004"
+    assert plus_minus("20.0", 0.0) == "20.0 ± 0.0"
+
+
+def test_a_table_whose_cells_all_share_one_reason_is_one_line():
+    reason = "hardware 'cuda' needs a CUDA GPU; this host has none"
+    rows = [offline_row(s, hardware="cuda", status="not_applicable", reason=reason)
+            for s in ("baseline", "static_quant", "qat")] + [offline_row("baseline", size_mb=6.1)]
+    tables = {t.hardware: t for t in build_tables(ReportData.from_dict(small_dict(rows)), "offline")}
+    assert tables["cuda"].rows == ()
+    assert tables["cuda"].notes == (f"not applicable for all 3 methods (baseline, static_quant, qat): {reason}",)
+    assert len(tables["cpu1"].rows) == 1
+
+
+def test_the_summary_groups_cells_that_were_not_run_by_reason():
+    from pilotlab.report.summary import summarise
+    rows = [offline_row(s, hardware="cuda", status="not_applicable", reason="no GPU") for s in ("baseline", "qat")]
+    rows += [offline_row("static_quant", status="not_applicable", reason="no fbgemm")]
+    [finding] = [f for f in summarise(ReportData.from_dict(small_dict(rows))) if f.label.startswith("Not applicable")]
+    assert finding.label == "Not applicable (3)"
+    assert finding.text == ("no GPU — 2 cells: baseline, qat on cuda; "
+                            "static_quant on cpu1, simple_circuit (offline): no fbgemm")

@@ -7,7 +7,7 @@ from PIL import Image
 
 from pilotlab.columns import BY_NAME
 from pilotlab.report import ReportData, write_report
-from tests.pilotlab.report.toy import offline_row, small_dict, study_dict
+from tests.pilotlab.report.toy import draw_trajectory, offline_row, repeated_rows, small_dict, study_dict
 
 OFFLINE_HEADER = ("| Method | Model size (MB) | MSE | Inference time (ms) | Throughput (images/s) "
                   "| Size × | Speed-up × | MSE Δ |")
@@ -156,3 +156,34 @@ def test_the_same_data_gives_byte_identical_files(tmp_path):
     files = sorted(p.relative_to(first.folder) for p in first.folder.rglob("*") if p.is_file())
     assert len(files) == 4 + 2 * 2
     assert all((first.folder / f).read_bytes() == (second.folder / f).read_bytes() for f in files)
+
+
+def test_repeated_laps_show_their_spread_in_both_pages_and_the_results_files(tmp_path):
+    rows = repeated_rows()
+    rows[1]["trajectory"] = str(draw_trajectory(tmp_path / "qat.png", wobble=1.0))
+    paths = write_report(ReportData.from_dict(small_dict(rows)), tmp_path / "report")
+    readme, page = paths.readme.read_text(), paths.html.read_text()
+    assert "| baseline | ✓ 3/3, 47.8 ± 0.4 s | 8.95 ± 0.12 | 0.213 ± 0.0004 | — | — | — |" in readme
+    assert "| qat | ✗ 2/3, 87 % | 8.41 ± 0.30 | 0.510 ± 0.000 | — | — | — |" in readme
+    assert "| local_prune | ✓ 47.8 s | 8.95 | 0.213 | — | — | — |" in readme      # one run: as before
+    assert "mean ± sample standard deviation over the runs" in readme and "mean ± sample standard" in page
+    assert all(len(set(shape)) == 1 for shape in table_shapes(render_markdown(readme)))
+    assert "| qat — 2 of 3 laps completed |" in readme                              # the picture's caption
+    for text in ("✓ 3/3, 47.8 ± 0.4 s", "8.95 ± 0.12", "✗ 2/3, 87 %", "✓ 47.8 s"):
+        assert f">{text}</td>" in page
+    baseline, lost, single = read_csv(paths.csv)
+    assert (baseline["repetitions"], baseline["repetitions_completed"]) == ("3", "3")
+    assert lost["repetitions_completed"] == "2"
+    assert (baseline["average_speed_std"], baseline["average_speed_min"], baseline["average_speed_max"]) == \
+        ("0.123", "8.81", "9.05")
+    assert (lost["lap_seconds_std"], single["repetitions"], single["average_speed_std"]) == ("0.2", "1", "")
+    rows = json.loads(paths.json.read_text())["rows"]
+    assert rows[0]["lap_seconds_std"] == 0.41 and rows[2]["lap_seconds_std"] is None     # missing, never 0
+    assert list(rows[0]) == list(baseline)
+
+
+def test_a_report_without_repeated_laps_has_no_spread_legend_or_columns(study_report):
+    data, paths = study_report
+    assert "standard deviation" not in paths.readme.read_text()
+    assert not [name for name in read_csv(paths.csv)[0] if name.endswith("_std")]
+    assert {row["repetitions"] for row in read_csv(paths.csv)} == {""}

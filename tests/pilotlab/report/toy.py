@@ -98,3 +98,37 @@ def offline_row(strategy: str = "baseline", hardware: str = "cpu1", **fields) ->
 
 def small_dict(rows: list[dict], **fields) -> dict:
     return {"recipe_name": "small", "date": "2025-06-01T10:30:00", "rows": rows, **fields}
+
+
+def online_row(strategy: str = "baseline", runs: int = 1, **metrics) -> dict:
+    """An online row as `report.recipe` builds it from an online job's result; with `runs` > 1, the
+    spread of a lap repeated from `runs` start points (the job gives a spread for one run too)."""
+    spread = {"lap_completed": {"completed": runs if metrics.get("lap_completed") else runs - 1, "runs": runs}}
+    for name, value in metrics.items():
+        if name != "lap_completed":
+            spread[name] = {"std": 0.0, "min": value, "max": value, "runs": runs}
+    return {"model": "pilotnet", "strategy": strategy, "hardware": "cpu1", "kind": "online",
+            "circuit": "simple_circuit", "direction": "cw", **metrics, "spread": spread}
+
+
+def with_spread(row: dict, **spreads: tuple[float, float, float]) -> dict:
+    """`row` with the given metrics' spread set to (std, min, max)."""
+    spread = dict(row["spread"])
+    for name, (std, low, high) in spreads.items():
+        spread[name] = {**spread[name], "std": std, "min": low, "max": high}
+    return {**row, "spread": spread}
+
+
+def repeated_rows() -> list[dict]:
+    """Three laps from three start points (all completed; one of three lost) and a single lap."""
+    baseline = with_spread(online_row("baseline", runs=3, lap_completed=True, percentage_completed=100.0,
+                                      lap_seconds=47.83, average_speed=8.953, position_deviation_mae_m=0.2134),
+                           lap_seconds=(0.41, 47.4, 48.3), average_speed=(0.123, 8.81, 9.05),
+                           position_deviation_mae_m=(0.0004, 0.213, 0.2139))
+    lost = with_spread(online_row("qat", runs=3, lap_completed=False, percentage_completed=87.2, lap_seconds=49.1,
+                                  average_speed=8.41, position_deviation_mae_m=0.51),
+                       percentage_completed=(22.2, 61.6, 100.0), average_speed=(0.3, 8.1, 8.7))
+    lost["spread"]["lap_seconds"] = {"std": 0.2, "min": 48.96, "max": 49.24, "runs": 2}   # the completed laps
+    single = online_row("local_prune", lap_completed=True, percentage_completed=100.0, lap_seconds=47.83,
+                        average_speed=8.953, position_deviation_mae_m=0.2134)
+    return [baseline, lost, single]

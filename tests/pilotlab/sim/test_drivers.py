@@ -15,7 +15,8 @@ from pilotlab.sim.explicit import ExplicitBrain
 
 def drive_expert(env, options=None, noise=0.0, seed=0):
     obs, info = env.reset(seed=seed, options=options)
-    expert, swerves = Expert(env.circuit), Swerves(noise, np.random.default_rng(seed))
+    expert = Expert(env.circuit)
+    swerves = Swerves(noise, np.random.default_rng(seed), expert)
     infos, started = [info], time.perf_counter()
     while True:
         command = swerves(expert.act(info), info, env.control_period)
@@ -71,9 +72,29 @@ def test_swerves_take_the_car_off_the_line_and_it_comes_back(stadium_csv):
     with DrivingEnv(stadium_csv, camera=None, laps=2) as env:
         calm, _ = drive_expert(env, noise=0.0)
         noisy, _ = drive_expert(env, noise=0.3, seed=1)
-    assert max(i["distance_to_line"] for i in noisy) > 2 * max(i["distance_to_line"] for i in calm)
+    distances = np.array([i["distance_to_line"] for i in noisy])
+    assert distances.max() > 0.7 and distances.max() > 3 * max(i["distance_to_line"] for i in calm)
     assert noisy[-1]["termination"] == "lap_completed" and not any(i["off_road"] for i in noisy)
-    assert noisy[-1]["distance_to_line"] < 0.5  # recovered
+    first = int(np.argmax(distances > 0.6))
+    assert distances[first:].min() < 0.2  # it came back
+
+
+def test_swerves_are_bounded_by_the_road_edge_and_the_bends_ahead():
+    from pilotlab.circuits import get_circuit
+    expert = Expert(get_circuit("nurburgring", "cw"))
+    swerves = Swerves(0.1, np.random.default_rng(0), expert)
+    hairpin = float(expert.circuit.arc[np.argmax(expert.bend)])                  # 2 m radius
+
+    def fit(s, peak=1.5, road_width=6.0):
+        return swerves.fit({"s": s, "speed": expert.target_speed(s), "road_width": road_width}, peak)
+    assert all(fit(hairpin + d) is None for d in (-25.0, -10.0, -2.0, 0.0))   # never in or just before it
+    straight = 440.0                                     # 13 m/s, a gentle bend, then a 7 m radius one at 510 m
+    peak, seconds = fit(straight)
+    assert peak == 1.5 and 1.5 < seconds < 3.5                      # at most 1.5 m: 1.5 m inside the edge
+    assert fit(straight, peak=-3.0)[0] == -1.5 and fit(straight, road_width=3.0) is None
+    peak, shorter = fit(straight + 30.0)                            # less room before the bend: smaller, quicker
+    assert 0.5 <= peak < 1.5 and shorter < seconds
+    assert fit(straight + 50.0) is None                             # no room: none
 
 
 def test_the_explicit_brain_follows_the_red_line_from_the_image():

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 
+from pilotlab.circuits import CIRCUITS, get_circuit
 from pilotlab.cli import main
 from pilotlab.errors import PilotlabError
 from pilotlab.sim.bagwriter import CMD_TOPIC, COMPRESSED_TOPIC, IMAGE_TOPIC, METADATA_TOPIC, ODOM_TOPIC
@@ -122,3 +123,37 @@ def test_ctrl_c_leaves_a_valid_readable_bag(tmp_path):
     messages = read_bag(out)
     assert 5 < len(messages[IMAGE_TOPIC]) <= len(messages[CMD_TOPIC])
     assert messages[CMD_TOPIC][-1][0] < 272.8e9  # stopped long before the end of the lap
+
+
+def record_with_swerves(tmp_path, circuit, direction, seed):
+    """A lap recorded with noise 0.1 (tiny frames) and the share of its odometry more than 0.5 m off
+    the line, read back from the bag: the recoveries the noise is there for."""
+    spec = RecordSpec(circuit=circuit, direction=direction, seed=seed, noise=0.1, width=32, height=24, rate_hz=5,
+                      format="ros2")
+    summary = record(spec, tmp_path / f"{circuit}-{direction}-{seed}")
+    track, near, off = get_circuit(circuit, direction), 0.0, []
+    for _, message in read_bag(summary.path)[ODOM_TOPIC]:
+        projection = track.project(message.pose.pose.position.x, message.pose.pose.position.y, near_s=near)
+        near = projection.s
+        off.append(projection.distance > 0.5)
+    return summary, float(np.mean(off))
+
+
+def test_swerves_never_take_the_recording_off_the_road(tmp_path):
+    """nurburgring cw, seed 2 used to end off_road at 497 m (2.99 m from the line)."""
+    summary, off_line = record_with_swerves(tmp_path, "nurburgring", "cw", seed=2)
+    assert summary.termination == "lap_completed" and summary.laps_completed == 1
+    assert 0.8 < summary.max_distance_to_line_m < 2.0 and off_line > 0.01       # real recoveries, far from the edge
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("direction", ["cw", "ccw"])
+@pytest.mark.parametrize("name", CIRCUITS.names())
+def test_recordings_with_swerves_stay_on_every_circuit(tmp_path, name, direction):
+    results = [record_with_swerves(tmp_path, name, direction, seed) for seed in (0, 1, 2, 3)]
+    for seed, (summary, off_line) in enumerate(results):
+        print(f"\n{name} {direction} seed {seed}: {summary.termination}, max {summary.max_distance_to_line_m:.2f} m "
+              f"from the line, {off_line:.1%} of the lap more than 0.5 m off")
+        assert summary.termination == "lap_completed"
+        assert summary.max_distance_to_line_m < 2.0                          # the road's edge is 3 m away
+    assert max(s.max_distance_to_line_m for s, _ in results) > 0.8 and np.mean([o for _, o in results]) > 0.01

@@ -26,7 +26,7 @@ from pilotlab.predictor import OnnxPredictor, TorchPredictor, load_predictor
 from pilotlab.strategies.artifact import read_meta
 from pilotlab.models import load_checkpoint
 from pilotlab.strategies import STRATEGIES, StrategySource, apply_strategy
-from pilotlab.strategies.structured_prune import multiply_accumulates
+from pilotlab.strategies.channels import multiply_accumulates
 from tests.pilotlab.conftest import random_frames
 
 ROUNDS = int(os.environ.get("PILOTLAB_BENCH_ROUNDS", "5"))

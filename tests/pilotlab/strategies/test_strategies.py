@@ -131,3 +131,14 @@ def test_half_precision_is_not_applicable_without_native_support(trained, tmp_pa
         pytest.skip("this CPU computes bf16 natively")
     with pytest.raises(NotApplicable, match="no native bfloat16"):
         apply_strategy("bf16", {}, StrategySource(trained / "model.pt", tmp_path))
+
+
+@pytest.mark.parametrize("strategy", ["fp16", "bf16", "tensorrt"])
+def test_cuda_targets_without_a_gpu_are_not_applicable(trained, tmp_path, strategy):
+    from matrix.kinds import NotApplicable
+    from pilotlab.hardware import BUILTIN, gpu_name
+    from pilotlab.strategies import StrategySource, apply_strategy
+    if gpu_name():
+        pytest.skip("this host has a GPU")
+    with pytest.raises(NotApplicable, match="CUDA|GPU|TensorRT|cuda"):
+        apply_strategy(strategy, {}, StrategySource(trained / "model.pt", tmp_path, hardware=BUILTIN["cuda"]))

@@ -10,7 +10,7 @@ from pilotlab.data.frames import FrameSet
 from pilotlab.errors import PilotlabError
 from pilotlab.predictor import load_predictor
 from pilotlab.strategies import StrategySource, apply_strategy
-from pilotlab.strategies.structured_prune import kept_count
+from pilotlab.strategies.channels import kept_count
 
 
 def test_kept_counts_round_to_whole_blocks():

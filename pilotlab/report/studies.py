@@ -1,0 +1,190 @@
+"""Published claims checked against a report's own figures.
+
+A recipe can ask for a comparison (`report: {compare_with: study2022}`); each claim is a function of
+the report's rows that says whether the claim holds on our setup, with our figures. The verdicts are
+computed, never written by hand, so a rerun on other hardware updates them.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal
+
+from matrix.registry import Registry
+from pilotlab.report.data import ReportData, ReportRow
+
+Verdict = Literal["holds", "does not hold", "not testable here"]
+
+
+@dataclass(frozen=True)
+class ClaimCheck:
+    claim: str          # what the study says, with its figures
+    verdict: Verdict
+    found: str          # what we measured
+
+
+Check = Callable[[ReportData], ClaimCheck]
+STUDIES: Registry[tuple[str, tuple[Check, ...]]] = Registry("study")   # name -> (title, checks)
+
+
+def compare(data: ReportData, study: str) -> tuple[str, list[ClaimCheck]]:
+    title, checks = STUDIES.get(study)
+    return title, [check(data) for check in checks]
+
+
+# --- reading the rows ------------------------------------------------------------------------------
+
+def _offline(data: ReportData) -> dict[str, ReportRow]:
+    """strategy -> its measured offline row on the first CPU hardware profile of the report."""
+    rows = [r for r in data.of_kind("offline") if r.status == "ok"]
+    cpu = next((r.hardware for r in rows if r.hardware.startswith("cpu")), None)
+    return {r.strategy: r for r in rows if r.hardware == cpu}
+
+
+def _laps(data: ReportData, circuit: str) -> dict[str, ReportRow]:
+    rows = [r for r in data.of_kind("online") if r.status == "ok" and r.circuit == circuit]
+    cpu = next((r.hardware for r in rows if r.hardware.startswith("cpu")), None)
+    return {r.strategy: r for r in rows if r.hardware == cpu}
+
+
+def _ratio(rows: dict[str, ReportRow], strategy: str, metric: str) -> float | None:
+    """The baseline's metric over the strategy's (size ×, speed-up ×)."""
+    base, row = rows.get("baseline"), rows.get(strategy)
+    if base is None or row is None or not base.get(metric) or not row.get(metric):
+        return None
+    return base.get(metric) / row.get(metric)
+
+
+def _untestable(claim: str, missing: str) -> ClaimCheck:
+    return ClaimCheck(claim, "not testable here", missing)
+
+
+def _verdict(holds: bool) -> Verdict:
+    return "holds" if holds else "does not hold"
+
+
+# --- the 2022 study (JdeRobot, "Optimizing deep learning models for end-to-end driving") -----------
+
+POST_TRAINING_INT8 = ("dynamic_quant", "static_quant", "onnxruntime_int8")
+
+
+def static_quant_smaller(data: ReportData) -> ClaimCheck:
+    claim = "Static quantization makes PilotNet about 4× smaller (PyTorch: 6.12 MB -> 1.61 MB, 3.8×)."
+    ratio = _ratio(_offline(data), "static_quant", "size_mb")
+    if ratio is None:
+        return _untestable(claim, "no static_quant and baseline offline rows")
+    return ClaimCheck(claim, _verdict(ratio >= 3.5), f"static_quant is {ratio:.2f}× smaller than the baseline")
+
+
+def int8_keeps_mse(data: ReportData) -> ClaimCheck:
+    claim = ("Post-training quantization keeps the offline MSE about unchanged (PyTorch: baseline 0.0788, "
+             "dynamic 0.0784, static 0.0788).")
+    rows = _offline(data)
+    base = rows.get("baseline")
+    measured = [(s, rows[s].get("mse")) for s in POST_TRAINING_INT8 if s in rows and rows[s].get("mse") is not None]
+    if base is None or base.get("mse") is None or not measured:
+        return _untestable(claim, "no int8 and baseline offline rows")
+    changes = {s: (mse - base.get("mse")) / base.get("mse") for s, mse in measured}
+    worst = max(changes, key=lambda s: abs(changes[s]))
+    found = ", ".join(f"{s} {100 * c:+.1f}%" for s, c in changes.items())
+    return ClaimCheck(claim, _verdict(abs(changes[worst]) <= 0.10),
+                      f"MSE change against the baseline ({base.get('mse'):.4g}): {found}")
+
+
+def prune_quant_lowest_mse(data: ReportData) -> ClaimCheck:
+    claim = "Prune + quantization has the lowest MSE of all (0.0672 vs the baseline's 0.0788)."
+    rows = {s: r for s, r in _offline(data).items() if r.get("mse") is not None}
+    if "prune_quant" not in rows:
+        return _untestable(claim, "no prune_quant offline row")
+    best = min(rows, key=lambda s: rows[s].get("mse"))
+    return ClaimCheck(claim, _verdict(best == "prune_quant"),
+                      f"lowest MSE: {best} ({rows[best].get('mse'):.4g}); prune_quant "
+                      f"{rows['prune_quant'].get('mse'):.4g}")
+
+
+def local_prune_fastest(data: ReportData) -> ClaimCheck:
+    claim = "Local pruning has the best CPU inference time (2.09 ms vs the baseline's 2.18 ms)."
+    rows = {s: r for s, r in _offline(data).items() if r.get("latency_ms") is not None}
+    if "local_prune" not in rows:
+        return _untestable(claim, "no local_prune offline row")
+    best = min(rows, key=lambda s: rows[s].get("latency_ms"))
+    return ClaimCheck(claim, _verdict(best == "local_prune"),
+                      f"fastest: {best} ({rows[best].get('latency_ms'):.3g} ms); local_prune "
+                      f"{rows['local_prune'].get('latency_ms'):.3g} ms")
+
+
+def unstructured_pruning_no_speedup(data: ReportData) -> ClaimCheck:
+    claim = "Unstructured weight pruning shrinks nothing on disk and brings no latency improvement."
+    rows = _offline(data)
+    speedups = {s: _ratio(rows, s, "latency_ms") for s in ("local_prune", "global_prune")}
+    speedups = {s: v for s, v in speedups.items() if v is not None}
+    if not speedups:
+        return _untestable(claim, "no local_prune / global_prune offline rows")
+    found = ", ".join(f"{s} {v:.2f}× the baseline's speed" for s, v in speedups.items())
+    return ClaimCheck(claim, _verdict(all(v < 1.1 for v in speedups.values())), found)
+
+
+def dynamic_quant_slower_in_pytorch(data: ReportData) -> ClaimCheck:
+    claim = "PyTorch dynamic-range quantization was slower than the baseline (3.17 ms vs 2.18 ms)."
+    speedup = _ratio(_offline(data), "dynamic_quant", "latency_ms")
+    if speedup is None:
+        return _untestable(claim, "no dynamic_quant and baseline offline rows")
+    return ClaimCheck(claim, _verdict(speedup < 1.0),
+                      f"dynamic_quant runs at {speedup:.2f}× the baseline's speed (ONNX Runtime, MatMul/Gemm only)")
+
+
+def optimized_models_complete_the_lap(data: ReportData) -> ClaimCheck:
+    claim = ("On SimpleCircuit the optimized PyTorch models complete the lap "
+             "(local prune, global prune, QAT, prune + quantization).")
+    laps = _laps(data, "simple_circuit")
+    study = [s for s in ("local_prune", "global_prune", "qat", "prune_quant") if s in laps]
+    if not study:
+        return _untestable(claim, "no laps of those strategies on simple_circuit")
+    lost = [s for s in study if not laps[s].get("lap_completed")]
+    found = "all completed" if not lost else f"lost the lap: {', '.join(lost)}"
+    return ClaimCheck(claim, _verdict(not lost), f"{found} ({len(study)} strategies driven)")
+
+
+def fastest_drives_as_well(data: ReportData) -> ClaimCheck:
+    claim = ("The fastest models drive the lap at least as well as the original (TF-TRT: higher brain "
+             "frequency, deviation 5.06 vs 7.41).")
+    offline, laps = _offline(data), _laps(data, "simple_circuit")
+    timed = {s: r.get("latency_ms") for s, r in offline.items() if r.get("latency_ms") is not None and s in laps}
+    base = laps.get("baseline")
+    if not timed or base is None or base.get("position_deviation_mae_m") is None:
+        return _untestable(claim, "no offline latency and laps of the same strategies on simple_circuit")
+    fastest = min(timed, key=timed.get)
+    row = laps[fastest]
+    deviation, base_deviation = row.get("position_deviation_mae_m"), base.get("position_deviation_mae_m")
+    holds = bool(row.get("lap_completed")) and deviation is not None and deviation <= 1.1 * base_deviation
+    found = (f"fastest offline: {fastest}; lap {'completed' if row.get('lap_completed') else 'lost'}, deviation "
+             f"{deviation:.3g} m vs the baseline's {base_deviation:.3g} m" if deviation is not None else
+             f"fastest offline: {fastest}; no deviation measured")
+    return ClaimCheck(claim, _verdict(holds), found)
+
+
+def montreal_is_hard(data: ReportData) -> ClaimCheck:
+    claim = "The original PilotNet does not complete Montreal; the fast TensorRT versions do."
+    laps = _laps(data, "montreal")
+    if "baseline" not in laps:
+        return _untestable(claim, "no baseline lap on montreal")
+    completed = [s for s, r in laps.items() if r.get("lap_completed") and r.model != "reference"]
+    base_done = bool(laps["baseline"].get("lap_completed"))
+    found = (f"baseline {'completed' if base_done else 'lost'} the lap; completed: "
+             f"{', '.join(completed) or 'none'}")
+    return ClaimCheck(claim, _verdict(not base_done and bool(completed)), found)
+
+
+def tensorrt_fastest(data: ReportData) -> ClaimCheck:
+    claim = "TensorRT int8 is about 33× faster than the original model (on a GTX 1050)."
+    rows = [r for r in data.of_kind("offline") if r.strategy == "tensorrt" and r.status == "ok"]
+    if not rows:
+        reason = next((r.reason for r in data.rows if r.strategy == "tensorrt" and r.reason), "no tensorrt rows")
+        return _untestable(claim, reason)
+    return ClaimCheck(claim, "holds", f"tensorrt measured on {rows[0].hardware}: {rows[0].get('latency_ms')} ms")
+
+
+STUDIES.add("study2022", ("Compared with the 2022 study", (
+    static_quant_smaller, int8_keeps_mse, prune_quant_lowest_mse, local_prune_fastest,
+    unstructured_pruning_no_speedup, dynamic_quant_slower_in_pytorch, optimized_models_complete_the_lap,
+    fastest_drives_as_well, montreal_is_hard, tensorrt_fastest)))

@@ -1,0 +1,63 @@
+"""The torch.export graphs of the PT2E flow (pt2e.py): export, the X86 quantizer, saving the
+converted graph as ONNX QDQ, and what fine-tuning an exported graph needs (kept apart from pt2e.py
+so that registering the strategies imports no torch)."""
+from __future__ import annotations
+
+import warnings
+
+import torch
+from torch import nn
+
+from pilotlab.strategies.artifact import example_batch, export_onnx
+from pilotlab.strategies.fold import fold_input_norm
+from pilotlab.strategies.registry import StrategySource
+
+
+def export_graph(model: nn.Module, input_shape: tuple) -> torch.fx.GraphModule:
+    # A batch-2 example: torch.export specialises a batch of 1, and we want any batch size.
+    model = fold_input_norm(model)
+    batch = torch.export.Dim("batch", min=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return torch.export.export(model, (example_batch(input_shape),), dynamic_shapes=({0: batch},)).module()
+
+
+def x86_quantizer(qat: bool):
+    import torchao.quantization.pt2e.quantizer.x86_inductor_quantizer as x86
+    return x86.X86InductorQuantizer().set_global(x86.get_default_x86_inductor_quantization_config(is_qat=qat))
+
+
+def save_quantized(converted: torch.fx.GraphModule, source: StrategySource, strategy: str) -> None:
+    from torchao.quantization.pt2e import move_exported_model_to_eval
+    move_exported_model_to_eval(converted)
+    export_onnx(converted, source.out / "model.onnx", source.input_shape)
+    source.write(source.meta(strategy, format="onnx", file="model.onnx", runtime="onnxruntime", dtype="int8",
+                             extra={"quantizer": "torchao pt2e X86InductorQuantizer",
+                                    "weights": "int8 per channel", "activations": "uint8 per tensor"}))
+
+
+def freeze_zeros(model: nn.Module) -> None:
+    """Zero the gradient of weights that are exactly zero, so fine-tuning keeps a pruned pattern
+    (with a zero gradient Adam's update is zero too)."""
+    for param in model.parameters():
+        if param.dim() >= 2 and bool((param == 0).any()):
+            mask = (param != 0).to(param.dtype)
+            param.register_hook(lambda grad, mask=mask: grad * mask)
+
+
+class TrainEvalSwitch(nn.Module):
+    """An exported graph forbids .train()/.eval(); the shared training loop calls them. Switch the
+    graph's dropout and batch-norm the way torchao says instead."""
+
+    def __init__(self, graph: torch.fx.GraphModule):
+        super().__init__()
+        self.graph = graph
+
+    def forward(self, images: torch.Tensor) -> torch.Tensor:
+        return self.graph(images)
+
+    def train(self, mode: bool = True) -> TrainEvalSwitch:
+        from torchao.quantization.pt2e import move_exported_model_to_eval, move_exported_model_to_train
+        (move_exported_model_to_train if mode else move_exported_model_to_eval)(self.graph)
+        self.training = mode
+        return self

@@ -1,0 +1,71 @@
+"""The engine's commands through the toy domain's command line: plan --json, status, show, gc."""
+import json
+
+import pytest
+
+from matrix.cli import main
+from tests.matrix.toydomain import TOY
+
+RECIPE = """\
+name: toy
+sources:
+  a: {value: 2}
+  b: {value: %d}
+matrix:
+  source: [a, b]
+  power: [2]
+"""
+
+
+@pytest.fixture
+def recipe(tmp_path):
+    path = tmp_path / "r.yaml"
+    path.write_text(RECIPE % 3)
+    return path
+
+
+def cli(capsys, *args) -> tuple[int, str, str]:
+    code = main(list(args), TOY, prog="toy")
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_plan_json_lists_key_kind_status_reason(recipe, tmp_path, capsys):
+    code, out, _ = cli(capsys, "plan", str(recipe), "--json", "--store", str(tmp_path / "s"))
+    rows = json.loads(out)
+    assert code == 0 and len(rows) == 5
+    assert {tuple(sorted(r)) for r in rows} == {("key", "kind", "name", "reason", "status")}
+    assert {r["status"] for r in rows} == {"new"}
+
+
+def test_run_status_show_and_gc(recipe, tmp_path, capsys):
+    store = str(tmp_path / "s")
+    assert cli(capsys, "run", str(recipe), "--store", store)[0] == 0
+    code, out, _ = cli(capsys, "status", "--store", store)
+    assert code == 0 and "source" in out and "power" in out and "failed (will rerun): 0" in out
+    key = json.loads(cli(capsys, "plan", str(recipe), "--json", "--store", store)[1])[-1]["key"]
+    code, out, _ = cli(capsys, "show", key[:8], "--store", store)
+    assert code == 0 and "total" in out and "status: ok" in out and "log.txt" in out
+    recipe.write_text(RECIPE % 4)
+    assert cli(capsys, "run", str(recipe), "--store", store)[0] == 0
+    code, out, _ = cli(capsys, "gc", str(recipe), "--dry-run", "--store", store)
+    assert "would remove 3 jobs" in out
+    code, out, _ = cli(capsys, "gc", str(recipe), "--store", store)
+    assert "removed 3 jobs" in out
+    assert cli(capsys, "gc", str(recipe), "--store", store)[1].startswith("removed 0 jobs")
+
+
+def test_a_failed_run_exits_non_zero_and_show_explains(recipe, tmp_path, capsys):
+    recipe.write_text(RECIPE.replace("{value: %d}", "{value: 1, fail: true}"))
+    store = str(tmp_path / "s")
+    code, out, err = cli(capsys, "run", str(recipe), "--store", store, "--keep-going")
+    assert code == 1 and "failed" in out
+    key = next(r["key"] for r in json.loads(cli(capsys, "plan", str(recipe), "--json", "--store", store)[1])
+               if r["name"] == "source b")
+    code, out, _ = cli(capsys, "show", key, "--store", store)
+    assert "failed last time" in out and "was told to fail" in out
+
+
+def test_unknown_key_prefix(recipe, tmp_path, capsys):
+    code, _, err = cli(capsys, "show", "abcdef", "--store", str(tmp_path / "s"))
+    assert code == 2 and "no job 'abcdef'" in err

@@ -1,0 +1,83 @@
+"""A warm rerun is quick: planning (`pilotlab plan`, and `run` before it runs anything) and `--help`
+import none of the heavy libraries; only the jobs' handlers do (torch alone takes ~2 s to import)."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pilotlab.strategies import STRATEGIES
+
+HEAVY = {"torch", "torchao", "onnx", "onnxruntime", "matplotlib", "cv2", "pybullet", "rosbags"}
+ROOT = Path(__file__).resolve().parents[3]
+RECIPE = """
+name: light
+datasets:
+  train: {{record: {{circuits: [simple_circuit], directions: [cw, ccw], laps: 0.2}}}}
+  test: {{record: {{circuits: [simple_circuit], laps: 0.1, seed: 2}}}}
+models:
+  pilotnet: {{arch: pilotnet, epochs: 1}}
+  stacked: {{arch: pilotnet_stacked, options: {{frames: 2}}, epochs: 1}}
+strategies:
+  prune_more: {{use: local_prune, conv: 0.5}}
+matrix:
+  model: [pilotnet, stacked]
+  strategy: [{strategies}, prune_more]
+  hardware: [cpu, cuda]
+  circuit: [simple_circuit]
+"""
+
+
+def pilotlab(tmp_path, *argv: str, timeout: float = 120) -> tuple[subprocess.CompletedProcess, set[str]]:
+    """Run the command line in a fresh interpreter; (the process, the modules it imported)."""
+    modules = tmp_path / "modules.json"
+    process = subprocess.run([sys.executable, "-m", "tests.pilotlab.cli.imports_after", str(modules), *argv],
+                             cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+    return process, set(json.loads(modules.read_text()))
+
+
+def test_plan_imports_no_heavy_library(tmp_path):
+    recipe = tmp_path / "light.yaml"
+    recipe.write_text(RECIPE.format(strategies=", ".join(STRATEGIES.names())))
+    process, modules = pilotlab(tmp_path, "plan", str(recipe), "--json", "--store", str(tmp_path / "store"))
+    assert process.returncode == 0, process.stderr
+    jobs = json.loads(process.stdout)
+    assert {job["kind"] for job in jobs} == {"record", "frames", "train", "optimize", "offline", "online"}
+    assert {"pilotlab.strategies.pt2e", "pilotlab.models.configs", "pilotlab.jobs.online"} <= modules
+    assert modules & HEAVY == set()
+
+
+def test_help_imports_no_heavy_library(tmp_path):
+    process, modules = pilotlab(tmp_path, "--help")
+    assert process.returncode == 0 and "plan" in process.stdout
+    assert modules & HEAVY == set()
+
+
+TINY = """
+name: tiny
+datasets:
+  train: {{record: {{circuits: [simple_circuit], laps: 0.1, camera: {{width: 160, height: 120}}}}}}
+  test: {{record: {{circuits: [simple_circuit], laps: 0.05, seed: 2, camera: {{width: 160, height: 120}}}}}}
+models:
+  pilotnet: {{arch: pilotnet, epochs: 1, val_fraction: 0}}
+online: {{timeout_s: 2, references: []}}
+report: {{folder: {reports}}}
+matrix:
+  model: [pilotnet]
+  strategy: [baseline]
+  circuit: [simple_circuit]
+"""
+
+
+@pytest.mark.slow
+def test_a_warm_rerun_imports_no_heavy_library(tmp_path):
+    recipe = tmp_path / "tiny.yaml"
+    recipe.write_text(TINY.format(reports=tmp_path / "reports"))
+    argv = ("run", str(recipe), "--store", str(tmp_path / "store"))
+    cold, _ = pilotlab(tmp_path, *argv, timeout=900)
+    assert cold.returncode == 0, cold.stderr
+    assert (tmp_path / "reports" / "tiny" / "README.md").is_file()
+    warm, modules = pilotlab(tmp_path, *argv)
+    assert warm.returncode == 0 and "nothing to do" in warm.stdout + warm.stderr
+    assert modules & HEAVY == set()          # the report is up to date: not even matplotlib

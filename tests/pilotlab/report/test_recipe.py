@@ -1,0 +1,32 @@
+"""Report rows from finished jobs (`pilotlab.report.recipe.row_from_result`): a real online job that
+drives a lap from two start points gives a row whose cells show the mean with its spread."""
+import pilotlab.jobs.online  # noqa: F401  (registers the kind)
+from matrix.kinds import KINDS
+from pilotlab.report import ReportData
+from pilotlab.report.recipe import row_from_result
+from pilotlab.report.tables import build_tables
+from tests.pilotlab.jobs.context import context
+from tests.pilotlab.report.toy import small_dict
+
+IDENTITY = {"model": "expert", "strategy": "expert", "hardware": "cpu1", "kind": "online"}
+
+
+def test_an_online_job_repeated_from_two_starts_gives_a_row_with_its_spread(tmp_path, stadium_csv):
+    params = {"circuit": stadium_csv, "brain": "expert", "repetitions": 2, "camera_frames": 0,
+              "camera": {"width": 64, "height": 48}, "hardware": {"name": "cpu1", "threads": 1}}
+    ctx = context(tmp_path, "online", "online-expert", params)
+    result = KINDS.get("online").handler(ctx)
+    row = {**IDENTITY, "circuit": "stadium", **row_from_result({"status": "ok", "value": result}, ctx.out)}
+    assert row["spread"]["lap_completed"] == {"completed": 2, "runs": 2}
+    assert row["trajectory"] == str(ctx.out / "trajectory.png")
+    [table] = build_tables(ReportData.from_dict(small_dict([row])), "online")
+    lap, speed, deviation = (cell.text for cell in table.rows[0].cells[:3])
+    speeds = [run["average_speed"] for run in result["runs"]]
+    assert lap.startswith("✓ 2/2, ") and lap.endswith(" s") and " ± " in lap
+    assert speed.startswith(f"{result['average_speed']:.2f} ± ") and min(speeds) < max(speeds)
+    assert " ± " in deviation
+
+
+def test_a_job_that_did_not_apply_gives_its_reason_and_no_numbers(tmp_path):
+    row = row_from_result({"status": "not_applicable", "reason": "no GPU here"}, tmp_path)
+    assert row == {"status": "not_applicable", "reason": "no GPU here"}

@@ -1,0 +1,109 @@
+"""The driving domain's planner: recipes -> jobs shared wherever inputs are equal; recipe errors."""
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+from matrix import RecipeError, engine
+from matrix.recipe import load_recipe
+from pilotlab.domain import DOMAIN
+
+RECIPE = """\
+name: plan-test
+datasets:
+  train: {record: {circuits: [simple_circuit], directions: [cw, ccw], laps: 0.2}}
+  test: {record: {circuits: [simple_circuit], laps: 0.1, seed: 3}}
+models:
+  small: {epochs: 1}
+  other: {epochs: 2}
+strategies:
+  local_prune: {finetune_epochs: 1}
+  prune_more: {use: local_prune, conv: 0.5}
+matrix:
+  model: [small, other]
+  strategy: [baseline, local_prune, prune_more]
+  hardware: [cpu, cpu1]
+  circuit: [simple_circuit]
+"""
+
+
+def recipe_at(tmp_path: Path, text: str = RECIPE):
+    path = tmp_path / "recipe.yaml"
+    path.write_text(text)
+    return load_recipe(path, DOMAIN)
+
+
+def kinds(jobs) -> Counter:
+    return Counter(job.kind for job in jobs)
+
+
+def test_jobs_are_shared_wherever_inputs_are_equal(tmp_path):
+    jobs = engine.plan_jobs(recipe_at(tmp_path), DOMAIN)
+    assert kinds(jobs) == {
+        "record": 3, "frames": 3,        # two training recordings, one test recording
+        "train": 2,                      # one per model
+        "optimize": 2 * 3,               # per (model, strategy)
+        "offline": 2 * 3 * 2,            # per (model, strategy, hardware)
+        "online": 2 * 3 * 2 + 2 * 2,     # per cell and direction, plus explicit + expert per CPU profile
+    }
+    names = [job.name for job in jobs]
+    assert len(names) == len(set(names))
+
+
+def test_a_strategy_alias_is_its_own_optimization_of_the_same_strategy(tmp_path):
+    jobs = {job.name: job for job in engine.plan_jobs(recipe_at(tmp_path), DOMAIN)}
+    alias = jobs["optimize small/prune_more"]
+    assert alias.params == {"strategy": "local_prune", "options": {"conv": 0.5}}
+    assert jobs["optimize small/local_prune"].params["options"] == {"finetune_epochs": 1}
+
+
+def test_changing_a_strategy_option_changes_only_its_jobs(tmp_path):
+    before = {job.name: job.key for job in engine.plan_jobs(recipe_at(tmp_path), DOMAIN)}
+    edited = recipe_at(tmp_path, RECIPE.replace("{use: local_prune, conv: 0.5}", "{use: local_prune, conv: 0.6}"))
+    after = {job.name: job.key for job in engine.plan_jobs(edited, DOMAIN)}
+    assert set(before) == set(after)
+    assert sorted(name for name in after if after[name] != before[name]) == sorted(
+        [f"optimize {m}/prune_more" for m in ("small", "other")]
+        + [f"offline {m}/prune_more on {h}" for m in ("small", "other") for h in ("cpu", "cpu1")]
+        + [f"online {m}/prune_more on {h} at simple_circuit cw" for m in ("small", "other") for h in ("cpu", "cpu1")])
+
+
+def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
+    text = RECIPE.replace("hardware: [cpu, cpu1]", "hardware: [cpu, cuda]")
+    jobs = engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
+    references = [job for job in jobs if job.kind == "online" and "artifact" not in job.deps]
+    assert {job.labels["hardware"] for job in references} == {"cpu"}
+    assert any(job.labels.get("hardware") == "cuda" for job in jobs if job.kind == "offline")
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("finetune_epochs: 1}", "finetune_epoch: 1}"),
+     ":9: strategies.local_prune: strategies.local_prune: unknown option(s) finetune_epoch"),
+    (("{use: local_prune, conv: 0.5}", "{use: local_prun}"),
+     ":10: strategies.prune_more: strategies.prune_more uses unknown strategy 'local_prun'"),
+    (("strategy: [baseline,", "strategy: [baselin,"),
+     ":13: matrix.strategy.0: unknown strategy 'baselin' (did you mean 'baseline'?)"),
+    (("circuit: [simple_circuit]", "circuit: [simple_circiut]"),
+     ":15: matrix.circuit.0: unknown circuit 'simple_circiut' (did you mean 'simple_circuit'?)"),
+    (("hardware: [cpu, cpu1]", "hardware: [cpu, gpu]"),
+     ":14: matrix.hardware.1: unknown hardware 'gpu'"),
+    (("small: {epochs: 1}", "small: {epochs: 1, arch: pilotnett}"),
+     ":6: models.small: unknown model 'pilotnett' (did you mean 'pilotnet'?)"),
+    (("small: {epochs: 1}", "small: {epochs: 1, options: {dropuot: 0.1}}"),
+     ":6: models.small: model 'pilotnet' has no option(s) dropuot"),
+    (("train: {record: {circuits: [simple_circuit],", "train: {bags: [missing.bag], record: {circuits: [simple_circuit],"),
+     ":3: datasets.train.bags: missing.bag does not exist"),
+    (("laps: 0.2}}", "laps: 0.2, camera: {width: 8}}}"),
+     ":3: datasets.train.record.camera.width: Input should be greater than or equal to 16 (got 8)"),
+])
+def test_recipe_errors_name_the_line_and_key(tmp_path, edit, message):
+    with pytest.raises(RecipeError) as caught:
+        engine.plan_jobs(recipe_at(tmp_path, RECIPE.replace(*edit)), DOMAIN)
+    assert message in str(caught.value)
+    assert "\n" not in str(caught.value)
+
+
+def test_shipped_recipes_plan(tmp_path):
+    for recipe in sorted(Path(__file__).resolve().parents[2].glob("recipes/*.yaml")):
+        jobs = engine.plan_jobs(load_recipe(recipe, DOMAIN), DOMAIN)
+        assert jobs and {"train", "optimize", "offline", "online"} <= set(kinds(jobs))
