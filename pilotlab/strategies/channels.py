@@ -13,14 +13,14 @@ from pilotlab.strategies.artifact import example_batch
 from pilotlab.strategies.common import weight_layers
 
 
-def remove_channels(model: nn.Module, amount: float, input_shape: tuple) -> dict[str, int]:
+def remove_channels(model: nn.Module, amount: float, input_shape: tuple, multiple_of: int = 1) -> dict[str, int]:
     """Shrink `model` in place; returns the channels/neurons kept per layer."""
     layers = weight_layers(model)
     check_chain(model, layers)
     masked = copy.deepcopy(model)
     kept: dict[str, int] = {}
     for (name, _), (next_name, _) in zip(layers, layers[1:]):
-        keep = strongest_channels(model.get_submodule(name), amount)
+        keep = strongest_channels(model.get_submodule(name), amount, multiple_of)
         zero_channels(masked.get_submodule(name), keep)
         layer = model.get_submodule(name)           # already shrunk on its inputs
         replace(model, name, shrink_outputs(layer, keep))
@@ -56,10 +56,20 @@ def _feeds(a: nn.Module, b: nn.Module) -> bool:
     return b.in_features % outputs == 0 and (isinstance(a, nn.Conv2d) or b.in_features == outputs)
 
 
-def strongest_channels(layer: nn.Module, amount: float) -> torch.Tensor:
+def strongest_channels(layer: nn.Module, amount: float, multiple_of: int = 1) -> torch.Tensor:
     norms = layer.weight.detach().abs().flatten(1).sum(1)
-    count = max(1, round(len(norms) * (1 - amount)))
-    return norms.topk(count).indices.sort().values
+    return norms.topk(kept_count(len(norms), amount, multiple_of)).indices.sort().values
+
+
+def kept_count(channels: int, amount: float, multiple_of: int = 1) -> int:
+    """Channels kept: (1 - amount) of them, rounded to the nearest multiple of `multiple_of` (SIMD
+    kernels work on whole blocks, so a partial block costs a full one) or to the layer's own width."""
+    count = max(1, round(channels * (1 - amount)))
+    if multiple_of == 1 or channels < multiple_of:
+        return count
+    lower = max(multiple_of, count // multiple_of * multiple_of)
+    upper = min(channels, -(-count // multiple_of) * multiple_of)     # the layer's own width caps it
+    return upper if upper - count < count - lower else lower
 
 
 def zero_channels(layer: nn.Module, keep: torch.Tensor) -> None:
@@ -114,3 +124,19 @@ def check_same_function(model: nn.Module, masked: nn.Module, input_shape: tuple)
     if not torch.allclose(expected, actual, rtol=1e-3, atol=1e-5):
         raise NotApplicable("structured_prune: removing channels changed the network's function "
                             "(an activation between layers does not map 0 to 0?)")
+
+
+def multiply_accumulates(model: nn.Module, input_shape: tuple) -> int:
+    """Multiply-accumulates per image of the conv/linear layers (what bounds CPU inference time)."""
+    counts: list[int] = []
+
+    def count(module: nn.Module, _inputs, output) -> None:
+        counts.append(output[0].numel() * module.weight[0].numel())   # weight[0]: one output's inputs
+    hooks = [m.register_forward_hook(count) for _, m in weight_layers(model)]
+    try:
+        with torch.no_grad():
+            model.eval()(torch.zeros(1, *input_shape[1:]))
+    finally:
+        for hook in hooks:
+            hook.remove()
+    return sum(counts)

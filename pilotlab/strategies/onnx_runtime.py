@@ -57,6 +57,15 @@ class OnnxRuntimeInt8Config:
 
 @register_strategy("onnxruntime_int8", OnnxRuntimeInt8Config)
 def onnxruntime_int8(config: OnnxRuntimeInt8Config, source: StrategySource) -> dict:
+    extra = quantize_int8(source.load_model(), source, config, "onnxruntime_int8")
+    source.write(source.meta("onnxruntime_int8", format="onnx", file="model.onnx", runtime="onnxruntime",
+                             dtype="int8", extra=extra))
+    return {"calibration_frames": min(config.calibration_frames, len(source.calibration))}
+
+
+def quantize_int8(model, source: StrategySource, config: OnnxRuntimeInt8Config, strategy: str) -> dict:
+    """Export `model` and quantize it statically into source.out/model.onnx with ONNX Runtime's
+    calibrator on training frames; returns what artifact.json's `extra` records about it."""
     from onnxruntime.quantization import CalibrationMethod, QuantFormat, QuantType, quantize_static
     methods = {"minmax": CalibrationMethod.MinMax, "entropy": CalibrationMethod.Entropy,
                "percentile": CalibrationMethod.Percentile}
@@ -66,19 +75,16 @@ def onnxruntime_int8(config: OnnxRuntimeInt8Config, source: StrategySource) -> d
                                  ("quant_format", config.quant_format, formats),
                                  ("weight_type", config.weight_type, types)):
         if value not in known:
-            raise PilotlabError(f"strategies.onnxruntime_int8.{option}: {value!r} is not one of {', '.join(known)}")
+            raise PilotlabError(f"strategies.{strategy}.{option}: {value!r} is not one of {', '.join(known)}")
     with tempfile.TemporaryDirectory() as tmp, _quiet():
-        prepared = _prepared_fp32(source, Path(tmp))
+        prepared = _prepared_fp32(model, source, Path(tmp))
         excluded = _first_conv(prepared) if config.float_first_conv else []
         quantize_static(str(prepared), str(source.out / "model.onnx"), _Reader(source, config.calibration_frames),
                         quant_format=formats[config.quant_format], per_channel=config.per_channel,
                         activation_type=QuantType.QUInt8, weight_type=types[config.weight_type],
                         calibrate_method=methods[config.calibrate_method], nodes_to_exclude=excluded)
-    source.write(source.meta("onnxruntime_int8", format="onnx", file="model.onnx", runtime="onnxruntime",
-                             dtype="int8", extra={"quantizer": "onnxruntime.quantize_static",
-                                                  "activations": "uint8", "weights": config.weight_type,
-                                                  "fp32_nodes": excluded}))
-    return {"calibration_frames": min(config.calibration_frames, len(source.calibration))}
+    return {"quantizer": "onnxruntime.quantize_static", "activations": "uint8",
+            "weights": config.weight_type, "fp32_nodes": excluded}
 
 
 @dataclass(frozen=True)
@@ -91,7 +97,7 @@ class DynamicQuantConfig:
 def dynamic_quant(config: DynamicQuantConfig, source: StrategySource) -> dict:
     from onnxruntime.quantization import QuantType, quantize_dynamic
     with tempfile.TemporaryDirectory() as tmp, _quiet():
-        prepared = _prepared_fp32(source, Path(tmp))
+        prepared = _prepared_fp32(source.load_model(), source, Path(tmp))
         quantize_dynamic(str(prepared), str(source.out / "model.onnx"), weight_type=QuantType.QInt8,
                          op_types_to_quantize=list(config.op_types))
     source.write(source.meta("dynamic_quant", format="onnx", file="model.onnx", runtime="onnxruntime",
@@ -100,10 +106,10 @@ def dynamic_quant(config: DynamicQuantConfig, source: StrategySource) -> dict:
     return {}
 
 
-def _prepared_fp32(source: StrategySource, tmp: Path) -> Path:
+def _prepared_fp32(model, source: StrategySource, tmp: Path) -> Path:
     """The fp32 model exported and pre-processed for quantization (shape inference, fusions)."""
     from onnxruntime.quantization.shape_inference import quant_pre_process
-    export_onnx(source.load_model(), tmp / "fp32.onnx", source.input_shape)
+    export_onnx(model, tmp / "fp32.onnx", source.input_shape)
     quant_pre_process(str(tmp / "fp32.onnx"), str(tmp / "prepared.onnx"))
     return tmp / "prepared.onnx"
 

@@ -13,6 +13,7 @@ TEST_OPTIONS = {
     "local_prune": {"finetune_epochs": 1, "batch_size": 16},
     "global_prune": {"finetune_epochs": 1, "batch_size": 16},
     "structured_prune": {"finetune_epochs": 1, "batch_size": 16},
+    "structured_prune_int8": {"finetune_epochs": 1, "batch_size": 16, "calibration_frames": 32},
     "cluster": {"finetune_epochs": 1, "batch_size": 16},
     "qat": {"finetune_epochs": 1, "batch_size": 16},
     "prune_quant": {"finetune_epochs": 1, "batch_size": 16},

@@ -3,7 +3,10 @@ eager measured in the same run, per thread count; plus pilotlab's timing against
 
 Variants are interleaved (each round measures every variant in a fresh random order) and rounds
 repeat, so load from other processes spreads over all variants; the spread (min–max over rounds)
-is printed. Run: PYTHONPATH=. python -m pytest -m benchmark -s tests/pilotlab/strategies/test_benchmark.py
+is printed. Each strategy's multiply-accumulate rate (GMAC/s) is printed next to this machine's
+GEMM peak, measured in the same run (ONNX Runtime fp32 MatMul and u8s8 MatMulInteger, 1024³), so
+how close a strategy is to what the CPU can do shows.
+Run: PYTHONPATH=. python -m pytest -m benchmark -s tests/pilotlab/strategies/test_benchmark.py
 Never asserts timings (the machine is shared).
 """
 from __future__ import annotations
@@ -20,14 +23,18 @@ from matrix.kinds import NotApplicable
 from pilotlab.hardware import apply_profile, cpu_count, describe_host, host_fingerprint, make_profile
 from pilotlab.offline import TimingSettings, measure_latency, measure_throughput, sample_batch
 from pilotlab.predictor import OnnxPredictor, TorchPredictor, load_predictor
+from pilotlab.strategies.artifact import read_meta
+from pilotlab.models import load_checkpoint
 from pilotlab.strategies import STRATEGIES, StrategySource, apply_strategy
+from pilotlab.strategies.channels import multiply_accumulates
 from tests.pilotlab.conftest import random_frames
 
 ROUNDS = int(os.environ.get("PILOTLAB_BENCH_ROUNDS", "5"))
 ROUND_TIMING = TimingSettings(warmup_runs=20, warmup_seconds=0.1, min_runs=200, max_seconds=0.6,
                               block=100, stable_within=0.0, throughput_batch=64, throughput_seconds=0.4)
 NO_FINETUNE = {name: {"finetune_epochs": 0} for name in
-               ("local_prune", "global_prune", "structured_prune", "cluster", "qat", "prune_quant")}
+               ("local_prune", "global_prune", "structured_prune", "structured_prune_int8", "cluster", "qat",
+                "prune_quant")}
 
 
 def build_all(trained, frames, root) -> tuple[dict, dict]:
@@ -74,21 +81,80 @@ def measure_round(predictors, profile, one, many) -> dict:
         predictor = predictors[name]
         latency = measure_latency(predictor.predict, one, ROUND_TIMING)["latency_ms"]
         throughput = measure_throughput(predictor, many, ROUND_TIMING)["throughput_ips"]
-        figures[name] = (latency, throughput)
+        cpu = cpu_latency(predictor.predict, one) if profile.cpu_threads == 1 else None
+        figures[name] = (latency, throughput, cpu)
     return figures
 
 
-def print_table(profile, rounds: list[dict]) -> None:
+def cpu_latency(predict, batch: np.ndarray, runs: int = 200) -> float:
+    """Median CPU time of the calling thread per call (ms). With one thread every runtime computes
+    in the calling thread, so this is the work itself: time the scheduler gave to other processes
+    does not count. On a loaded machine wall-clock medians favour short calls (a 3 ms call is
+    preempted far more often than a 0.5 ms one), inflating ratios to eager; this column does not."""
+    clock = time.thread_time_ns
+    times = []
+    for _ in range(runs):
+        start = clock()
+        predict(batch)
+        times.append(clock() - start)
+    return statistics.median(times) / 1e6
+
+
+def print_table(profile, rounds: list[dict], macs: dict[str, int]) -> None:
     names = sorted(rounds[0], key=lambda n: statistics.median(r[n][0] for r in rounds))
+    cpu = rounds[0]["baseline"][2] is not None
     print(f"\n== {profile.name}: {profile.cpu_threads} thread(s), {len(rounds)} interleaved rounds ==")
-    print(f"{'strategy':18} {'b1 ms':>8} {'spread':>15} {'×eager':>7} {'b64 img/s':>10} {'spread':>17} {'×eager':>7}")
+    print(f"{'strategy':22} {'b1 ms':>8} {'spread':>15} {'×eager':>7} {'b64 img/s':>10} {'spread':>17} "
+          f"{'×eager':>7} {'MMAC':>6} {'GMAC/s b1':>9} {'b64':>6}" + (f" {'b1 CPU ms':>10} {'×eager':>7}" if cpu else ""))
     for name in names:
         lat = [r[name][0] for r in rounds]
         ips = [r[name][1] for r in rounds]
         speedup = statistics.median(r["baseline"][0] / r[name][0] for r in rounds)
         gain = statistics.median(r[name][1] / r["baseline"][1] for r in rounds)
-        print(f"{name:18} {statistics.median(lat):8.3f} {min(lat):7.3f}–{max(lat):<7.3f} {speedup:7.2f} "
-              f"{statistics.median(ips):10.0f} {min(ips):8.0f}–{max(ips):<8.0f} {gain:7.2f}")
+        mac = macs[name]
+        line = (f"{name:22} {statistics.median(lat):8.3f} {min(lat):7.3f}–{max(lat):<7.3f} {speedup:7.2f} "
+                f"{statistics.median(ips):10.0f} {min(ips):8.0f}–{max(ips):<8.0f} {gain:7.2f} {mac / 1e6:6.1f} "
+                f"{mac / statistics.median(lat) / 1e6:9.1f} {mac * statistics.median(ips) / 1e9:6.1f}")
+        if cpu:
+            line += (f" {statistics.median(r[name][2] for r in rounds):10.3f} "
+                     f"{statistics.median(r['baseline'][2] / r[name][2] for r in rounds):7.2f}")
+        print(line)
+
+
+def artifact_macs(trained, built: dict) -> dict[str, int]:
+    """MACs per image: what a strategy recorded (pruned networks), else the trained network's."""
+    model, _ = load_checkpoint(trained / "model.pt")
+    full = multiply_accumulates(model, (None, 3, 66, 200))
+    return {name: read_meta(folder).extra.get("macs", full) for name, folder in built.items()}
+
+
+def gemm_peak(threads: int, size: int = 1024) -> dict[str, float]:
+    """This machine's GEMM rate now (GMAC/s, best of 10; CPU time with one thread, else wall
+    clock): fp32 MatMul and u8s8 MatMulInteger."""
+    import onnxruntime
+    from onnx import TensorProto, helper
+    rng = np.random.default_rng(0)
+    rates = {}
+    for kind, dtype, op in (("fp32", np.float32, "MatMul"), ("int8", np.int8, "MatMulInteger")):
+        weight = (rng.random((size, size)) * 100).astype(dtype)
+        inputs = (rng.random((size, size)) * 100).astype(np.float32 if kind == "fp32" else np.uint8)
+        graph = helper.make_graph(
+            [helper.make_node(op, ["a", "b"], ["y"])], "peak",
+            [helper.make_tensor_value_info("a", helper.np_dtype_to_tensor_dtype(inputs.dtype), [size, size])],
+            [helper.make_tensor_value_info("y", TensorProto.FLOAT if kind == "fp32" else TensorProto.INT32, None)],
+            [helper.make_tensor("b", helper.np_dtype_to_tensor_dtype(weight.dtype), weight.shape, weight.tobytes(), raw=True)])
+        model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], ir_version=9)
+        options = onnxruntime.SessionOptions()
+        options.intra_op_num_threads = threads
+        session = onnxruntime.InferenceSession(model.SerializeToString(), options, providers=["CPUExecutionProvider"])
+        clock = time.thread_time if threads == 1 else time.perf_counter   # see cpu_latency
+        times = []
+        for _ in range(12):
+            start = clock()
+            session.run(None, {"a": inputs})
+            times.append(clock() - start)
+        rates[kind] = size ** 3 / min(times[2:]) / 1e9
+    return rates
 
 
 def overhead(predictors, profile, one) -> None:
@@ -112,6 +178,7 @@ def test_benchmark_every_strategy(trained, tmp_path):
     frames = tmp_path / "frames"
     random_frames(256, seed=3).save(frames)
     built, skipped = build_all(trained, frames, tmp_path / "artifacts")
+    macs = artifact_macs(trained, built)
     test = random_frames(64, seed=4)
     one, many = sample_batch(test, 1, 1), sample_batch(test, 64, 1)
     print(f"\nhost: {describe_host(host_fingerprint())}; load average before: {os.getloadavg()}")
@@ -120,7 +187,10 @@ def test_benchmark_every_strategy(trained, tmp_path):
     for profile in (make_profile("cpu1"), make_profile("cpu")) if cpu_count() > 1 else (make_profile("cpu1"),):
         predictors = {name: load_predictor(folder, profile) for name, folder in built.items()}
         rounds = [measure_round(predictors, profile, one, many) for _ in range(ROUNDS)]
-        print_table(profile, rounds)
+        print_table(profile, rounds, macs)
+        peak = gemm_peak(profile.cpu_threads)
+        print(f"GEMM peak now ({profile.cpu_threads} thread(s)): fp32 {peak['fp32']:.0f} GMAC/s, "
+              f"int8 (u8s8) {peak['int8']:.0f} GMAC/s; load average {os.getloadavg()}")
         overhead(predictors, profile, one)
         del predictors
     print(f"load average after: {os.getloadavg()}")

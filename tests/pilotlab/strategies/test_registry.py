@@ -10,7 +10,8 @@ from pilotlab.errors import PilotlabError
 from pilotlab.strategies import STRATEGIES, make_strategy_config, register_strategy, strategy_modules
 
 STUDY = {"baseline", "dynamic_quant", "static_quant", "qat", "local_prune", "global_prune", "prune_quant"}
-BEYOND = {"torchscript", "onnxruntime", "onnxruntime_int8", "bf16", "fp16", "structured_prune", "cluster", "tensorrt"}
+BEYOND = {"torchscript", "onnxruntime", "onnxruntime_int8", "bf16", "fp16", "structured_prune", "structured_prune_int8",
+          "cluster", "tensorrt"}
 
 
 def test_the_study_set_and_beyond_are_registered():
