@@ -3,9 +3,10 @@
 Steering is pure pursuit on the red line (a target point a speed-dependent distance ahead of the rear
 axle); speed follows a profile planned from the line's curvature (lateral acceleration limit, braking
 before corners, acceleration after them), and eases off when it finds itself off the line (at speed,
-pure pursuit back to the line would otherwise overshoot and slide). With noise (`Swerves`), the
-expert now and then swerves off the line, where the road ahead leaves room for it, and comes back;
-the recorded label stays the expert's clean command, so a dataset teaches how to return to the line.
+pure pursuit back to the line would otherwise overshoot and slide). With noise (`Swerves`), a random
+yaw rate is now and then added to what it applies, within what the road leaves room and grip for,
+and it recovers by itself; the recorded label stays the expert's clean command, so a dataset
+teaches how to return to the line.
 """
 from __future__ import annotations
 
@@ -67,9 +68,8 @@ class Expert:
     def target_speed(self, s: float) -> float:
         return float(np.interp(s % self.circuit.length, self.circuit.arc, self.profile, period=self.circuit.length))
 
-    def act(self, info: dict[str, Any], offset: float = 0.0) -> tuple[float, float]:
-        """The command for this state: pure pursuit on the red line, or with `offset` on the line
-        shifted that many metres to the left (right if negative), as `Swerves` uses."""
+    def act(self, info: dict[str, Any]) -> tuple[float, float]:
+        """The command for this state: pure pursuit on the red line."""
         if info["circuit"] != self.circuit.name or info["direction"] != self.circuit.direction:
             raise PilotlabError(f"this expert drives {self.circuit.name} {self.circuit.direction}, "
                                 f"the env is on {info['circuit']} {info['direction']}")
@@ -78,13 +78,10 @@ class Expert:
         speed = max(info["speed"], 0.0)
         v = self.target_speed(info["s"] + speed * config.speed_preview_s)
         rear_x, rear_y = x - config.wheelbase / 2 * math.cos(yaw), y - config.wheelbase / 2 * math.sin(yaw)
-        off_line = max(abs(info["lateral_offset"] - offset) - config.on_line_m, 0.0)
+        off_line = max(abs(info["lateral_offset"]) - config.on_line_m, 0.0)
         v *= max(0.5, 1 - config.recovery_slowdown * off_line)
         lookahead = max(config.min_lookahead_m, speed * config.lookahead_s) + config.wheelbase / 2
         target_x, target_y = self.circuit.point_at(info["s"] + lookahead)
-        if offset:
-            heading = float(self.circuit.heading_at(info["s"] + lookahead))
-            target_x, target_y = target_x - offset * math.sin(heading), target_y + offset * math.cos(heading)
         dx, dy = target_x - rear_x, target_y - rear_y
         ahead = dx * math.cos(yaw) + dy * math.sin(yaw)
         left = -dx * math.sin(yaw) + dy * math.cos(yaw)
@@ -95,119 +92,86 @@ class Expert:
 @dataclass(frozen=True)
 class SwerveConfig:
     """How the expert swerves when it records with noise (see `Swerves`)."""
-    offset_m: tuple[float, float] = (0.5, 1.5)  # how far from the line a swerve drifts (either side)...
-    edge_margin_m: float = 1.5       # ...never closer than this to the road edge
-    lateral_accel: tuple[float, float] = (2.0, 4.0)  # m/s² a swerve's path may ask (sets its duration)...
-    grip_budget: float = 8.0         # ...within what the road's own bend leaves of this (m/s², planned speed)
-    min_radius_m: float = 10.0       # no swerve where the road bends tighter than this
+    rate_rad_s: tuple[float, float] = (0.4, 0.9)   # yaw rate added to the expert's, either way...
+    duration_s: tuple[float, float] = (0.3, 0.7)   # ...for this long
+    grip_budget: float = 8.0         # m/s²: the road's own bend plus the swerve's v·rate stay within this...
+    min_rate_rad_s: float = 0.25     # ...and where that leaves less than this, no swerve
     settle_s: float = 1.0            # after a swerve, at least this long before the next one
-    start_within_m: float = 0.3      # a swerve starts only this close to the line...
-    start_heading_rad: float = 0.1   # ...and this well aligned with it
-    abort_margin_m: float = 1.0      # a swerve ends at once if the car would come this near the edge...
+    start_within_m: float = 0.5      # a swerve starts only this close to the line...
+    start_heading_rad: float = 0.15  # ...and this well aligned with it
+    max_offset_m: float = 1.5        # a swerve ends once this far from the line...
+    abort_margin_m: float = 1.0      # ...or if the car would come this near the road edge...
     abort_preview_s: float = 0.3     # ...this soon at its current heading
-    version: int = 1
+    version: int = 2
 
 
 class Swerves:
-    """Noise injection: the expert now and then swerves off the line and comes back.
+    """Noise injection: now and then a random yaw rate is added to the expert's for half a second
+    or so, and the expert recovers by itself.
 
-    A swerve is a smooth excursion, out and back: the expert pursues the line shifted by
-    `peak · (1 - cos(2π t / T)) / 2`, with a random peak of `offset_m` either side, and T as short as
-    the lateral acceleration allowed for it permits (about 1.5 to 4 s). It is bounded by the road
-    edge: the peak stays `edge_margin_m` inside it, and should the car head for the edge anyway the
-    swerve ends at once and the expert recovers from there. It is bounded by the road ahead: it
-    starts only when the car is back on the line, and must be over before the road bends tighter
-    than `min_radius_m` or asks so much grip that less than `lateral_accel[0]` would be left of
-    `grip_budget`; its acceleration is what the stretch leaves, and it shrinks to fit the room
-    there is (`fit`), so no swerve starts in or just before a tight corner, where coming back would
-    need more grip than the tyres have.
+    The label recorded stays the expert's clean command, so a dataset shows the car off the line and
+    askew, with the command that brings it back: the recoveries a network cannot learn from clean
+    laps. `noise` is roughly the fraction of driving time spent swerving (0.1: a tenth).
 
-    `noise` is roughly the fraction of driving time spent swerving: swerves fall due at regular-ish
-    intervals (at least `settle_s` apart); one that falls due where the road leaves no room waits for
-    the next stretch that does, so twisty circuits get somewhat less (0.1 gives 5-8 % on the five
-    built-in circuits). The label recorded stays the expert's clean command: frames during and after
-    a swerve show the car off the line, heading away or back, with the command that returns it."""
+    A swerve is bounded so the car never leaves the road: it starts only when the car is near the
+    line and aligned with it, at least `settle_s` after the last one; its rate is cut so the lateral
+    acceleration it adds (v · rate) fits in what the road's own bend leaves of `grip_budget` (so in a
+    tight corner at speed it is small or none at all); and it ends early once the car is
+    `max_offset_m` from the line or heading for the edge."""
 
     def __init__(self, noise: float, rng: np.random.Generator, expert: Expert,
                  config: SwerveConfig = SwerveConfig()):
         if not 0 <= noise < 1:
             raise PilotlabError(f"noise is the fraction of time spent swerving, in [0, 1); got {noise}")
         self.noise, self.rng, self.expert, self.config = noise, rng, expert, config
-        self._demand = expert.profile ** 2 * expert.bend  # m/s² the road asks at the planned speed
-        self._peak, self._duration, self._elapsed, self._due = 0.0, 0.0, 0.0, math.inf
-        if noise > 0:
-            self._schedule()
-
-    @staticmethod
-    def duration(peak: float, lateral_accel: float) -> float:
-        """Seconds for an out-and-back excursion of `peak` metres whose path's lateral
-        acceleration, peak · 2π² / T², is `lateral_accel`."""
-        return math.pi * math.sqrt(2 * abs(peak) / lateral_accel)
+        self._left, self._rate, self._settle = 0.0, 0.0, 0.0
 
     def __call__(self, command: tuple[float, float], info: dict[str, Any], dt: float) -> tuple[float, float]:
         """The command to apply for the next `dt` seconds (`command`: the expert's clean one)."""
+        if self.swerving and self._too_far(info):
+            self._end()
         if not self.swerving:
-            self._due -= dt
-            if self._due <= 0:
+            self._settle -= dt
+            if self._settle <= 0 and self._falls_due(dt):
                 self._try_to_start(info)
-        if self.swerving and self._heading_for_the_edge(info):
-            self._schedule()
         if not self.swerving:
             return command
-        self._elapsed += dt
-        if self._elapsed >= self._duration:
-            self._schedule()
-            return command
-        offset = self._peak * (1 - math.cos(2 * math.pi * self._elapsed / self._duration)) / 2
-        return self.expert.act(info, offset=offset)
+        self._left -= dt
+        if self._left <= 0:
+            self._end()
+        return command[0], command[1] + self._rate
 
     @property
     def swerving(self) -> bool:
-        return self._duration > 0
+        return self._left > 0
 
-    def _schedule(self) -> None:
-        """End any swerve and set when the next falls due (sooner by however long this one waited
-        for a stretch that allowed it) and how far it goes."""
-        config = self.config
-        typical = self.duration(sum(config.offset_m) / 2, sum(config.lateral_accel) / 2)
-        wait = typical * (1 - self.noise) / self.noise * self.rng.uniform(0.5, 1.5) + min(self._due, 0.0)
-        self._due, self._duration, self._elapsed = max(wait, config.settle_s), 0.0, 0.0
-        self._peak = self.rng.uniform(*config.offset_m) * float(self.rng.choice((-1.0, 1.0)))
+    def _falls_due(self, dt: float) -> bool:
+        """A Poisson draw whose rate makes swerves take about `noise` of the time."""
+        mean = sum(self.config.duration_s) / 2
+        return self.noise > 0 and self.rng.random() < dt * self.noise / ((1 - self.noise) * mean)
 
-    def fit(self, info: dict[str, Any], peak: float) -> tuple[float, float] | None:
-        """The swerve of at most `peak` metres (signed) that may start now, as (peak, seconds): shrunk
-        to stay `edge_margin_m` inside the road and to be over before the road ahead bends tighter
-        than `min_radius_m` or leaves less than `lateral_accel[0]` of the grip budget, at the
-        lateral acceleration that stretch leaves. None when not even `offset_m[0]` fits."""
-        config, expert = self.config, self.expert
-        low, high = config.lateral_accel
-        reach = max(info["speed"], expert.config.top_speed) * self.duration(config.offset_m[1], low)
-        ahead = self._points_ahead(info["s"], reach)
-        blocked = (expert.bend[ahead] > 1 / config.min_radius_m) | (self._demand[ahead] > config.grip_budget - low)
-        free = ahead[:int(np.argmax(blocked))] if blocked.any() else ahead
-        if len(free) < 2:
-            return None
-        speed = max(info["speed"], float(expert.profile[free].max()))   # the fastest it goes through there
-        seconds = len(free) * self.expert.circuit.length / len(expert.profile) / speed
-        accel = min(high, config.grip_budget - float(self._demand[free].max()))
-        size = min(abs(peak), info["road_width"] / 2 - config.edge_margin_m, accel * seconds ** 2 / (2 * math.pi ** 2))
-        return (math.copysign(size, peak), self.duration(size, accel)) if size >= config.offset_m[0] else None
-
-    def _points_ahead(self, s: float, metres: float) -> np.ndarray:
-        """Indices of the centreline points from `s` to `metres` further on (wrapping round)."""
-        circuit, count = self.expert.circuit, len(self.expert.profile)
-        first = int(np.searchsorted(circuit.arc, s % circuit.length, side="right")) - 1
-        return (first + np.arange(math.ceil(metres * count / circuit.length) + 1)) % count
+    def allowed_rate(self, info: dict[str, Any]) -> float:
+        """The largest yaw rate a swerve may add here: what the bend leaves of the grip budget."""
+        speed = max(info["speed"], 1.0)
+        demand = speed * speed * float(np.interp(info["s"] % self.expert.circuit.length, self.expert.circuit.arc,
+                                                 self.expert.bend, period=self.expert.circuit.length))
+        return max(self.config.grip_budget - demand, 0.0) / speed
 
     def _try_to_start(self, info: dict[str, Any]) -> None:
         config = self.config
         if abs(info["lateral_offset"]) > config.start_within_m or abs(info["heading_error"]) > config.start_heading_rad:
             return
-        swerve = self.fit(info, self._peak)
-        if swerve is not None:
-            (self._peak, self._duration), self._elapsed = swerve, 0.0
+        rate = min(self.rng.uniform(*config.rate_rad_s), self.allowed_rate(info))
+        if rate >= config.min_rate_rad_s:
+            self._rate = rate * float(self.rng.choice((-1.0, 1.0)))
+            self._left = self.rng.uniform(*config.duration_s)
 
-    def _heading_for_the_edge(self, info: dict[str, Any]) -> bool:
-        drift = max(info["speed"], 0.0) * math.sin(info["heading_error"]) * self.config.abort_preview_s
-        limit = info["road_width"] / 2 - self.config.abort_margin_m
-        return max(abs(info["lateral_offset"]), abs(info["lateral_offset"] + drift)) > limit
+    def _end(self) -> None:
+        self._left, self._settle = 0.0, self.config.settle_s
+
+    def _too_far(self, info: dict[str, Any]) -> bool:
+        config = self.config
+        drift = max(info["speed"], 0.0) * math.sin(info["heading_error"]) * config.abort_preview_s
+        edge = info["road_width"] / 2 - config.abort_margin_m
+        offset = abs(info["lateral_offset"])
+        return offset > config.max_offset_m or max(offset, abs(info["lateral_offset"] + drift)) > edge

@@ -126,7 +126,7 @@ def test_ctrl_c_leaves_a_valid_readable_bag(tmp_path):
 
 
 def record_with_swerves(tmp_path, circuit, direction, seed):
-    """A lap recorded with noise 0.1 (tiny frames) and the share of its odometry more than 0.5 m off
+    """A lap recorded with noise 0.1 (tiny frames) and the share of its odometry more than 0.3 m off
     the line, read back from the bag: the recoveries the noise is there for."""
     spec = RecordSpec(circuit=circuit, direction=direction, seed=seed, noise=0.1, width=32, height=24, rate_hz=5,
                       format="ros2")
@@ -135,7 +135,7 @@ def record_with_swerves(tmp_path, circuit, direction, seed):
     for _, message in read_bag(summary.path)[ODOM_TOPIC]:
         projection = track.project(message.pose.pose.position.x, message.pose.pose.position.y, near_s=near)
         near = projection.s
-        off.append(projection.distance > 0.5)
+        off.append(projection.distance > 0.3)
     return summary, float(np.mean(off))
 
 
@@ -153,7 +153,7 @@ def test_recordings_with_swerves_stay_on_every_circuit(tmp_path, name, direction
     results = [record_with_swerves(tmp_path, name, direction, seed) for seed in (0, 1, 2, 3)]
     for seed, (summary, off_line) in enumerate(results):
         print(f"\n{name} {direction} seed {seed}: {summary.termination}, max {summary.max_distance_to_line_m:.2f} m "
-              f"from the line, {off_line:.1%} of the lap more than 0.5 m off")
+              f"from the line, {off_line:.1%} of the lap more than 0.3 m off")
         assert summary.termination == "lap_completed"
         assert summary.max_distance_to_line_m < 2.0                          # the road's edge is 3 m away
-    assert max(s.max_distance_to_line_m for s, _ in results) > 0.8 and np.mean([o for _, o in results]) > 0.01
+    assert max(s.max_distance_to_line_m for s, _ in results) > 0.5 and np.mean([o for _, o in results]) > 0.01
