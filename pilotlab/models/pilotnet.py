@@ -2,7 +2,9 @@
 
 BatchNorm on the input; convs 24, 36, 48 (5×5, stride 2) and 64, 64 (3×3); FC 1164, 100, 50, 10, 2;
 ReLU after every layer but the last. 1,595,528 parameters, 1.34 M of them in the first fully
-connected layer. DeepLearningStudio's PyTorch PilotNet has no dropout, so `dropout` defaults to 0
+connected layer. Weights start with He (Kaiming) initialisation and biases at zero: with torch's
+default the activations shrink layer by layer until the biases decide the 10-unit layer's sign, and
+for some seeds all ten units start dead (the network then outputs a constant, whatever it is shown). DeepLearningStudio's PyTorch PilotNet has no dropout, so `dropout` defaults to 0
 (no Dropout module at all); set it to add one after the last convolution. Its config,
 `PilotNetConfig` (height, width, channels, outputs, dropout), is in configs.py.
 """
@@ -42,6 +44,14 @@ class PilotNet(nn.Module):
             nn.Linear(50, 10), nn.ReLU(),
             nn.Linear(10, config.outputs),                 # [N, 2]: normalised v, w
         )
+        self._init_weights()
+
+    def _init_weights(self) -> None:
+        layers = [m for m in self.modules() if isinstance(m, (nn.Conv2d, nn.Linear))]
+        for layer in layers[:-1]:  # followed by a ReLU
+            nn.init.kaiming_normal_(layer.weight, nonlinearity="relu")
+            nn.init.zeros_(layer.bias)
+        nn.init.zeros_(layers[-1].bias)
 
     def forward(self, images: torch.Tensor) -> torch.Tensor:  # images: [N, C, 66, 200] in [0, 1]
         return self.head(self.features(self.input_norm(images)))

@@ -33,6 +33,20 @@ def test_pilotnet_is_deeplearningstudios():
     assert model(torch.rand(2, 3, 66, 200)).shape == (2, 2)
 
 
+@pytest.mark.parametrize("arch", ["pilotnet", "pilotnet_stacked"])
+def test_no_seed_starts_with_a_dead_bottleneck(arch):
+    """With torch's default initialisation, seed 1 started PilotNet with all ten units of its 10-wide
+    layer dead: it output a constant and never learned. He initialisation keeps them alive."""
+    for seed in range(12):
+        torch.manual_seed(seed)
+        model = build_model(arch).train()
+        images = torch.rand(32, model.input_norm.num_features, 66, 200)
+        with torch.no_grad():
+            bottleneck = model.head[:-1](model.features(model.input_norm(images)))   # [32, 10] after the ReLU
+        assert (bottleneck > 0).any(0).sum() >= 5, f"seed {seed}"
+        assert model(images).std(0).min() > 0
+
+
 def test_pilotnet_dropout_is_an_option():
     model = build_model("pilotnet", make_config("pilotnet", {"dropout": 0.3}))
     assert [m.p for m in model.modules() if isinstance(m, nn.Dropout)] == [0.3]
