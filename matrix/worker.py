@@ -56,18 +56,21 @@ def _run_locked(store: Store, spec: dict) -> dict:
     key, started = spec["key"], time.time()
     workdir = store.new_workdir(key)
     deps = _dep_results(store, spec)
-    blocked = _not_applicable_dep(spec, deps)
+    blocker = _not_applicable_dep(deps)
     try:
-        if blocked:
-            status, reason, value = NOT_APPLICABLE, blocked, {}
+        if blocker:
+            status, reason, value = NOT_APPLICABLE, blocker.reason, {}
         else:
             status, reason, value = _call_handler(store, spec, deps, workdir)
     except Exception as error:  # a failing handler is reported, never crashes the run
         return _fail(store, spec, workdir, error, started)
     result = {"status": status, "reason": reason, "value": value, "duration_s": time.time() - started,
               "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    if blocker:   # the reason stays the dependency's own, so cells blocked for one cause group together
+        result["blocked_by"] = blocker.name
     store.commit(key, workdir, spec, result)
-    return {"status": status, "reason": reason, "duration_s": result["duration_s"]}
+    shown = f"{reason} ({blocker.name})" if blocker else reason
+    return {"status": status, "reason": shown, "duration_s": result["duration_s"]}
 
 
 def _call_handler(store: Store, spec: dict, deps: dict, workdir: Path) -> tuple[str, str, dict]:
@@ -97,11 +100,12 @@ def _dep_results(store: Store, spec: dict) -> dict[str, DepResult | tuple[DepRes
             for role, keys in spec["deps"].items()}
 
 
-def _not_applicable_dep(spec: dict, deps: dict) -> str:
+def _not_applicable_dep(deps: dict) -> DepResult | None:
+    """The first dependency that was not applicable: this job is not applicable for the same reason."""
     for dep in (d for value in deps.values() for d in (value if isinstance(value, tuple) else (value,))):
         if dep.status == NOT_APPLICABLE:
-            return f"{dep.reason} ({dep.name})"
-    return ""
+            return dep
+    return None
 
 
 def _fail(store: Store, spec: dict, workdir: Path, error: Exception, started: float) -> dict:

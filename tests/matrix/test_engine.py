@@ -102,6 +102,9 @@ def test_not_applicable_is_cached_and_propagates(tmp_path):
     assert status["source c"] == ("not_applicable", "this source needs hardware we do not have")
     assert status["power c^2"][0] == "not_applicable" and "source c" in status["power c^2"][1]
     assert status["total"][0] == "not_applicable"
+    squared = next(o for o in summary.outcomes if o.name == "power c^2")
+    stored = store.result(squared.key)           # the cause's own reason, and which job it was
+    assert stored["reason"] == "this source needs hardware we do not have" and stored["blocked_by"] == "source c"
     _, summary = run(recipe_file(tmp_path, c_extra=", not_applicable: true"), store)
     assert summary.outcomes == []
 
