@@ -58,7 +58,8 @@ def pareto_front(points: list[tuple[float, float]]) -> list[tuple[float, float]]
 def _grid(count: int, width: float = 5.2, height: float = 4.0, columns: int = 3) -> tuple[Figure, list]:
     ncols = min(count, columns)
     nrows = math.ceil(count / ncols)
-    figure = Figure(figsize=(width * ncols, height * nrows), layout="constrained")
+    # at least 8 in wide: the legend sits outside on the right and the title spans the whole figure
+    figure = Figure(figsize=(max(width * ncols, 8.0), height * nrows), layout="constrained")
     axes = figure.subplots(nrows, ncols, squeeze=False).ravel().tolist()
     for unused in axes[count:]:
         unused.set_visible(False)
@@ -74,7 +75,7 @@ def _identity_handles(data: ReportData, rows: list[ReportRow]) -> list[Line2D]:
     shown = dict.fromkeys(r.strategy for r in rows)
     handles = [Line2D([], [], ls="", marker="o", color=colours[s], markersize=8, label=s) for s in shown]
     models = list(dict.fromkeys(r.model for r in rows))
-    if len(data.models()) > 1:
+    if len(models) > 1:   # one model (the references are not plotted here): its marker says nothing
         handles += [Line2D([], [], ls="", marker=markers[m], color="0.4", markersize=8, label=m) for m in models]
     return handles
 
