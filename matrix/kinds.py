@@ -1,8 +1,8 @@
 """Job kinds: the domain registers a handler per kind; the engine runs it in a worker.
 
-    @job_kind("train", code=["pilotlab.training", "pilotlab.models"])
+    @job_kind("train", code=["mydomain.training", "mydomain.models"])
     def run_train(ctx: JobContext) -> dict:
-        from pilotlab.training import fit   # heavy libraries: in the handler, not to plan
+        fit = load_trainer()     # heavy libraries: in the handler, not at import, so planning stays quick
         ...                      # read ctx.params, ctx.deps["data"].artifacts, write into ctx.out
         return {"val_mse": 0.01} # JSON-serialisable result
 
