@@ -66,7 +66,7 @@ CODE = ["pilotlab.online.brains", "pilotlab.online.drive", "pilotlab.online.eval
         "pilotlab.online.metrics", "pilotlab.online.trajectory", "pilotlab.predictor", "pilotlab.strategies.artifact",
         "pilotlab.data.preprocess", "pilotlab.data.frames", "pilotlab.sim.env", "pilotlab.sim.car",
         "pilotlab.sim.camera", "pilotlab.sim.render", "pilotlab.sim.world", "pilotlab.sim.expert",
-        "pilotlab.sim.explicit", "pilotlab.circuits.circuit", "pilotlab.circuits.geometry",
+        "pilotlab.sim.explicit", "pilotlab.circuits.circuit", "pilotlab.circuits.draw", "pilotlab.circuits.geometry",
         "pilotlab.circuits.registry"]
 DEFAULTS: dict[str, Any] = {
     "brain": None, "brain_options": {}, "hardware": {"name": "cpu"}, "host": None, "circuit": None, "direction": "cw",

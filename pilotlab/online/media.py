@@ -22,6 +22,7 @@ import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
 
 from pilotlab.circuits import Circuit  # noqa: E402
+from pilotlab.circuits.draw import colour, save_figure  # noqa: E402
 from pilotlab.errors import PilotlabError  # noqa: E402
 from pilotlab.online.trajectory import Trajectory  # noqa: E402
 from pilotlab.sim.camera import GROUND, LINE, ROAD  # noqa: E402
@@ -29,16 +30,12 @@ from pilotlab.sim.camera import GROUND, LINE, ROAD  # noqa: E402
 END_MARKERS = {"lap_completed": "^", "timeout": "s", "off_road": "X", "trapped": "X"}
 
 
-def _colour(rgb) -> tuple[float, float, float]:
-    return tuple(c / 255 for c in rgb)
-
-
 def _draw_road(axes, circuit: Circuit) -> None:
     left, right = circuit.offset_line(circuit.road_width / 2), circuit.offset_line(-circuit.road_width / 2)
     quads = np.stack([left, np.roll(left, -1, axis=0), np.roll(right, -1, axis=0), right], axis=1)
-    axes.add_collection(PolyCollection(quads, facecolors=_colour(ROAD), edgecolors=_colour(ROAD), linewidths=0.3))
+    axes.add_collection(PolyCollection(quads, facecolors=colour(ROAD), edgecolors=colour(ROAD), linewidths=0.3))
     loop = np.vstack([circuit.points, circuit.points[:1]])
-    axes.plot(loop[:, 0], loop[:, 1], color=_colour(LINE), linewidth=2.2, label="red line")
+    axes.plot(loop[:, 0], loop[:, 1], color=colour(LINE), linewidth=2.2, label="red line")
 
 
 def _draw_run(axes, trajectory: Trajectory, norm) -> LineCollection:
@@ -61,7 +58,7 @@ def plot_trajectories(circuit: Circuit, trajectories: Sequence[Trajectory], path
     x0, y0, x1, y1 = circuit.bounds(margin=circuit.road_width + 4)
     scale = 9.0 / max(x1 - x0, y1 - y0)
     figure, axes = plt.subplots(figsize=(max((x1 - x0) * scale, 4.0) + 1.6, max((y1 - y0) * scale, 3.0) + 0.8))
-    axes.set_facecolor(_colour(GROUND))
+    axes.set_facecolor(colour(GROUND))
     _draw_road(axes, circuit)
     top = max(float(np.max(t.speed)) for t in trajectories)
     norm = plt.Normalize(0.0, max(top, 1.0))
@@ -74,12 +71,7 @@ def plot_trajectories(circuit: Circuit, trajectories: Sequence[Trajectory], path
     axes.set_xlabel("x (m)")
     axes.set_ylabel("y (m)")
     axes.set_title(title or f"{circuit.name} ({circuit.direction})", fontsize=9)
-    figure.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=dpi)
-    plt.close(figure)
-    return path
+    return save_figure(figure, path, dpi)
 
 
 class CameraRecorder:
