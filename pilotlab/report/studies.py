@@ -63,6 +63,16 @@ def _clearly_faster(rows: dict[str, ReportRow], strategy: str) -> bool:
     return slow < base.get("latency_ms")
 
 
+def _lowest(claim: str, data: ReportData, strategy: str, metric: str, label: str, style: str) -> ClaimCheck:
+    """Holds when `strategy` has the lowest `metric` of the offline rows."""
+    rows = {s: r for s, r in _offline(data).items() if r.get(metric) is not None}
+    if strategy not in rows:
+        return _untestable(claim, f"no {strategy} offline row")
+    best = min(rows, key=lambda s: rows[s].get(metric))
+    return ClaimCheck(claim, _verdict(best == strategy), f"{label}: {best} ({style.format(rows[best].get(metric))}); "
+                                                         f"{strategy} {style.format(rows[strategy].get(metric))}")
+
+
 def _untestable(claim: str, missing: str) -> ClaimCheck:
     return ClaimCheck(claim, "not testable here", missing)
 
@@ -101,24 +111,12 @@ def int8_keeps_mse(data: ReportData) -> ClaimCheck:
 
 def prune_quant_lowest_mse(data: ReportData) -> ClaimCheck:
     claim = "Prune + quantization has the lowest MSE of all (0.0672 vs the baseline's 0.0788)."
-    rows = {s: r for s, r in _offline(data).items() if r.get("mse") is not None}
-    if "prune_quant" not in rows:
-        return _untestable(claim, "no prune_quant offline row")
-    best = min(rows, key=lambda s: rows[s].get("mse"))
-    return ClaimCheck(claim, _verdict(best == "prune_quant"),
-                      f"lowest MSE: {best} ({rows[best].get('mse'):.4g}); prune_quant "
-                      f"{rows['prune_quant'].get('mse'):.4g}")
+    return _lowest(claim, data, "prune_quant", "mse", "lowest MSE", "{:.4g}")
 
 
 def local_prune_fastest(data: ReportData) -> ClaimCheck:
     claim = "Local pruning has the best CPU inference time (2.09 ms vs the baseline's 2.18 ms)."
-    rows = {s: r for s, r in _offline(data).items() if r.get("latency_ms") is not None}
-    if "local_prune" not in rows:
-        return _untestable(claim, "no local_prune offline row")
-    best = min(rows, key=lambda s: rows[s].get("latency_ms"))
-    return ClaimCheck(claim, _verdict(best == "local_prune"),
-                      f"fastest: {best} ({rows[best].get('latency_ms'):.3g} ms); local_prune "
-                      f"{rows['local_prune'].get('latency_ms'):.3g} ms")
+    return _lowest(claim, data, "local_prune", "latency_ms", "fastest", "{:.3g} ms")
 
 
 def unstructured_pruning_no_speedup(data: ReportData) -> ClaimCheck:
