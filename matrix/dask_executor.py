@@ -1,8 +1,8 @@
 """Running the stale part of a plan on a Dask cluster that shares the job store.
 
-Each stale job becomes one Dask future, keyed by the job key, whose arguments include the futures
-of its dependencies, so Dask orders the work and places it; each task runs the same
-`matrix.worker.execute_job` as the local executor, writing to the shared store. The store stays the
+Each stale job becomes one Dask future whose arguments include the futures of its dependencies, so
+Dask orders the work and places it; each task runs the same `matrix.worker.execute_job` as the
+local executor, writing to the shared store. The store stays the
 source of truth: a driver restarted later plans from it, and a worker that dies mid-job leaves only a
 temporary folder behind (Dask reruns the task elsewhere; the lock dies with the process).
 
@@ -13,6 +13,7 @@ only to workers started with `--resources GPU=1`; with `timing_resource="TIMING"
 from __future__ import annotations
 
 import time
+import uuid
 from collections.abc import Iterable
 
 from matrix.errors import MatrixError
@@ -85,12 +86,19 @@ def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: boo
 
 def _submit(client, stale: list[Job], store: Store, kind_modules: tuple, timing_resource: str | None) -> dict:
     futures: dict[str, object] = {}
-    root = str(store.root.resolve())
+    root, run = str(store.root.resolve()), uuid.uuid4().hex[:12]
     for job in stale:  # dependencies first, so their futures exist
         deps = [futures[d.key] for d in job.dep_jobs() if d.key in futures]
-        futures[job.key] = client.submit(run_task, root, job.spec(), kind_modules, *deps, key=job.key,
+        futures[job.key] = client.submit(run_task, root, job.spec(), kind_modules, *deps, key=_task_key(job, run),
                                          pure=False, resources=_resources(job, timing_resource) or None)
     return futures
+
+
+def _task_key(job: Job, run: str) -> str:
+    """The Dask key of a job in this run. Not the bare job key: Dask hands back a task it still
+    holds under the same key (from an earlier run, perhaps on another store) instead of running it.
+    The kind comes first, so Dask's dashboard groups tasks by kind."""
+    return f"{job.kind}-{run}-{job.key}"
 
 
 def _resources(job: Job, timing_resource: str | None) -> dict[str, float]:
