@@ -5,7 +5,8 @@ Variants are interleaved (each round measures every variant in a fresh random or
 repeat, so load from other processes spreads over all variants; the spread (min–max over rounds)
 is printed. Each strategy's multiply-accumulate rate (GMAC/s) is printed next to this machine's
 GEMM peak, measured in the same run (ONNX Runtime fp32 MatMul and u8s8 MatMulInteger, 1024³), so
-how close a strategy is to what the CPU can do shows.
+how close a strategy is to what the CPU can do shows; two ceilings for batch 64 follow it (the full
+network at the int8 peak, and the first convolution alone, which pruning cannot make cheaper).
 Run: PYTHONPATH=. python -m pytest -m benchmark -s tests/pilotlab/strategies/test_benchmark.py
 Never asserts timings (the machine is shared).
 """
@@ -157,6 +158,31 @@ def gemm_peak(threads: int, size: int = 1024) -> dict[str, float]:
     return rates
 
 
+def first_conv_ceiling(threads: int, batch: int = 64, channels: int = 8) -> float:
+    """Images/s of PilotNet's first convolution alone (3 -> `channels`, 5x5, stride 2, fp32 in ONNX
+    Runtime, its fastest kernel for it here), best of 10. It reads the whole 66x200 image whatever
+    the output width, so it does not get cheaper with pruning: no PilotNet-shaped strategy can
+    exceed this throughput on this machine. 8 channels is the least structured pruning keeps."""
+    import onnxruntime
+    from onnx import TensorProto, helper, numpy_helper
+    weight = np.random.default_rng(0).standard_normal((channels, 3, 5, 5)).astype(np.float32)
+    graph = helper.make_graph(
+        [helper.make_node("Conv", ["x", "w"], ["y"], strides=[2, 2]), helper.make_node("Relu", ["y"], ["z"])],
+        "first_conv", [helper.make_tensor_value_info("x", TensorProto.FLOAT, [batch, 3, 66, 200])],
+        [helper.make_tensor_value_info("z", TensorProto.FLOAT, None)], [numpy_helper.from_array(weight, "w")])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], ir_version=9)
+    options = onnxruntime.SessionOptions()
+    options.intra_op_num_threads = threads
+    session = onnxruntime.InferenceSession(model.SerializeToString(), options, providers=["CPUExecutionProvider"])
+    images = np.random.default_rng(1).random((batch, 3, 66, 200), dtype=np.float32)
+    times = []
+    for _ in range(12):
+        start = time.perf_counter()
+        session.run(None, {"x": images})
+        times.append(time.perf_counter() - start)
+    return batch / min(times[2:])
+
+
 def overhead(predictors, profile, one) -> None:
     """pilotlab's latency (Predictor.predict timed by offline.measure_latency) against a bare loop
     timing the runtime call of the same artifact; alternating blocks, medians compared."""
@@ -191,6 +217,8 @@ def test_benchmark_every_strategy(trained, tmp_path):
         peak = gemm_peak(profile.cpu_threads)
         print(f"GEMM peak now ({profile.cpu_threads} thread(s)): fp32 {peak['fp32']:.0f} GMAC/s, "
               f"int8 (u8s8) {peak['int8']:.0f} GMAC/s; load average {os.getloadavg()}")
+        print(f"ceiling for PilotNet at batch 64: int8 peak / full network {peak['int8'] * 1e9 / macs['baseline']:.0f} "
+              f"img/s; its first conv alone (3->8 ch, fp32) {first_conv_ceiling(profile.cpu_threads):.0f} img/s")
         overhead(predictors, profile, one)
         del predictors
     print(f"load average after: {os.getloadavg()}")
