@@ -66,8 +66,11 @@ def _grid(count: int, width: float = 5.2, height: float = 4.0, columns: int = 3)
     return figure, axes[:count]
 
 
-def _legend(figure: Figure, handles: list[Line2D]) -> None:
+def _legend_and_title(figure: Figure, handles: list[Line2D], title: str) -> None:
+    """The legend outside on the right, from the top; the title therefore starts at the left edge
+    (centred, a long title ran into the legend's first entries)."""
     figure.legend(handles=handles, loc="outside right upper", frameon=False)
+    figure.suptitle(title, x=0.01, ha="left")
 
 
 def _identity_handles(data: ReportData, rows: list[ReportRow]) -> list[Line2D]:
@@ -105,8 +108,8 @@ def draw_pareto(data: ReportData) -> Figure | None:
     size_handles = [Line2D([], [], ls="", marker="o", markersize=math.sqrt(area(s)), color="0.75",
                            markeredgecolor="black", label=f"{s:g} MB") for s in shown]
     front_handle = Line2D([], [], color="0.35", ls="--", label="Pareto front")
-    _legend(figure, _identity_handles(data, rows) + [front_handle] + size_handles)
-    figure.suptitle("Latency vs MSE (lower left is better; marker area ∝ model size)")
+    _legend_and_title(figure, _identity_handles(data, rows) + [front_handle] + size_handles,
+            "Latency vs MSE (lower left is better; marker area ∝ model size)")
     return figure
 
 
@@ -181,8 +184,8 @@ def draw_closed_loop(data: ReportData) -> Figure | None:
         ax.grid(alpha=0.3)
     lost_handle = Line2D([], [], ls="", marker="X", color="0.6", markeredgecolor="crimson", markersize=9,
                          label="lap not completed")
-    _legend(figure, _identity_handles(data, rows) + [lost_handle])
-    figure.suptitle("Closed loop: average speed vs deviation from the red line (upper left is better)")
+    _legend_and_title(figure, _identity_handles(data, rows) + [lost_handle],
+            "Closed loop: speed vs deviation from the red line (upper left is better)")
     return figure
 
 
