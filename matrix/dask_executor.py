@@ -2,9 +2,9 @@
 
 Each stale job becomes one Dask future whose arguments include the futures of its dependencies, so
 Dask orders the work and places it; each task runs the same `matrix.worker.execute_job` as the
-local executor, writing to the shared store. The store stays the
-source of truth: a driver restarted later plans from it, and a worker that dies mid-job leaves only a
-temporary folder behind (Dask reruns the task elsewhere; the lock dies with the process).
+local executor, writing to the shared store. The store stays the source of truth: a driver
+restarted later plans from it, and a worker that dies mid-job leaves only a temporary folder behind
+(Dask reruns the task elsewhere; the lock dies with the process).
 
 Placement: a job kind's `resources` (for example {"GPU": 1}) become Dask resources, so such jobs go
 only to workers started with `--resources GPU=1`; with `timing_resource="TIMING"`, exclusive

@@ -109,7 +109,7 @@ def draw_pareto(data: ReportData) -> Figure | None:
                            markeredgecolor="black", label=f"{s:g} MB") for s in shown]
     front_handle = Line2D([], [], color="0.35", ls="--", label="Pareto front")
     _legend_and_title(figure, _identity_handles(data, rows) + [front_handle] + size_handles,
-            "Latency vs MSE (lower left is better; marker area ∝ model size)")
+                      "Latency vs MSE (lower left is better; marker area ∝ model size)")
     return figure
 
 
@@ -185,7 +185,7 @@ def draw_closed_loop(data: ReportData) -> Figure | None:
     lost_handle = Line2D([], [], ls="", marker="X", color="0.6", markeredgecolor="crimson", markersize=9,
                          label="lap not completed")
     _legend_and_title(figure, _identity_handles(data, rows) + [lost_handle],
-            "Closed loop: speed vs deviation from the red line (upper left is better)")
+                      "Closed loop: speed vs deviation from the red line (upper left is better)")
     return figure
 
 

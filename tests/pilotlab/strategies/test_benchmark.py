@@ -162,7 +162,7 @@ def first_conv_ceiling(threads: int, batch: int = 64, channels: int = 8) -> floa
     """Images/s of PilotNet's first convolution alone (3 -> `channels`, 5x5, stride 2, fp32 in ONNX
     Runtime, its fastest kernel for it here), best of 10. It reads the whole 66x200 image whatever
     the output width, so it does not get cheaper with pruning: no PilotNet-shaped strategy can
-    exceed this throughput on this machine. 8 channels is the least structured pruning keeps."""
+    exceed this throughput on this machine. 8 is the fewest channels structured pruning keeps."""
     import onnxruntime
     from onnx import TensorProto, helper, numpy_helper
     weight = np.random.default_rng(0).standard_normal((channels, 3, 5, 5)).astype(np.float32)
