@@ -20,7 +20,7 @@ from matrix.errors import MatrixError
 from matrix.execute import NOT_STARTED, SKIPPED, Outcome, RunSummary
 from matrix.jobs import Job
 from matrix.kinds import KINDS
-from matrix.stale import FRESH, JobStatus
+from matrix.stale import FRESH, JobStatus, results_to_replace
 from matrix.store import Store
 from matrix.worker import FAILED, execute_job
 
@@ -49,13 +49,13 @@ def connect(scheduler: str | None, workers: int = 2):
     return distributed.Client(cluster)
 
 
-def run_task(store_root: str, spec: dict, kind_modules: tuple, *deps: dict) -> dict:
+def run_task(store_root: str, spec: dict, kind_modules: tuple, replaces: str | None, *deps: dict) -> dict:
     """The Dask task: skip when a dependency failed, else run the job (locked, atomic)."""
     for dep in deps:
         if dep["status"] in BLOCKING:
             return {"status": SKIPPED, "reason": f"dependency failed: {dep['name']}", "name": spec["name"]}
     while True:
-        answer = execute_job(store_root, spec, kind_modules)
+        answer = execute_job(store_root, spec, kind_modules, replaces)
         if answer["status"] != "busy":  # another run holds the job: wait for it, then read its result
             return {**answer, "name": spec["name"]}
         time.sleep(0.2)
@@ -68,7 +68,8 @@ def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: boo
     stale = [s.job for s in statuses if s.state != FRESH]
     summary = RunSummary(fresh=len(statuses) - len(stale))
     started = time.monotonic()
-    futures = _submit(client, stale, store, tuple(kind_modules), timing_resource)
+    replacing = results_to_replace(statuses)
+    futures = _submit(client, stale, store, tuple(kind_modules), timing_resource, replacing)
     jobs = {future.key: job for job, future in zip(stale, futures.values())}
     stopping = False
     for future in distributed.as_completed(list(futures.values())):
@@ -84,12 +85,14 @@ def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: boo
     return summary
 
 
-def _submit(client, stale: list[Job], store: Store, kind_modules: tuple, timing_resource: str | None) -> dict:
+def _submit(client, stale: list[Job], store: Store, kind_modules: tuple, timing_resource: str | None,
+            replacing: dict[str, str]) -> dict:
     futures: dict[str, object] = {}
     root, run = str(store.root.resolve()), uuid.uuid4().hex[:12]
     for job in stale:  # dependencies first, so their futures exist
         deps = [futures[d.key] for d in job.dep_jobs() if d.key in futures]
-        futures[job.key] = client.submit(run_task, root, job.spec(), kind_modules, *deps, key=_task_key(job, run),
+        futures[job.key] = client.submit(run_task, root, job.spec(), kind_modules, replacing.get(job.key), *deps,
+                                         key=_task_key(job, run),
                                          pure=False, resources=_resources(job, timing_resource) or None)
     return futures
 

@@ -19,7 +19,7 @@ from matrix.dag import dependents
 from matrix.display import Display, NullDisplay
 from matrix.jobs import Job
 from matrix.kinds import KINDS
-from matrix.stale import FRESH, JobStatus
+from matrix.stale import FRESH, JobStatus, results_to_replace
 from matrix.store import Store
 from matrix.worker import BUSY, DONE_ELSEWHERE, FAILED, execute_job, init_worker
 
@@ -113,7 +113,8 @@ def run_local(statuses: list[JobStatus], store: Store, *, jobs: int = 1, keep_go
     summary = RunSummary(fresh=len(statuses) - len(stale))
     started = time.monotonic()
     if stale:
-        with _Pool(store, max(1, jobs), tuple(kind_modules), display) as pool:
+        replacing = results_to_replace(statuses)
+        with _Pool(store, max(1, jobs), tuple(kind_modules), display, replacing) as pool:
             _drive(Schedule(stale), pool, summary, keep_going, display)
     summary.wall_s = time.monotonic() - started
     return summary
@@ -174,8 +175,9 @@ def _outcome(job: Job, future: Future) -> Outcome:
 class _Pool:
     """A spawn-based process pool that is rebuilt if a worker dies, plus a progress queue."""
 
-    def __init__(self, store: Store, slots: int, kind_modules: tuple, display: Display):
+    def __init__(self, store: Store, slots: int, kind_modules: tuple, display: Display, replacing: dict[str, str]):
         self.store, self.slots, self.kind_modules, self.display = store, slots, kind_modules, display
+        self.replacing = replacing   # forced jobs: key -> the stored result to run again
         self.context = multiprocessing.get_context("spawn")
         self.progress = self.context.Queue()
         self.executor = self._new_executor()
@@ -185,12 +187,13 @@ class _Pool:
                                    initargs=(self.kind_modules, self.progress))
 
     def submit(self, job: Job) -> Future:
+        arguments = (execute_job, str(self.store.root), job.spec(), (), self.replacing.get(job.key))
         try:
-            return self.executor.submit(execute_job, str(self.store.root), job.spec())
+            return self.executor.submit(*arguments)
         except BrokenProcessPool:
             self.executor.shutdown(wait=False, cancel_futures=True)
             self.executor = self._new_executor()
-            return self.executor.submit(execute_job, str(self.store.root), job.spec())
+            return self.executor.submit(*arguments)
 
     def drain_progress(self) -> None:
         while not self.progress.empty():

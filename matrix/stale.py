@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from matrix.jobs import Job, canonical_json
-from matrix.store import Store
+from matrix.store import Store, result_token
 
 FRESH, STALE, NEW = "fresh", "stale", "new"
 
@@ -24,6 +24,7 @@ class JobStatus:
     job: Job
     state: str                  # fresh | stale | new
     reasons: tuple[str, ...]
+    replaces: str | None = None  # forced: the token of the stored result the run is to replace
 
     @property
     def reason(self) -> str:
@@ -32,9 +33,9 @@ class JobStatus:
 
 def job_status(job: Job, store: Store, previous: Mapping[str, dict],
                forced_kinds: Collection[str] = ()) -> JobStatus:
-    if job.kind in forced_kinds:
-        return JobStatus(job, STALE, (f"forced (--force {job.kind})",))
     result = store.result(job.key)
+    if job.kind in forced_kinds:
+        return JobStatus(job, STALE, (f"forced (--force {job.kind})",), result and result_token(result))
     if result is not None and store.outputs_intact(job.key, result):
         return JobStatus(job, FRESH, ())
     if result is not None:
@@ -47,6 +48,11 @@ def job_status(job: Job, store: Store, previous: Mapping[str, dict],
         return JobStatus(job, NEW, ("new",))
     reasons = own_changes(job, before) + dependency_changes(job, before)
     return JobStatus(job, STALE, tuple(reasons) or ("output missing or corrupt",))
+
+
+def results_to_replace(statuses: list[JobStatus]) -> dict[str, str]:
+    """Forced jobs: job key -> the token of the stored result the run is to replace."""
+    return {s.job.key: s.replaces for s in statuses if s.replaces}
 
 
 def own_changes(job: Job, before: dict) -> list[str]:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import hashlib
 import json
 import os
 import shutil
@@ -39,6 +40,12 @@ def write_json_atomic(path: Path, value: Any) -> None:
     with os.fdopen(fd, "w", encoding="utf-8") as handle:
         json.dump(value, handle, indent=1, sort_keys=True)
     os.replace(tmp, path)
+
+
+def result_token(result: dict) -> str:
+    """Names one stored result (a rerun of the same job writes another): what a forced run means to
+    replace, so that it reruns the job once, not again after another run already replaced it."""
+    return hashlib.sha256(json.dumps(result, sort_keys=True).encode()).hexdigest()
 
 
 def read_json(path: Path) -> Any | None:

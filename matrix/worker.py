@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
-from matrix.store import LOG, Store
+from matrix.store import LOG, Store, result_token
 
 OK, NOT_APPLICABLE, FAILED, BUSY, DONE_ELSEWHERE = "ok", "not_applicable", "failed", "busy", "done_elsewhere"
 
@@ -36,8 +36,9 @@ def init_worker(kind_modules: Iterable[str], progress_queue: Any = None) -> None
         _progress_sink = lambda key, update: progress_queue.put((key, update))
 
 
-def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = ()) -> dict:
+def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = (), replaces: str | None = None) -> dict:
     """Run the job described by `spec` (see Job.spec) unless it is done or running elsewhere.
+    `replaces` (a forced rerun) names the stored result to run again: that one does not count as done.
 
     Returns {"status": ok | not_applicable | failed | busy | done_elsewhere, "reason", "duration_s"}."""
     for module in kind_modules:
@@ -47,7 +48,7 @@ def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = ()) -
         if not held:
             return {"status": BUSY, "reason": "running in another process"}
         done = store.result(key)
-        if done is not None and store.outputs_intact(key, done):
+        if done is not None and store.outputs_intact(key, done) and result_token(done) != replaces:
             return {"status": DONE_ELSEWHERE, "reason": done.get("reason", ""), "duration_s": 0.0}
         return _run_locked(store, spec)
 

@@ -113,3 +113,15 @@ def test_a_task_of_another_run_with_the_same_job_key_is_not_reused(tmp_path, cli
     summary = run_dask(plan.statuses, store, client, kind_modules=TOY.kind_modules)
     assert summary.counts() == {"ok": 10}, summary.outcomes
     assert all(store.result(s.job.key) for s in plan.statuses)
+
+
+def test_force_reruns_on_dask(tmp_path, client):
+    from matrix.dask_executor import run_dask
+    store = Store(tmp_path / "s")
+    run_dask(plan_of(tmp_path, store).statuses, store, client, kind_modules=TOY.kind_modules)
+    path = tmp_path / "r.yaml"
+    forced = engine.make_plan(load_recipe(path, TOY), TOY, store, ["power"])
+    summary = run_dask(forced.statuses, store, client, kind_modules=TOY.kind_modules)
+    assert summary.counts() == {"ok": 6}, summary.outcomes
+    executions = (store.root / "cache" / "executions.log").read_text().splitlines()
+    assert executions.count("power a^2") == 2

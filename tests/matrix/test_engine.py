@@ -113,7 +113,11 @@ def test_force_reruns_one_kind_and_nothing_else(tmp_path):
     store = Store(tmp_path / "store")
     run(recipe_file(tmp_path), store)
     plan, summary = run(recipe_file(tmp_path), store, force=["total"])
-    assert ran(summary) == ["total"]
+    assert ran(summary) == ["total"] and summary.counts() == {"ok": 1}   # run again, not "done elsewhere"
+    executions = (store.root / "cache" / "executions.log").read_text().splitlines()
+    assert executions.count("total") == 2
+    _, summary = run(recipe_file(tmp_path), store)
+    assert summary.outcomes == []                                         # and fresh after it
     with pytest.raises(Exception, match="did you mean 'total'"):
         run(recipe_file(tmp_path), store, force=["totl"])
 
