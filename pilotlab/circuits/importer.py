@@ -26,6 +26,7 @@ POSE_TYPES = {
     "geometry_msgs/msg/PoseWithCovarianceStamped": lambda m: m.pose.pose.position,
 }
 MIN_STEP_M = 0.05  # positions closer than this to the previous one are dropped (the car stood still)
+MAX_CLOSING_GAP = 0.05  # a path that ends further than this share of its length from its start is no lap
 
 
 def read_positions(bag: Path, topic: str) -> np.ndarray:
@@ -55,12 +56,18 @@ def read_positions(bag: Path, topic: str) -> np.ndarray:
 
 def lap_from_positions(points: np.ndarray, source: str) -> np.ndarray:
     """One lap of the recorded path: standstill points dropped, cut where it first comes back to its
-    start (a recording that stops short is closed with a straight segment)."""
+    start (a recording that stops just short is closed with a straight segment; one that ends far
+    from its start is part of a lap, and a straight segment would cut across the circuit)."""
     points = drop_repeats(points, MIN_STEP_M)
     if len(points) < 10 or polyline_length(points) < 20.0:
         raise PilotlabError(f"{source}: the recorded path is too short for a circuit "
                             f"({len(points)} distinct positions, {polyline_length(points):.1f} m); record a whole lap")
-    return close_loop(points)
+    lap = close_loop(points)
+    gap, length = float(np.linalg.norm(lap[-1] - lap[0])), polyline_length(lap)
+    if gap > MAX_CLOSING_GAP * length:
+        raise PilotlabError(f"{source}: the recorded path does not come back to its start (it ends {gap:.1f} m "
+                            f"from it after {length:.1f} m), so it holds no whole lap; record a whole lap")
+    return lap
 
 
 def import_circuit(bag: Path, topic: str, name: str, out_dir: Path = DEFAULT_USER_DIR,

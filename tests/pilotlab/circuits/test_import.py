@@ -69,6 +69,16 @@ def test_import_errors_name_the_bag_and_the_topics(tmp_path):
         import_circuit(tmp_path / "short", "/lap/pose", "short", out_dir=tmp_path)
 
 
+def test_part_of_a_lap_is_refused_and_a_lap_stopping_just_short_is_closed(tmp_path):
+    points = stadium()
+    write_pose_stamped_bag(tmp_path / "part", points[: len(points) * 4 // 5])
+    with pytest.raises(PilotlabError, match=r"does not come back to its start \(it ends .* m from it"):
+        import_circuit(tmp_path / "part", "/lap/pose", "part", out_dir=tmp_path)
+    write_pose_stamped_bag(tmp_path / "almost", points[:-5])     # 1.2 m short of the start
+    _, circuit = import_circuit(tmp_path / "almost", "/lap/pose", "almost", out_dir=tmp_path)
+    assert abs(circuit.length - 110.27) < 1.1
+
+
 def test_cli_import_saves_under_circuits_and_the_name_then_works(tmp_path, monkeypatch, capsys):
     write_pose_stamped_bag(tmp_path / "poses", stadium())
     monkeypatch.chdir(tmp_path)
