@@ -6,18 +6,24 @@ def register(subparsers) -> None:
     parser = subparsers.add_parser("report", help="write reports/<recipe>/ from the job store (runs nothing)",
                                    description="Write README.md, index.html, results.csv/json and plots "
                                                "for a recipe from the results in the job store. Cells that "
-                                               "have not run are shown as such.")
+                                               "have not run are shown as such; a store holding none of "
+                                               "the recipe's results is an error (nothing is written).")
     parser.add_argument("recipe")
     parser.add_argument("--store", help="job store folder (default: $PILOTLAB_STORE, else .pilotlab)")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from matrix.engine import open_store
+    from matrix.engine import make_plan, open_store
     from matrix.recipe import load_recipe
+    from matrix.stale import FRESH
     from pilotlab.domain import DOMAIN
+    from pilotlab.errors import PilotlabError
     from pilotlab.report.recipe import write_recipe_report
-    recipe = load_recipe(args.recipe, DOMAIN)
-    folder = write_recipe_report(recipe, open_store(DOMAIN, args.store), DOMAIN, force=True)
+    recipe, store = load_recipe(args.recipe, DOMAIN), open_store(DOMAIN, args.store)
+    if not any(status.state == FRESH for status in make_plan(recipe, DOMAIN, store).statuses):
+        raise PilotlabError(f"the store {store.root} holds no result of recipe {recipe.name!r}, so the report "
+                            f"would show nothing; run `pilotlab run {args.recipe}` first, or give the right --store")
+    folder = write_recipe_report(recipe, store, DOMAIN, force=True)
     print(f"report written: {folder / 'README.md'} and {folder / 'index.html'}")
     return 0

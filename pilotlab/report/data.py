@@ -45,7 +45,7 @@ from pilotlab.errors import PilotlabError
 from matrix.errors import did_you_mean
 
 Kind = Literal["offline", "online"]
-Status = Literal["ok", "not_applicable", "failed"]
+Status = Literal["ok", "not_applicable", "failed", "not_run"]
 MetricValue = StrictBool | int | float
 DEFAULT_PACKAGES = ("pilotlab", "torch", "torchao", "onnxruntime", "onnx", "numpy", "pybullet",
                     "opencv-python-headless")

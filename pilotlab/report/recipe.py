@@ -1,7 +1,7 @@
 """A recipe's report from the job store: one row per evaluated cell, whatever state it is in.
 
-Cells that have not run show as failed with the reason (their own failure, a failed dependency, or
-"not run yet"), never as zeros.
+Cells without a result show as failed with the reason (their own failure or a failed dependency)
+or as not run yet, never as zeros.
 The report is rewritten only when something it shows changed (a stamp over the recipe text, every
 job's key and status, and the report code), so a warm rerun stays quick.
 """
@@ -21,6 +21,7 @@ from pilotlab.report.data import Claim, Host, ReportData, package_versions, pick
 from pilotlab.report.studies import compare
 
 STAMP = ".stamp"
+NOT_RUN = "not run yet"
 
 
 def report_folder(recipe: Recipe) -> Path:
@@ -67,7 +68,8 @@ def _row(job, store: Store) -> dict[str, Any]:
     row = {**identity, "kind": job.kind, "job_keys": {job.kind: job.key}}
     if result is None:
         failure = store.failure(job.key)
-        return {**row, "status": "failed", "reason": failure["error"] if failure else _why_not_run(job, store)}
+        reason = failure["error"] if failure else _why_not_run(job, store)
+        return {**row, "status": "not_run" if reason == NOT_RUN else "failed", "reason": reason}
     return row | row_from_result(result, store.artifacts(job.key))
 
 
@@ -97,7 +99,7 @@ def _why_not_run(job, store: Store) -> str:
         if failure is not None:
             return f"dependency failed: {dep.name}: {failure.get('error', '?')}"
         stack.extend(dep.dep_jobs())
-    return "not run yet"
+    return NOT_RUN
 
 
 def _history(job, store: Store) -> list[dict]:

@@ -22,7 +22,7 @@ def summarise(data: ReportData) -> list[Finding]:
     offline, online = data.of_kind("offline"), data.of_kind("online")
     findings = [*_smallest(data, offline), *_most_accurate(data, offline), *_fastest(data, offline),
                 *_closed_loop(data, online), *_not_run(data, "not_applicable", "Not applicable"),
-                *_not_run(data, "failed", "Failed")]
+                *_not_run(data, "failed", "Failed"), *_not_run(data, "not_run", "Not run yet")]
     return findings or [Finding("No results", "no cell produced a measurement")]
 
 

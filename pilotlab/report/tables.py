@@ -196,7 +196,8 @@ def _all_alike_and_not_measured(rows: list[ReportRow]) -> bool:
 
 
 def _note(row: ReportRow) -> str:
-    return {"ok": "", "not_applicable": f"not applicable: {row.reason}", "failed": f"failed: {row.reason}"}[row.status]
+    return {"ok": "", "not_applicable": f"not applicable: {row.reason}", "failed": f"failed: {row.reason}",
+            "not_run": row.reason}[row.status]
 
 
 def _unique(values) -> list:
