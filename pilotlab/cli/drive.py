@@ -42,6 +42,23 @@ def params_of(args: argparse.Namespace) -> dict:
             "repetitions": args.repetitions, "laps": args.laps, "timeout_s": args.timeout, "video": args.video}
 
 
+def check_arguments(args: argparse.Namespace) -> None:
+    """What can be told wrong before the simulator starts."""
+    if args.artifact is not None and not args.artifact.is_dir():
+        raise PilotlabError(f"--artifact {args.artifact}: no such folder")
+    if args.out.exists() and (not args.out.is_dir() or any(args.out.iterdir())):
+        what = "is a file" if not args.out.is_dir() else "is a folder that is not empty"
+        raise PilotlabError(f"--out {args.out} {what}; give a new folder (drive does not mix two runs' files)")
+    for option, value, least in (("--laps", args.laps, 0.0), ("--repetitions", args.repetitions, 0),
+                                 ("--control-hz", args.control_hz, 0.0)):
+        if value is not None and value <= least:
+            raise PilotlabError(f"{option} {value:g}: must be above {least:g}")
+    if args.timeout is not None and args.timeout <= 0:
+        raise PilotlabError(f"--timeout {args.timeout:g}: must be above 0 simulated seconds")
+    if args.extra_latency_ms < 0:
+        raise PilotlabError(f"--extra-latency-ms {args.extra_latency_ms:g}: must be 0 or more")
+
+
 def run(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -53,10 +70,9 @@ def run(args: argparse.Namespace) -> int:
     from pilotlab.predictor import load_predictor
     from pilotlab.report import pick_metrics
 
+    check_arguments(args)
     profile = make_profile(args.hardware)
     check_available(profile)
-    if args.artifact is not None and not args.artifact.is_dir():
-        raise PilotlabError(f"--artifact {args.artifact}: no such folder")
     brain = (NetworkBrain(load_predictor(args.artifact, profile)) if args.artifact is not None
              else make_reference_brain(args.brain))
     spec = online_spec({**DEFAULTS, **params_of(args)})

@@ -18,3 +18,19 @@ def test_drive_names_a_missing_artifact(tmp_path, capsys):
     assert main(["drive", "--artifact", str(tmp_path / "nope"), "--circuit", "simple_circuit",
                  "--out", str(tmp_path / "run")]) == 2
     assert "no such folder" in capsys.readouterr().err
+
+
+def test_drive_refuses_a_used_out_path_and_meaningless_numbers_before_starting(tmp_path, capsys):
+    base = ["drive", "--brain", "expert", "--circuit", "simple_circuit"]
+    (tmp_path / "file.bag").write_bytes(b"x")
+    (tmp_path / "used").mkdir()
+    (tmp_path / "used" / "result.json").write_text("{}")
+    for extra, message in ((["--out", str(tmp_path / "file.bag")], "is a file"),
+                           (["--out", str(tmp_path / "used")], "is a folder that is not empty"),
+                           (["--out", str(tmp_path / "a"), "--laps", "0"], "--laps 0: must be above 0"),
+                           (["--out", str(tmp_path / "a"), "--repetitions", "0"], "--repetitions 0: must be above 0"),
+                           (["--out", str(tmp_path / "a"), "--control-hz", "0"], "--control-hz 0: must be above 0"),
+                           (["--out", str(tmp_path / "a"), "--extra-latency-ms", "-5"], "must be 0 or more")):
+        assert main(base + extra) == 2
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "a").exists()
