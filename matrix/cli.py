@@ -91,6 +91,7 @@ def _counts_line(plan: engine.Plan) -> str:
 def cmd_run(args, domain: Domain) -> int:
     store = engine.open_store(domain, args.store)
     recipe = load_recipe(args.recipe, domain)
+    executor = engine.Executor(args.executor, args.jobs, args.scheduler, args.timing_resource)
     plan = engine.make_plan(recipe, domain, store, args.force)
     out = console()
     if not plan.stale:
@@ -102,7 +103,6 @@ def cmd_run(args, domain: Domain) -> int:
         out.print(f"{escape(recipe.name)}: {len(plan.stale)} of {len(plan.statuses)} jobs to run "
                   f"on {where} (store {store.root})")
         display = RichDisplay(store, title=escape(recipe.name))
-        executor = engine.Executor(args.executor, args.jobs, args.scheduler, args.timing_resource)
         summary = engine.run_plan(plan, domain, store, keep_going=args.keep_going, display=display,
                                   executor=executor)
         out.print(_summary_line(summary))

@@ -88,6 +88,16 @@ class Executor:
     scheduler: str | None = None
     timing_resource: str | None = None
 
+    def __post_init__(self) -> None:
+        if self.jobs < 1:
+            raise MatrixError(f"-j/--jobs {self.jobs}: give 1 or more jobs at once")
+        if self.kind == "dask" and not self.scheduler:
+            raise MatrixError("--executor dask needs --scheduler ADDRESS (or use --executor dask-local)")
+        if self.scheduler and self.kind != "dask":
+            raise MatrixError(f"--scheduler {self.scheduler} is for --executor dask; the executor is {self.kind!r}")
+        if self.timing_resource and not self.kind.startswith("dask"):
+            raise MatrixError("--timing-resource places jobs on Dask workers; use it with --executor dask")
+
 
 def run_plan(plan: Plan, domain: Domain, store: Store, *, jobs: int = 1, keep_going: bool = False,
              display=None, executor: Executor | None = None) -> RunSummary:

@@ -6,6 +6,7 @@ import textwrap
 import pytest
 
 from matrix import engine
+from matrix.errors import MatrixError
 from matrix.execute import run_local
 from matrix.fingerprint import clear_caches
 from matrix.jobs import Job
@@ -187,3 +188,14 @@ def test_what_a_job_prints_at_the_fd_level_goes_to_its_log(tmp_path, capfd):
     source_c = next(s.job for s in plan.statuses if s.job.name == "source c")
     assert "C-level noise" in (store.job_dir(source_c.key) / "log.txt").read_text()
     assert "C-level noise" not in capfd.readouterr().err
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (("local", 0), "give 1 or more"),
+    (("dask", 1), "needs --scheduler"),
+    (("local", 1, "tcp://host:8786"), "is for --executor dask"),
+    (("local", 1, None, "TIMING"), "use it with --executor dask"),
+])
+def test_executor_settings_that_make_no_sense_are_errors(arguments, message):
+    with pytest.raises(MatrixError, match=message):
+        engine.Executor(*arguments)
