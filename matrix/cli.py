@@ -31,7 +31,7 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
     def add(name: str, func, help: str) -> argparse.ArgumentParser:
         parser = subparsers.add_parser(name, help=help, description=help)
         parser.add_argument("--store", help=store_help)
-        parser.set_defaults(func=lambda args: func(args, get_domain()))
+        parser.set_defaults(func=lambda args: func(args, get_domain()), tool=parser.prog.rsplit(" ", 1)[0])
         return parser
 
     run = add("run", cmd_run, "run a recipe: every job that is not fresh, in dependency order")
@@ -105,18 +105,20 @@ def cmd_run(args, domain: Domain) -> int:
         display = RichDisplay(store, title=escape(recipe.name))
         summary = engine.run_plan(plan, domain, store, keep_going=args.keep_going, display=display,
                                   executor=executor)
-        out.print(_summary_line(summary))
+        out.print(_summary_line(summary, args.tool))
     if domain.after_run is not None:
         domain.after_run(recipe, summary, store)
     return 1 if summary.failed else 0
 
 
-def _summary_line(summary: engine.RunSummary) -> str:
+def _summary_line(summary: engine.RunSummary, tool: str) -> str:
     counts = summary.counts()
     parts = [f"{n} {status.replace('_', ' ')}" for status, n in sorted(counts.items())]
     verdict = "[red]failed[/]" if summary.failed else "[green]done[/]"
-    return (f"{verdict}: {', '.join(parts)}; {summary.fresh} were fresh — {summary.wall_s:.1f} s"
-            + ("" if not summary.failed else "  (see `pilotlab show KEY` for a job's log)"))
+    failed = [o for o in summary.outcomes if o.status == "failed"]
+    hint = "" if not failed else "\n" + "\n".join(f"  {tool} show {o.key[:10]}   # {escape(o.name)}: its error and log"
+                                                for o in failed[:5])
+    return f"{verdict}: {', '.join(parts)}; {summary.fresh} were fresh — {summary.wall_s:.1f} s" + hint
 
 
 def cmd_status(args, domain: Domain) -> int:
@@ -175,8 +177,10 @@ def cmd_gc(args, domain: Domain) -> int:
         print(f"{verb} {key[:12]} {spec.get('kind', '')} {spec.get('name', '')}".rstrip())
     if not args.dry_run:
         engine.collect_garbage(store, garbage)
+    kept = sum(1 for key in store.keys() if key in keep)
     print(f"{verb} {len(garbage.keys)} jobs and {len(garbage.temp)} leftovers of killed runs "
-          f"({garbage.bytes / 1e6:.1f} MB); kept {len(keep)} jobs", file=sys.stdout)
+          f"({garbage.bytes / 1e6:.1f} MB); {'keeping' if args.dry_run else 'kept'} the {kept} stored jobs "
+          f"the recipes reach", file=sys.stdout)
     return 0
 
 

@@ -24,7 +24,7 @@ from matrix.stale import FRESH, JobStatus, results_to_replace
 from matrix.store import Store
 from matrix.worker import FAILED, execute_job
 
-INSTALL_HINT = "the Dask executor needs Dask distributed: pip install 'pilotlab[dask]'"
+INSTALL_HINT = "the Dask executor needs Dask distributed: pip install distributed"
 BLOCKING = (FAILED, SKIPPED, NOT_STARTED)
 
 

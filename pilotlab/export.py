@@ -75,10 +75,10 @@ def export_job(store: Store, key_prefix: str, out_dir: Path) -> Path:
     key = store.find(key_prefix)
     spec, stored = store.spec(key) or {}, store.result(key)
     if stored is None:
-        raise PilotlabError(f"job {key[:12]} has no result (it failed or has not run; see `pilotlab status`)")
+        raise PilotlabError(f"job {key[:12]} has no result (it failed or has not run; `pilotlab plan RECIPE` shows each job's state and key)")
     if spec.get("kind") != "optimize":
         raise PilotlabError(f"job {key[:12]} is a {spec.get('kind')!r} job ({spec.get('name', '')}); "
-                            "export the key of an optimize job (`pilotlab status` lists them)")
+                            "export the key of an optimize job (`pilotlab plan RECIPE` lists them)")
     if stored.get("status") != "ok":
         raise PilotlabError(f"job {key[:12]} ({spec.get('name', '')}) produced no artifact: "
                             f"{stored.get('status')}: {stored.get('reason', '')}")

@@ -49,7 +49,7 @@ def test_run_status_show_and_gc(recipe, tmp_path, capsys):
     recipe.write_text(RECIPE % 4)
     assert cli(capsys, "run", str(recipe), "--store", store)[0] == 0
     code, out, _ = cli(capsys, "gc", str(recipe), "--dry-run", "--store", store)
-    assert "would remove 3 jobs" in out
+    assert "would remove 3 jobs" in out and "keeping the 5 stored jobs" in out   # 8 stored: 3 old, 2 shared, 3 new
     code, out, _ = cli(capsys, "gc", str(recipe), "--store", store)
     assert "removed 3 jobs" in out
     assert cli(capsys, "gc", str(recipe), "--store", store)[1].startswith("removed 0 jobs")
@@ -62,6 +62,7 @@ def test_a_failed_run_exits_non_zero_and_show_explains(recipe, tmp_path, capsys)
     assert code == 1 and "failed" in out
     key = next(r["key"] for r in json.loads(cli(capsys, "plan", str(recipe), "--json", "--store", store)[1])
                if r["name"] == "source b")
+    assert f"toy show {key[:10]}   # source b" in out                    # the run names the key to look at
     code, out, _ = cli(capsys, "show", key, "--store", store)
     assert "failed last time" in out and "was told to fail" in out
 
