@@ -14,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from matrix.errors import MatrixError
+from matrix.errors import MatrixError, did_you_mean
 from matrix.jobs import Job, input_file
 from matrix.recipe import Domain, Recipe
 from pilotlab.recipe import SECTIONS, DatasetSpec, ModelSpec
@@ -163,13 +163,18 @@ class Planner:
         from pilotlab.strategies import STRATEGIES, make_strategy_config
         options = dict(self.config.strategies.get(name, {}))
         base = options.pop("use", name)
+        where = ["strategies", name]
         if base not in STRATEGIES:
-            raise self.recipe.error(f"strategies.{name} uses unknown strategy {base!r}; known: "
-                                    f"{', '.join(STRATEGIES.names())}", ["strategies", name])
+            raise self.recipe.error(f"unknown strategy {base!r}{did_you_mean(base, STRATEGIES.names())}; "
+                                    f"known: {', '.join(sorted(STRATEGIES.names()))}", where + ["use"])
+        if base != name and name in STRATEGIES:
+            raise self.recipe.error(f"{name!r} is a built-in strategy; give the variant of {base} a new name",
+                                    where + ["use"])
         try:
             make_strategy_config(base, options)
-        except MatrixError as error:
-            raise self.recipe.error(str(error), ["strategies", name]) from None
+        except MatrixError as error:   # said of `base`: say it of this recipe's name
+            message = str(error).removeprefix(f"strategies.{base}").lstrip(".: ")
+            raise self.recipe.error(message + (f" (an option of {base})" if base != name else ""), where) from None
         return base, options
 
     def profile(self, name: str):

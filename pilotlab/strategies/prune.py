@@ -29,6 +29,10 @@ class LocalPruneConfig:
     batch_size: int = 64
     format: str = "checkpoint"       # checkpoint (eager, as the study) | torchscript | onnx
 
+    def __post_init__(self) -> None:  # checked when the recipe is read, not when the job runs
+        check_fraction("local_prune", "conv", self.conv)
+        check_fraction("local_prune", "linear", self.linear)
+
 
 @dataclass(frozen=True)
 class GlobalPruneConfig:
@@ -39,12 +43,15 @@ class GlobalPruneConfig:
     batch_size: int = 64
     format: str = "checkpoint"
 
+    def __post_init__(self) -> None:
+        check_fraction("global_prune", "amount", self.amount)
+
 
 @register_strategy("local_prune", LocalPruneConfig)
 def local_prune(config: LocalPruneConfig, source: StrategySource) -> dict:
     model = source.load_model()
     history = prune_and_finetune(model, source, config,
-                                 lambda m: prune_local(m, config.conv, config.linear, "local_prune"))
+                                 lambda m: prune_local(m, config.conv, config.linear))
     save_float_model(model, source, "local_prune", config.format)
     return {**sparsity_report(model), "finetune": history}
 
@@ -52,7 +59,7 @@ def local_prune(config: LocalPruneConfig, source: StrategySource) -> dict:
 @register_strategy("global_prune", GlobalPruneConfig)
 def global_prune(config: GlobalPruneConfig, source: StrategySource) -> dict:
     model = source.load_model()
-    history = prune_and_finetune(model, source, config, lambda m: prune_global(m, config.amount, "global_prune"))
+    history = prune_and_finetune(model, source, config, lambda m: prune_global(m, config.amount))
     save_float_model(model, source, "global_prune", config.format)
     return {**sparsity_report(model), "finetune": history}
 
@@ -67,19 +74,16 @@ def prune_and_finetune(model: nn.Module, source: StrategySource, config, apply_m
     return history
 
 
-def prune_local(model: nn.Module, conv: float, linear: float, strategy: str) -> None:
+def prune_local(model: nn.Module, conv: float, linear: float) -> None:
     from torch import nn
     from torch.nn.utils import prune
-    for name, amount in (("conv", conv), ("linear", linear)):
-        check_fraction(strategy, name, amount)
     for _, layer in weight_layers(model):
         amount = conv if isinstance(layer, nn.Conv2d) else linear
         prune.l1_unstructured(layer, "weight", amount=amount)
 
 
-def prune_global(model: nn.Module, amount: float, strategy: str) -> None:
+def prune_global(model: nn.Module, amount: float) -> None:
     from torch.nn.utils import prune
-    check_fraction(strategy, "amount", amount)
     parameters = [(layer, "weight") for _, layer in weight_layers(model)]
     prune.global_unstructured(parameters, pruning_method=prune.L1Unstructured, amount=amount)
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pilotlab.strategies.common import sparsity_report
-from pilotlab.strategies.prune import prune_and_finetune, prune_local
+from pilotlab.strategies.prune import check_fraction, prune_and_finetune, prune_local
 from pilotlab.strategies.pt2e import quantization_aware_finetune
 from pilotlab.strategies.registry import StrategySource, register_strategy
 
@@ -23,12 +23,16 @@ class PruneQuantConfig:
     lr: float = 1e-4
     batch_size: int = 64
 
+    def __post_init__(self) -> None:
+        check_fraction("prune_quant", "conv", self.conv)
+        check_fraction("prune_quant", "linear", self.linear)
+
 
 @register_strategy("prune_quant", PruneQuantConfig)
 def prune_quant(config: PruneQuantConfig, source: StrategySource) -> dict:
     model = source.load_model()
     prune_history = prune_and_finetune(model, source, config,
-                                       lambda m: prune_local(m, config.conv, config.linear, "prune_quant"))
+                                       lambda m: prune_local(m, config.conv, config.linear))
     pruned = sparsity_report(model)
     qat_history = quantization_aware_finetune(model, source, config, "prune_quant", keep_zeros=True)
     return {**pruned, "finetune": prune_history + qat_history}

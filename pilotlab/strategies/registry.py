@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pydantic
 
+from matrix.errors import did_you_mean
 from matrix.registry import Registry
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.errors import PilotlabError
@@ -156,7 +157,8 @@ def make_strategy_config(name: str, options: dict[str, Any] | None = None):
     options = dict(options or {})
     unknown = sorted(set(options) - set(entry.options))
     if unknown:
-        raise PilotlabError(f"strategies.{name}: unknown option(s) {', '.join(unknown)}; "
+        guesses = "".join(did_you_mean(option, entry.options) for option in unknown)
+        raise PilotlabError(f"strategies.{name}: unknown option(s) {', '.join(unknown)}{guesses}; "
                             f"{name} takes: {', '.join(entry.options) or '(no options)'}")
     try:
         return pydantic.TypeAdapter(entry.config_cls).validate_python(options)

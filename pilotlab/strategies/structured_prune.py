@@ -29,11 +29,13 @@ class StructuredPruneConfig:
     format: str = "torchscript"      # torchscript | onnx (the shapes change: no checkpoint)
     multiple_of: int = 8             # round kept counts to a multiple of this: whole SIMD blocks (1: exact)
 
+    def __post_init__(self) -> None:
+        check_fraction("structured_prune", "amount", self.amount)
+        check_multiple("structured_prune", self.multiple_of)
+
 
 @register_strategy("structured_prune", StructuredPruneConfig)
 def structured_prune(config: StructuredPruneConfig, source: StrategySource) -> dict:
-    check_fraction("structured_prune", "amount", config.amount)
-    check_multiple("structured_prune", config.multiple_of)
     from pilotlab.strategies.channels import multiply_accumulates, remove_channels  # torch
     model = source.load_model()
     params_before = sum(p.numel() for p in model.parameters())

@@ -32,11 +32,13 @@ class StructuredPruneInt8Config:
     calibrate_method: str = "minmax"  # minmax | entropy | percentile
     float_first_conv: bool = True    # the 3-channel input conv stays fp32 (faster here)
 
+    def __post_init__(self) -> None:
+        check_fraction("structured_prune_int8", "amount", self.amount)
+        check_multiple("structured_prune_int8", self.multiple_of)
+
 
 @register_strategy("structured_prune_int8", StructuredPruneInt8Config)
 def structured_prune_int8(config: StructuredPruneInt8Config, source: StrategySource) -> dict:
-    check_fraction("structured_prune_int8", "amount", config.amount)
-    check_multiple("structured_prune_int8", config.multiple_of)
     from pilotlab.strategies.channels import multiply_accumulates, remove_channels  # torch
     model = source.load_model()
     params_before, macs_before = _params(model), multiply_accumulates(model, source.input_shape)

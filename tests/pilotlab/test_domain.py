@@ -78,9 +78,13 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
 
 @pytest.mark.parametrize("edit, message", [
     (("finetune_epochs: 1}", "finetune_epoch: 1}"),
-     ":9: strategies.local_prune: strategies.local_prune: unknown option(s) finetune_epoch"),
+     ":9: strategies.local_prune: unknown option(s) finetune_epoch (did you mean 'finetune_epochs'?)"),
     (("{use: local_prune, conv: 0.5}", "{use: local_prun}"),
-     ":10: strategies.prune_more: strategies.prune_more uses unknown strategy 'local_prun'"),
+     ":10: strategies.prune_more.use: unknown strategy 'local_prun' (did you mean 'local_prune'?)"),
+    (("{use: local_prune, conv: 0.5}", "{use: local_prune, conv: 1.5}"),
+     ":10: strategies.prune_more: conv: 1.5 is not a fraction in [0, 1) (an option of local_prune)"),
+    (("local_prune: {finetune_epochs: 1}", "local_prune: {use: global_prune}"),
+     ":9: strategies.local_prune.use: 'local_prune' is a built-in strategy; give the variant of global_prune a new name"),
     (("strategy: [baseline,", "strategy: [baselin,"),
      ":13: matrix.strategy.0: unknown strategy 'baselin' (did you mean 'baseline'?)"),
     (("circuit: [simple_circuit]", "circuit: [simple_circiut]"),
