@@ -31,6 +31,24 @@ with torch.inference_mode():
 ```""",
 }
 
+RESIZES = {  # pilotlab.data.preprocess.resize, written out with OpenCV alone
+    "fast_area": """    while image.shape[1] >= {w2} and image.shape[0] >= {h2}:   # halve by 2x2 averages while twice the size
+        even = image[:image.shape[0] // 2 * 2, :image.shape[1] // 2 * 2]
+        image = cv2.resize(even, (even.shape[1] // 2, even.shape[0] // 2), interpolation=cv2.INTER_AREA)
+    image = cv2.resize(image, ({w}, {h}), interpolation=cv2.INTER_LINEAR)""",
+    "area": "    image = cv2.resize(image, ({w}, {h}), interpolation=cv2.INTER_AREA)",
+    "linear": "    image = cv2.resize(image, ({w}, {h}), interpolation=cv2.INTER_LINEAR)",
+}
+CAMERA_TO_IMAGES = """```python
+import cv2, numpy as np
+
+def camera_to_images(rgb):    # one HxWx3 uint8 RGB camera image -> float32 [1, 3, {h}, {w}]
+    top, bottom = round({top} * rgb.shape[0]), round({bottom} * rgb.shape[0])
+    image = rgb[top:max(bottom, top + 1)]
+{resize}
+    return image.transpose(2, 0, 1)[None].astype(np.float32) / np.float32(255)
+```"""
+
 FRAMEWORKS = {"onnx": "ONNX (run with ONNX Runtime ≥ 1.18, no Python needed in C/C++/C#/Java)",
               "torchscript": "TorchScript (run with PyTorch or libtorch in C++)",
               "pilotlab-checkpoint": "a pilotlab checkpoint (PyTorch eager; needs pilotlab)"}
@@ -66,8 +84,21 @@ def readme(meta: ArtifactMeta, result: dict[str, Any]) -> str:
         "Denormalise:", "", "```python",
         f"v = vw[:, 0] * ({labels['v'][1]} - {labels['v'][0]}) + {labels['v'][0]}",
         f"w = vw[:, 1] * ({labels['w'][1]} - {labels['w'][0]}) + {labels['w'][0]}", "```", "",
-        "Or with pilotlab: `pilotlab.predictor.load_predictor(folder, 'cpu').predict(images)`.", ""]
+        "Or with pilotlab: `pilotlab.predictor.load_predictor(folder, 'cpu').predict(images)`.", "",
+        *camera_section(meta)]
     return "\n".join(lines)
+
+
+def camera_section(meta: ArtifactMeta) -> list[str]:
+    """How to turn a camera image into `images` without pilotlab, as the network was trained."""
+    pre = meta.preprocess or {}
+    if pre.get("frames", 1) != 1 or pre.get("interpolation", "fast_area") not in RESIZES:
+        return []
+    height, width = meta.input_shape[2], meta.input_shape[3]
+    resize = RESIZES[pre.get("interpolation", "fast_area")].format(w=width, h=height, w2=2 * width, h2=2 * height)
+    return ["## From a camera image", "",
+            CAMERA_TO_IMAGES.format(top=pre.get("crop_top", 0.0), bottom=pre.get("crop_bottom", 1.0),
+                                    w=width, h=height, resize=resize), ""]
 
 
 def export_job(store: Store, key_prefix: str, out_dir: Path) -> Path:
@@ -75,7 +106,8 @@ def export_job(store: Store, key_prefix: str, out_dir: Path) -> Path:
     key = store.find(key_prefix)
     spec, stored = store.spec(key) or {}, store.result(key)
     if stored is None:
-        raise PilotlabError(f"job {key[:12]} has no result (it failed or has not run; `pilotlab plan RECIPE` shows each job's state and key)")
+        raise PilotlabError(f"job {key[:12]} has no result (it failed or has not run; "
+                            "`pilotlab plan RECIPE` shows each job's state and key)")
     if spec.get("kind") != "optimize":
         raise PilotlabError(f"job {key[:12]} is a {spec.get('kind')!r} job ({spec.get('name', '')}); "
                             "export the key of an optimize job (`pilotlab plan RECIPE` lists them)")

@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -35,6 +37,22 @@ def test_export_cli_copies_the_artifact_with_a_readme(store, tmp_path, capsys):
     source = Store(store).artifacts(KEY)
     np.testing.assert_array_equal(load_predictor(out, "cpu1").predict(batch),
                                   load_predictor(source, "cpu1").predict(batch))
+
+
+@pytest.mark.parametrize("interpolation", ["fast_area", "area", "linear"])
+def test_the_readme_turns_a_camera_image_into_the_input_as_pilotlab_does(trained, frames, tmp_path, interpolation):
+    from pilotlab.data.preprocess import PreprocessConfig, preprocess, to_input
+    from pilotlab.export import readme
+    from pilotlab.strategies.artifact import read_meta
+    apply_strategy("onnxruntime", {}, StrategySource(trained / "model.pt", tmp_path / "a", (frames,)))
+    config = PreprocessConfig(crop_top=0.4, crop_bottom=0.95, interpolation=interpolation)
+    meta = dataclasses.replace(read_meta(tmp_path / "a"), preprocess={**vars(config), "frames": 1})
+    code = readme(meta, {}).split("## From a camera image")[1].split("```python")[1].split("```")[0]
+    namespace = {}
+    exec(code, namespace)   # the README's own code, as a user would paste it
+    camera = np.random.default_rng(0).integers(0, 256, (480, 640, 3), dtype=np.uint8)
+    expected = to_input(preprocess(camera, config)[None]).numpy()
+    np.testing.assert_allclose(namespace["camera_to_images"](camera), expected, atol=1e-7)
 
 
 def test_export_errors_say_what_to_do(store, tmp_path, capsys):
