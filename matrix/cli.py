@@ -47,7 +47,7 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
     plan = add("plan", cmd_plan, "show what `run` would do: each job fresh / stale / new, and why")
     plan.add_argument("recipe")
     plan.add_argument("--json", action="store_true", help="print a JSON list instead of a table")
-    plan.add_argument("--force", action="append", default=[], metavar="KIND")
+    plan.add_argument("--force", action="append", default=[], metavar="KIND", help="show every job of KIND as stale")
     add("status", cmd_status, "summarise the job store")
     show = add("show", cmd_show, "show one stored job: spec, result, log and artifacts")
     show.add_argument("key", help="a job key or its first characters")

@@ -248,8 +248,10 @@ def plan(recipe: Recipe) -> list[Job]:
 
 
 def after_run(recipe: Recipe, summary, store) -> None:
-    from pilotlab.report.recipe import report_after_run
-    report_after_run(recipe, summary, store)
+    from pilotlab.report.recipe import report_after_run, report_folder
+    written = report_after_run(recipe, summary, store)
+    readme = report_folder(recipe) / "README.md"
+    print(f"report: {readme} and index.html" if written else f"report unchanged: {readme}")
 
 
 DOMAIN = Domain(

@@ -25,7 +25,10 @@ def register(subparsers) -> None:
     parser.add_argument("--direction", choices=("cw", "ccw"), default="cw")
     parser.add_argument("--out", type=Path, required=True, help="folder for the pictures, data and result.json")
     parser.add_argument("--hardware", default="cpu", help="hardware profile: cpu, cpu1 or cuda (default cpu)")
-    parser.add_argument("--timing", choices=("latency", "lockstep", "realtime"), default="latency")
+    parser.add_argument("--timing", choices=("latency", "lockstep", "realtime"), default="latency",
+                        help="latency (default): each measured inference time passes in simulated time with the "
+                             "previous command in force; lockstep: the world waits for the brain; realtime: "
+                             "simulated time follows the wall clock")
     parser.add_argument("--control-hz", type=float, default=20.0, help="brain iterations per second (default 20)")
     parser.add_argument("--extra-latency-ms", type=float, default=0.0, help="artificial latency per iteration")
     parser.add_argument("--repetitions", type=int, default=1, help="runs, from start points spread round the lap")
