@@ -3,7 +3,7 @@
 Cells without a result show as failed with the reason (their own failure or a failed dependency)
 or as not run yet, never as zeros.
 The report is rewritten only when something it shows changed (a stamp over the recipe text, every
-job's key and status, and the report code), so a warm rerun stays quick.
+shown job's key and stored result, and the report code), so a warm rerun stays quick.
 """
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from typing import Any
 from matrix.engine import make_plan, slug
 from matrix.fingerprint import code_fingerprint
 from matrix.recipe import Recipe
-from matrix.store import Store, read_json
+from matrix.store import Store, read_json, result_token
 from pilotlab.report.data import Claim, Host, ReportData, package_versions, pick_metrics, pick_spread
 from pilotlab.report.studies import compare
 
@@ -122,5 +122,5 @@ def _stamp(recipe: Recipe, jobs: list, store: Store) -> str:
     digest.update(code_fingerprint(["pilotlab.report"]).encode())
     for job in jobs:
         result = store.result(job.key) if job.kind in ("offline", "online", "train") else None
-        digest.update(f"{job.key}:{(result or {}).get('status', 'missing')}\n".encode())
+        digest.update(f"{job.key}:{result_token(result) if result else 'missing'}\n".encode())   # a rerun is new
     return digest.hexdigest()

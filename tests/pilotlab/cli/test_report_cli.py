@@ -29,3 +29,20 @@ def test_cells_that_never_ran_are_not_run_yet_not_failed(tmp_path):
     data = build_report_data(recipe, jobs, store)
     assert {(row.status, row.reason) for row in data.rows if row.model == "pilotnet"} \
         == {("failed", "dependency failed: train pilotnet: RuntimeError: loss is nan")}
+
+
+def test_the_report_stamp_changes_when_a_job_is_rerun_with_the_same_key(tmp_path):
+    """`run --force offline` keeps keys and statuses; the report must still be rewritten."""
+    from pilotlab.report.recipe import _stamp
+    recipe, store = load_recipe(QUICKSTART, DOMAIN), Store(tmp_path / "store")
+    jobs = [status.job for status in make_plan(recipe, DOMAIN, store).statuses]
+    offline = next(job for job in jobs if job.kind == "offline")
+
+    def commit(latency: float) -> None:
+        work = store.new_workdir(offline.key)
+        store.commit(offline.key, work, offline.spec(), {"status": "ok", "value": {"latency_ms": latency}})
+    commit(1.0)
+    first = _stamp(recipe, jobs, store)
+    assert _stamp(recipe, jobs, store) == first
+    commit(0.9)
+    assert _stamp(recipe, jobs, store) != first
