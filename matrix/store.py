@@ -117,7 +117,8 @@ class Store:
         matches = sorted(p.name for p in shard.glob(f"{prefix}*")) if shard.is_dir() else []
         matches += [p.stem for p in (self.root / "failed").glob(f"{prefix}*.json")] if not matches else []
         if not matches:
-            raise StoreError(f"no job {prefix!r} in the store {self.root} (`plan RECIPE` lists the keys of a recipe's jobs)")
+            raise StoreError(f"no job {prefix!r} in the store {self.root} "
+                             "(`plan RECIPE` lists the keys of a recipe's jobs)")
         if len(set(matches)) > 1:
             raise StoreError(f"key prefix {prefix!r} is ambiguous: {', '.join(m[:12] for m in matches[:5])}")
         return matches[0]

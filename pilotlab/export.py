@@ -32,7 +32,7 @@ with torch.inference_mode():
 }
 
 RESIZES = {  # pilotlab.data.preprocess.resize, written out with OpenCV alone
-    "fast_area": """    while image.shape[1] >= {w2} and image.shape[0] >= {h2}:   # halve by 2x2 averages while twice the size
+    "fast_area": """    while image.shape[1] >= {w2} and image.shape[0] >= {h2}:   # 2x2 means while twice the size
         even = image[:image.shape[0] // 2 * 2, :image.shape[1] // 2 * 2]
         image = cv2.resize(even, (even.shape[1] // 2, even.shape[0] // 2), interpolation=cv2.INTER_AREA)
     image = cv2.resize(image, ({w}, {h}), interpolation=cv2.INTER_LINEAR)""",

@@ -21,7 +21,8 @@ def run(args) -> int:
     from pilotlab.errors import PilotlabError
     from pilotlab.report.recipe import write_recipe_report
     recipe, store = load_recipe(args.recipe, DOMAIN), open_store(DOMAIN, args.store)
-    if not any(status.state == FRESH for status in make_plan(recipe, DOMAIN, store).statuses):
+    statuses = make_plan(recipe, DOMAIN, store).statuses
+    if not any(status.state == FRESH or store.failure(status.job.key) for status in statuses):
         raise PilotlabError(f"the store {store.root} holds no result of recipe {recipe.name!r}, so the report "
                             f"would show nothing; run `pilotlab run {args.recipe}` first, or give the right --store")
     folder = write_recipe_report(recipe, store, DOMAIN, force=True)

@@ -137,7 +137,8 @@ def _ratio_bars(ax, data: ReportData, groups: list[str], metric: str, title: str
 def _ratio_bar(ax, row: ReportRow, base: ReportRow | None, metric: str, position: float, height: float,
                index: int) -> None:
     if row.status != "ok" or row.get(metric) is None or base is None or base.get(metric) is None:
-        label = {"not_applicable": "not applicable", "failed": "failed", "not_run": "not run yet"}.get(row.status, "not measured")
+        label = {"not_applicable": "not applicable", "failed": "failed",
+                 "not_run": "not run yet"}.get(row.status, "not measured")
         ax.text(0.05, position, label, ha="left", va="center", fontsize=8, color="0.35", style="italic")
         return
     colour = matplotlib.colormaps["Set2"](index % 8)

@@ -66,7 +66,8 @@ def write_report(data: ReportData, out_dir: Path) -> ReportPaths:
 
 def build_context(data: ReportData, out_dir: Path, plots: dict[str, tuple[Path, Path]],
                   pictures: dict[int, Picture], missing: list[str]) -> dict[str, Any]:
-    counts = {status: sum(r.status == status for r in data.rows) for status in ("ok", "not_applicable", "failed", "not_run")}
+    counts = {status: sum(r.status == status for r in data.rows)
+              for status in ("ok", "not_applicable", "failed", "not_run")}
     return {
         "data": data,
         "writer_version": pilotlab.__version__,
