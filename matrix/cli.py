@@ -107,7 +107,7 @@ def cmd_run(args, domain: Domain) -> int:
                                   executor=executor)
         out.print(_summary_line(summary, args.tool))
     if domain.after_run is not None:
-        domain.after_run(recipe, summary, store)
+        domain.after_run(recipe, plan, summary, store)
     return 1 if summary.failed else 0
 
 

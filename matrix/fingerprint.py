@@ -31,6 +31,30 @@ def code_fingerprint(sources: Iterable[Any]) -> str:
     return digest.hexdigest()
 
 
+def closure_fingerprint(modules: Iterable[str], extra: Iterable[Any] = ()) -> str:
+    """sha256 over the modules' own source files (a package counts as its `__init__.py`: what it
+    imports is in the closure by name) and over `extra`: code sources as in `code_fingerprint`, or
+    paths of files a job reads that no import names (data tables, templates)."""
+    digest = hashlib.sha256()
+    entries = [_own_source_hash(module) for module in modules] + [_extra_hash(e) for e in extra]
+    for ident, text_hash in sorted(set(entries)):
+        digest.update(f"{ident}:{text_hash}\n".encode())
+    return digest.hexdigest()
+
+
+def _own_source_hash(module: str) -> tuple[str, str]:
+    ident = f"{module}#own"
+    if ident not in _SOURCE_HASHES:
+        _SOURCE_HASHES[ident] = hashlib.sha256(_module_origin(module).read_bytes()).hexdigest()
+    return ident, _SOURCE_HASHES[ident]
+
+
+def _extra_hash(source: Any) -> tuple[str, str]:
+    if isinstance(source, (str, Path)) and ("/" in str(source) or Path(source).is_file()):
+        return f"file:{Path(source).name}", hash_path(source)
+    return _source_hash(source)
+
+
 def _ident(source: Any) -> str:
     """The module a source lives in: code is fingerprinted a whole module at a time (one job kind,
     one strategy, one model per module keeps that precise)."""
@@ -109,8 +133,17 @@ def _is_package(name: str) -> bool:
         return False
 
 
+_GENERATION = [0]
+
+
+def cache_generation() -> int:
+    """Changes whenever the caches are cleared: what is derived from source text is stale then."""
+    return _GENERATION[0]
+
+
 def clear_caches() -> None:
     """Forget remembered hashes (for long-lived processes that watch code change)."""
+    _GENERATION[0] += 1
     _FILE_HASHES.clear()
     _SOURCE_HASHES.clear()
 

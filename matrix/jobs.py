@@ -17,7 +17,7 @@ from types import MappingProxyType
 from typing import Any
 
 from matrix.errors import MatrixError
-from matrix.fingerprint import code_fingerprint, hash_path
+from matrix.fingerprint import hash_path
 from matrix.kinds import KINDS
 
 KEY_FORMAT = 1
@@ -101,9 +101,7 @@ class Job:
 
     @cached_property
     def code(self) -> str:
-        kind = KINDS.get(self.kind)
-        extra = tuple(kind.code_for(self.params)) if kind.code_for else ()
-        return code_fingerprint(kind.code + extra + (kind.handler,))
+        return KINDS.get(self.kind).fingerprint(self.params)
 
     @cached_property
     def key(self) -> str:

@@ -1,13 +1,19 @@
 """Job kinds: the domain registers a handler per kind; the engine runs it in a worker.
 
-    @job_kind("train", code=["mydomain.training", "mydomain.models"])
+    class TrainParams(pydantic.BaseModel):       # the one home of the kind's params and defaults
+        model_config = pydantic.ConfigDict(extra="forbid", frozen=True)
+        epochs: int = 20
+
+    register_kind("train", "mydomain.jobs.train:run_train", params=TrainParams)
+
+    # mydomain/jobs/train.py: imported only when a job runs, so it may import heavy libraries at its top
     def run_train(ctx: JobContext) -> dict:
-        fit = load_trainer()     # heavy libraries: in the handler, not at import, so planning stays quick
-        ...                      # read ctx.params, ctx.deps["data"].artifacts, write into ctx.out
+        ctx.spec.epochs          # the validated params; ctx.deps["data"].artifacts; write into ctx.out
         return {"val_mse": 0.01} # JSON-serialisable result
 
-Code is best named by module name: it is fingerprinted from its file without being imported, so
-planning (which imports every kind's module) stays quick.
+The kind's code fingerprint is the import closure of the handler's module within its top-level
+package, read from the source (nothing is imported to plan), so an edit to any module the handler
+can reach changes the keys of its jobs. `code=` adds what no import statement names.
 
 A handler raises `NotApplicable(reason)` when the job cannot run on this hardware: the result is
 recorded (and cached) as "not applicable: reason", and jobs that depend on it get the same status
@@ -15,14 +21,19 @@ without running.
 """
 from __future__ import annotations
 
+import importlib
 import logging
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
+from functools import cached_property
 from typing import Any
 
-from matrix.errors import MatrixError
+import pydantic
+
+from matrix.errors import MatrixError, did_you_mean
+from matrix.fingerprint import cache_generation, closure_fingerprint, module_closure
 from matrix.registry import Registry
 
 
@@ -57,6 +68,7 @@ class JobContext:
     cache: Path                    # a store-wide scratch folder for caches shared between jobs
     log: logging.Logger
     inputs: Mapping[str, Path] = field(default_factory=dict)  # user files by role (content in the key)
+    spec: Any = None               # the params validated by the kind's params model (set before the handler runs)
     _progress: ProgressFn = field(default=lambda **_: None, repr=False)
 
     def progress(self, completed: float, total: float | None = None, description: str | None = None) -> None:
@@ -78,27 +90,124 @@ Handler = Callable[[JobContext], Mapping[str, Any]]
 CodeSources = Iterable[str | ModuleType | Callable | type]   # module names, or what a module defines
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class JobKind:
+    """A job kind: its typed params, its handler and the code behind it.
+
+    `target` is "package.module:function" (imported only when a job runs, so the handler's module may
+    import heavy libraries at its top) or the function itself. `params`, a pydantic model, is the one
+    home of the kind's parameters and defaults: jobs are planned with it and the handler reads
+    `ctx.spec`, the validated instance. The kind's code is the import closure of the handler's module
+    within its top-level package (and the params model's), computed from the source; `code` adds what
+    no import names (data files, modules loaded by name), `code_for` the per-job part (the module of
+    the one strategy an optimize job applies), and modules in `code_exclude` are left to `code_for`.
+    """
     name: str
-    handler: Handler
-    # The code whose text makes up this kind's fingerprint: fixed modules, plus per-job extras
-    # (for example the module of the one strategy an optimize job applies).
+    target: str | Handler
+    params: Any = None
     code: tuple = ()
     code_for: Callable[[Mapping[str, Any]], CodeSources] | None = None
+    code_exclude: Callable[[], Iterable[str]] | None = None
     exclusive: bool = False        # run alone (timing jobs): nothing else runs beside it
     resources: Mapping[str, float] = field(default_factory=dict)  # e.g. {"GPU": 1} for Dask placement
     resources_for: Callable[[Mapping[str, Any]], Mapping[str, float]] | None = None  # per job
+
+    @property
+    def module(self) -> str:
+        return self.target.partition(":")[0] if isinstance(self.target, str) else self.target.__module__
+
+    @cached_property
+    def function(self) -> Handler:
+        if not isinstance(self.target, str):
+            return self.target
+        module, _, attribute = self.target.partition(":")
+        return getattr(importlib.import_module(module), attribute)
+
+    def handler(self, ctx: JobContext) -> Mapping[str, Any]:
+        """Validate the job's params into `ctx.spec`, then run the handler."""
+        ctx.spec = self.validate(ctx.params, ctx.name)
+        return self.function(ctx)
+
+    def validate(self, params: Mapping[str, Any], where: str = "") -> Any:
+        """The params as the kind's model (unknown names and bad values are errors), or None."""
+        if self.params is None:
+            return None
+        if hasattr(self.params, "from_job_params"):   # the domain words its own errors
+            return self.params.from_job_params(dict(params), where or self.name)
+        try:
+            return self.params.model_validate(dict(params))
+        except pydantic.ValidationError as error:
+            raise MatrixError(f"{where or self.name}: {params_problem(error, self.params)}") from None
+
+    def dump(self, params: Any) -> dict[str, Any]:
+        """Job params as plain JSON data: a params model (or a mapping, validated) with every default."""
+        if self.params is None:
+            return dict(params)
+        model = params if isinstance(params, self.params) else self.validate(params)
+        return model.model_dump(mode="json")
+
+    def base_modules(self) -> tuple[str, ...]:
+        """The modules every job of this kind runs: the handler's and the params model's import closures."""
+        return _remembered(("closure", self.name), self._closure)
+
+    def _closure(self) -> tuple[str, ...]:
+        excluded = tuple(self.code_exclude()) if self.code_exclude else ()
+        roots = [self.module] + ([self.params.__module__] if self.params is not None else [])
+        found: list[str] = []
+        for root in roots:
+            found += module_closure(root, root.partition(".")[0], exclude=excluded)
+        return tuple(dict.fromkeys(found))
+
+    def fingerprint(self, params: Mapping[str, Any]) -> str:
+        extra = tuple(map(str, self.code_for(params))) if self.code_for else ()
+        return _remembered(("code", self.name, extra),
+                           lambda: closure_fingerprint(self.base_modules() + extra, self.code))
+
+
+_REMEMBERED: dict[tuple, Any] = {}
+
+
+def _remembered(key: tuple, compute: Callable[[], Any]) -> Any:
+    """Per-kind code facts, computed once per process (until `matrix.fingerprint.clear_caches`)."""
+    key = (cache_generation(),) + key
+    if key not in _REMEMBERED:
+        _REMEMBERED[key] = compute()
+    return _REMEMBERED[key]
+
+
+def params_problem(error: pydantic.ValidationError, model: Any) -> str:
+    """One line for a params model's complaint: the key path, what is wrong, did you mean."""
+    first = min(error.errors(include_url=False), key=lambda e: e["type"] != "extra_forbidden")
+    path = ".".join(map(str, first["loc"])) or "params"
+    if first["type"] == "extra_forbidden":
+        known = _fields_at(model, first["loc"][:-1])
+        return (f"unknown param {path!r}{did_you_mean(str(first['loc'][-1]), known)}; "
+                f"known: {', '.join(known) or '(none)'}")
+    return f"{path}: {first['msg'].removeprefix('Value error, ')} (got {first.get('input')!r:.80})"
+
+
+def _fields_at(model: Any, loc: tuple) -> list[str]:
+    """The field names of the (nested) model at `loc`, where it can be told."""
+    for part in loc:
+        info = getattr(model, "model_fields", {}).get(part)
+        model = info.annotation if info is not None else None
+    return sorted(getattr(model, "model_fields", {}))
 
 
 KINDS: Registry[JobKind] = Registry("job kind")
 
 
-def job_kind(name: str, *, code: CodeSources = (), code_for=None, exclusive: bool = False,
-             resources: Mapping[str, float] | None = None, resources_for=None) -> Callable[[Handler], Handler]:
-    """Register `handler` as the implementation of job kind `name`."""
+def register_kind(name: str, target: str | Handler, *, params: Any = None, code: CodeSources = (),
+                  code_for=None, code_exclude=None, exclusive: bool = False,
+                  resources: Mapping[str, float] | None = None, resources_for=None) -> JobKind:
+    """Register job kind `name`, run by `target` ("module:function", or the function)."""
+    return KINDS.add(name, JobKind(name, target, params, tuple(code), code_for, code_exclude, exclusive,
+                                   dict(resources or {}), resources_for))
+
+
+def job_kind(name: str, **options) -> Callable[[Handler], Handler]:
+    """Decorator form of `register_kind`, for a handler defined beside its registration."""
     def decorate(handler: Handler) -> Handler:
-        KINDS.add(name, JobKind(name, handler, tuple(code), code_for, exclusive, dict(resources or {}),
-                                resources_for))
+        register_kind(name, handler, **options)
         return handler
     return decorate

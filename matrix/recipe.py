@@ -31,7 +31,7 @@ class Domain:
     kind_modules: tuple[str, ...] = ()         # imported (in workers too) to register job kinds
     store_env: str = "MATRIX_STORE"
     default_store: str = ".matrix"
-    after_run: Callable[..., None] | None = None   # (recipe, summary, store) after `run`
+    after_run: Callable[..., None] | None = None   # (recipe, plan, summary, store) after `run`
 
 
 @dataclass(frozen=True)

@@ -17,10 +17,21 @@ from typing import Any
 from matrix.errors import MatrixError, did_you_mean
 from matrix.jobs import Job, input_file
 from matrix.recipe import Domain, Recipe
-from pilotlab.recipe import SECTIONS, DatasetSpec, ModelSpec
+from pilotlab.recipe import SECTIONS, DatasetSpec, ModelSpec, RecordingsSpec
+from pilotlab.specs import KIND_MODULES
+from pilotlab.specs.base import Spec
+from pilotlab.specs.frames import FramesSpec
+from pilotlab.specs.offline import OfflineSpec
+from pilotlab.specs.online import LapSettings, OnlineSpec
+from pilotlab.specs.optimize import OptimizeSpec
+from pilotlab.specs.record import RecordSettings, RecordSpec
 
 AXES = ("model", "strategy", "hardware", "circuit")
-HARDWARE_DEPENDENT_STRATEGY_MODULES = ("pilotlab.strategies.half", "pilotlab.strategies.cuda")
+
+
+def job(kind: str, name: str, spec: Spec, **links) -> Job:
+    """A job whose params are `spec`, every default written out (so the key says what ran)."""
+    return Job(kind, name, spec.model_dump(mode="json"), **links)
 
 
 # --- axes: which names a combination may carry -------------------------------------------------
@@ -83,33 +94,29 @@ class Planner:
         return self.datasets[name]
 
     def _dataset_jobs(self, name: str, spec: DatasetSpec) -> list[Job]:
-        topics = {k: v for k, v in (("image_topic", spec.topics.image), ("command_topic", spec.topics.command))
-                  if v is not None}
+        topics = {"image_topic": spec.topics.image, "command_topic": spec.topics.command}
         jobs = []
         if spec.record is not None:
             for label, record in self._recordings(name, spec):
-                jobs.append(Job("frames", f"frames {label}", {**topics, "label": label}, deps={"bag": record}))
+                jobs.append(job("frames", f"frames {label}", FramesSpec(**topics, label=label), deps={"bag": record}))
         for i, path in enumerate(spec.bags + spec.folders):
             source = self.path(path, ["datasets", name, "bags" if i < len(spec.bags) else "folders"])
             label = f"{name}/{Path(path).name}"
-            jobs.append(Job("frames", f"frames {label}", {**topics, "label": label},
+            jobs.append(job("frames", f"frames {label}", FramesSpec(**topics, label=label),
                             inputs={"bag": input_file(str(source))}))
         return jobs
 
     def _recordings(self, name: str, spec: DatasetSpec) -> list[tuple[str, Job]]:
         """(label, record job) for every circuit and direction of the dataset."""
-        record = spec.record
+        record: RecordingsSpec = spec.record
+        settings = {field: getattr(record, field) for field in RecordSettings.model_fields}
         jobs = []
         for circuit in record.circuits:
             params, inputs = self.circuit_param(circuit, ["datasets", name, "record", "circuits"])
             for direction in record.directions:
                 label = f"{name}/{circuit} {direction}"
-                jobs.append((label, Job("record", f"record {label}", {
-                    **params, "direction": direction, "laps": record.laps,
-                    "seed": record.seed, "width": record.camera.width, "height": record.camera.height,
-                    "rate_hz": record.rate_hz, "format": record.format,
-                    "compressed": "jpeg" if record.compressed else None, "noise": record.noise},
-                    inputs=inputs)))
+                jobs.append((label, job("record", f"record {label}", RecordSpec(
+                    **settings, **params, direction=direction), inputs=inputs)))
         return jobs
 
     def circuit_param(self, circuit: str, where: list) -> tuple[dict, dict]:
@@ -138,25 +145,27 @@ class Planner:
             spec: ModelSpec = self.config.models[model]
             frames = self.dataset(spec.data, ["models", model, "data"])
             _check_model(self.recipe, model, spec)
-            params = spec.model_dump(exclude={"data"})
+            params = spec.model_dump(mode="json", exclude={"data"})
             self.trained[model] = Job("train", f"train {model}", params, deps={"frames": tuple(frames)})
         return self.trained[model]
 
     def optimize(self, model: str, strategy: str, hardware: str) -> Job:
+        from pilotlab.strategies import STRATEGIES
         base, options = self.strategy(strategy)
-        params: dict[str, Any] = {"strategy": base, "options": options}
-        if _hardware_dependent(base):
+        spec = OptimizeSpec(strategy=base, options=options)
+        if STRATEGIES.get(base).hardware_dependent:
             from pilotlab.hardware import host_fingerprint
-            profile = self.profile(hardware)
-            params |= {"hardware": {"name": profile.device, "device": profile.device, "threads": None},
-                       "host": host_fingerprint()}
-        slot = (model, strategy, params.get("hardware", {}).get("device"))
-        if slot not in self.optimized:
+            device = self.profile(hardware).device
+            spec = OptimizeSpec(strategy=base, options=options, host=host_fingerprint(),
+                                hardware={"name": device, "device": device, "threads": None})
+        device = spec.hardware["device"] if spec.hardware else None
+        if (model, strategy, device) not in self.optimized:
             train = self.train(model)
-            suffix = f" for {params['hardware']['device']}" if "hardware" in params else ""
-            self.optimized[slot] = Job("optimize", f"optimize {model}/{strategy}{suffix}", params,
-                                       deps={"model": train, "calibration": train.deps["frames"]})
-        return self.optimized[slot]
+            suffix = f" for {device}" if device else ""
+            self.optimized[model, strategy, device] = job(
+                "optimize", f"optimize {model}/{strategy}{suffix}", spec,
+                deps={"model": train, "calibration": train.deps["frames"]})
+        return self.optimized[model, strategy, device]
 
     def strategy(self, name: str) -> tuple[str, dict[str, Any]]:
         """(registered strategy, options) for a strategy name of the recipe (aliases via `use:`)."""
@@ -187,20 +196,15 @@ class Planner:
         from pilotlab.hardware import host_fingerprint
         test = self.dataset(self.config.offline.data, ["offline", "data"])
         model, strategy = combination["model"], combination["strategy"]
-        params = {"hardware": self.profile(hardware).as_dict(), "host": host_fingerprint(),
-                  "timing": {"throughput_batch": self.config.offline.batch}}
+        spec = OfflineSpec(hardware=self.profile(hardware).as_dict(), host=host_fingerprint(),
+                           batch=self.config.offline.batch)
         labels = {"model": model, "strategy": strategy, "hardware": hardware,
                   "test_set": self.config.offline.data}
-        return Job("offline", f"offline {model}/{strategy} on {hardware}", params,
+        return job("offline", f"offline {model}/{strategy} on {hardware}", spec,
                    deps={"artifact": optimize, "test": tuple(test)}, labels=labels)
 
     def reference_jobs(self) -> list[Job]:
         return reference_jobs(self)
-
-
-def _hardware_dependent(strategy: str) -> bool:
-    from pilotlab.strategies import STRATEGIES
-    return STRATEGIES.get(strategy).module in HARDWARE_DEPENDENT_STRATEGY_MODULES
 
 
 def _check_model(recipe: Recipe, name: str, spec: ModelSpec) -> None:
@@ -236,10 +240,10 @@ def _lap(planner: Planner, name: str, labels: dict, hardware: str, circuit: str,
     from pilotlab.hardware import host_fingerprint
     online = planner.config.online
     params, inputs = planner.circuit_param(circuit, ["matrix", "circuit"])
-    params |= {**brain, "direction": direction, "hardware": planner.profile(hardware).as_dict(),
-               "host": host_fingerprint(), "timing": online.timing, "control_hz": online.control_hz,
-               "timeout_s": online.timeout_s, "repetitions": online.repetitions, "video": online.video}
-    return Job("online", f"{name} at {circuit} {direction}", params, deps=deps, inputs=inputs,
+    settings = {field: getattr(online, field) for field in LapSettings.model_fields}
+    spec = OnlineSpec(**settings, **params, **brain, direction=direction, host=host_fingerprint(),
+                      hardware=planner.profile(hardware).as_dict())
+    return job("online", f"{name} at {circuit} {direction}", spec, deps=deps, inputs=inputs,
                labels={**labels, "circuit": circuit, "direction": direction})
 
 
@@ -247,9 +251,10 @@ def plan(recipe: Recipe) -> list[Job]:
     return Planner(recipe).jobs()
 
 
-def after_run(recipe: Recipe, summary, store) -> None:
-    from pilotlab.report.recipe import report_after_run, report_folder
-    written = report_after_run(recipe, summary, store)
+def after_run(recipe: Recipe, plan, summary, store) -> None:
+    """After `run`: refresh the report from the plan that ran (it is not planned again)."""
+    from pilotlab.report.recipe import report_folder, write_recipe_report
+    written = write_recipe_report(recipe, store, [status.job for status in plan.statuses], force=False)
     readme = report_folder(recipe) / "README.md"
     print(f"report: {readme} and index.html" if written else f"report unchanged: {readme}")
 
@@ -259,8 +264,7 @@ DOMAIN = Domain(
     sections=SECTIONS,
     axes={"model": _models, "strategy": _strategies, "hardware": _hardware, "circuit": _circuits},
     plan=plan,
-    kind_modules=("pilotlab.jobs.record", "pilotlab.jobs.frames", "pilotlab.jobs.train",
-                  "pilotlab.jobs.optimize", "pilotlab.jobs.offline", "pilotlab.jobs.online"),
+    kind_modules=KIND_MODULES,
     store_env="PILOTLAB_STORE",
     default_store=".pilotlab",
     after_run=after_run,

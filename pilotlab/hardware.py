@@ -145,3 +145,13 @@ def describe_host(host: dict[str, Any]) -> str:
     """One line for reports: 'AMD EPYC, 2 cores, no GPU'."""
     gpu = host.get("gpu") or "no GPU"
     return f"{host.get('cpu')}, {host.get('cores')} cores, {gpu}"
+
+
+def check_host(job: str, expected: dict[str, Any] | None) -> dict[str, Any]:
+    """This host's fingerprint, refusing to time on another host than the one planned for (its
+    timings would be filed under the wrong machine)."""
+    host = host_fingerprint()
+    if expected is not None and dict(expected) != host:
+        raise PilotlabError(f"{job}: planned for host {describe_host(expected)} but running on "
+                            f"{describe_host(host)}; plan the run on the machine that times it")
+    return host

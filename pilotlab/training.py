@@ -10,7 +10,7 @@ from __future__ import annotations
 import copy
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 import torch
@@ -23,13 +23,18 @@ from pilotlab.data.frames import FrameSet, LabelRanges
 
 @dataclass(frozen=True)
 class FitConfig:
-    epochs: int = 10
-    batch_size: int = 64
-    lr: float = 1e-3
+    """How one fit runs. The train job's settings and their defaults are pilotlab.specs.train.TrainSpec;
+    here only what a caller (a strategy's fine-tuning) need not say has a neutral value."""
+    epochs: int
+    batch_size: int
+    lr: float
     seed: int = 0
     frames: int = 1                  # consecutive frames per input (temporal models)
     patience: int | None = None      # early stopping on validation loss (None: never stop early)
     augment: AugmentConfig = field(default_factory=AugmentConfig)
+
+    def as_dict(self) -> dict:
+        return {**{f.name: getattr(self, f.name) for f in fields(self)}, "augment": self.augment.as_dict()}
 
 
 EpochCallback = Callable[[dict], None]

@@ -12,7 +12,10 @@ import pkgutil
 import sys
 import traceback
 
+import pydantic
+
 from matrix.errors import MatrixError
+from pilotlab.specs.base import spec_problem
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -20,6 +23,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="show tracebacks and debug logs")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):   # helpers, not commands
+            continue
         module = importlib.import_module(f"{__name__}.{info.name}")
         module.register(subparsers)
     return parser
@@ -29,10 +34,11 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except MatrixError as error:
+    except (MatrixError, pydantic.ValidationError) as error:
         if args.verbose:
             traceback.print_exc()
-        print(f"pilotlab: error: {error}", file=sys.stderr)
+        message = spec_problem(error) if isinstance(error, pydantic.ValidationError) else error
+        print(f"pilotlab: error: {message}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("pilotlab: interrupted", file=sys.stderr)

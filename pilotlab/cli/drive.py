@@ -9,7 +9,13 @@ import argparse
 import json
 from pathlib import Path
 
+from pilotlab.cli._options import add_spec_options, spec_from_args
 from pilotlab.errors import PilotlabError
+from pilotlab.specs.online import OnlineSpec
+
+LAP_OPTIONS = ["direction", "timing", "control_hz", "extra_latency_ms", "fixed_inference_ms", "repetitions", "laps",
+               "seed", "timeout_s", "stop_off_road", "trapped_s", "renderer", "video", "video_seconds",
+               "camera_frames"]
 
 
 def register(subparsers) -> None:
@@ -22,44 +28,19 @@ def register(subparsers) -> None:
     which.add_argument("--artifact", type=Path, help="artifact folder (artifact.json + model file)")
     which.add_argument("--brain", choices=("explicit", "expert"), help="a reference brain")
     parser.add_argument("--circuit", required=True, help="circuit name (pilotlab circuit list) or CSV path")
-    parser.add_argument("--direction", choices=("cw", "ccw"), default="cw")
     parser.add_argument("--out", type=Path, required=True, help="folder for the pictures, data and result.json")
     parser.add_argument("--hardware", default="cpu", help="hardware profile: cpu, cpu1 or cuda (default cpu)")
-    parser.add_argument("--timing", choices=("latency", "lockstep", "realtime"), default="latency",
-                        help="latency (default): each measured inference time passes in simulated time with the "
-                             "previous command in force; lockstep: the world waits for the brain; realtime: "
-                             "simulated time follows the wall clock")
-    parser.add_argument("--control-hz", type=float, default=20.0, help="brain iterations per second (default 20)")
-    parser.add_argument("--extra-latency-ms", type=float, default=0.0, help="artificial latency per iteration")
-    parser.add_argument("--repetitions", type=int, default=1, help="runs, from start points spread round the lap")
-    parser.add_argument("--laps", type=float, default=1.0)
-    parser.add_argument("--timeout", type=float, default=None, help="simulated seconds (default: the circuit's)")
-    parser.add_argument("--video", action="store_true", help="write camera.mp4 of the first run's first 20 s")
+    add_spec_options(parser, OnlineSpec, LAP_OPTIONS, flags={"timeout_s": ["--timeout"]})
     parser.set_defaults(func=run)
 
 
-def params_of(args: argparse.Namespace) -> dict:
-    """The online job's params for these arguments."""
-    return {"circuit": args.circuit, "direction": args.direction, "timing": args.timing,
-            "control_hz": args.control_hz, "extra_latency_ms": args.extra_latency_ms,
-            "repetitions": args.repetitions, "laps": args.laps, "timeout_s": args.timeout, "video": args.video}
-
-
 def check_arguments(args: argparse.Namespace) -> None:
-    """What can be told wrong before the simulator starts."""
+    """What can be told wrong before the simulator starts (the lap settings: by the spec)."""
     if args.artifact is not None and not args.artifact.is_dir():
         raise PilotlabError(f"--artifact {args.artifact}: no such folder")
     if args.out.exists() and (not args.out.is_dir() or any(args.out.iterdir())):
         what = "is a file" if not args.out.is_dir() else "is a folder that is not empty"
         raise PilotlabError(f"--out {args.out} {what}; give a new folder (drive does not mix two runs' files)")
-    for option, value, least in (("--laps", args.laps, 0.0), ("--repetitions", args.repetitions, 0),
-                                 ("--control-hz", args.control_hz, 0.0)):
-        if value is not None and value <= least:
-            raise PilotlabError(f"{option} {value:g}: must be above {least:g}")
-    if args.timeout is not None and args.timeout <= 0:
-        raise PilotlabError(f"--timeout {args.timeout:g}: must be above 0 simulated seconds")
-    if args.extra_latency_ms < 0:
-        raise PilotlabError(f"--extra-latency-ms {args.extra_latency_ms:g}: must be 0 or more")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -67,18 +48,17 @@ def run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from pilotlab.hardware import check_available, make_profile
-    from pilotlab.jobs.online import DEFAULTS, online_spec
     from pilotlab.online.brains import NetworkBrain, make_reference_brain
     from pilotlab.online.evaluate import evaluate_online
     from pilotlab.predictor import load_predictor
     from pilotlab.report import pick_metrics
 
     check_arguments(args)
+    spec = spec_from_args(OnlineSpec, args, circuit=args.circuit, brain=args.brain or "network")
     profile = make_profile(args.hardware)
     check_available(profile)
     brain = (NetworkBrain(load_predictor(args.artifact, profile)) if args.artifact is not None
              else make_reference_brain(args.brain))
-    spec = online_spec({**DEFAULTS, **params_of(args)})
     columns = (TextColumn("[bold]{task.description}"), BarColumn(),
                TextColumn("{task.completed:.0f}/{task.total:.0f} m"), TimeElapsedColumn())
     with Progress(*columns) as progress:

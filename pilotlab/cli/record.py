@@ -5,7 +5,10 @@ import argparse
 import re
 from pathlib import Path
 
+from pilotlab.cli._options import add_spec_options, spec_from_args
 from pilotlab.errors import PilotlabError
+from pilotlab.specs.base import CameraSize
+from pilotlab.specs.record import RecordSpec
 
 
 def register(subparsers) -> None:
@@ -15,23 +18,13 @@ def register(subparsers) -> None:
                     "go to a rosbag stamped in simulated time. Raw 640x480 frames at 10 Hz take about 9 MB per "
                     "simulated second (a lap of simple_circuit: ~430 MB); --compressed png keeps them lossless "
                     "in ~1% of that. Ctrl-C stops early and leaves a valid bag.")
-    parser.add_argument("--circuit", required=True, help="circuit name (pilotlab circuit list) or CSV path")
-    parser.add_argument("--direction", choices=("cw", "ccw"), default="cw")
-    parser.add_argument("--laps", type=float, default=1.0, help="laps to drive (fractions allowed)")
+    parser.add_argument("--circuit", required=True, help=RecordSpec.model_fields["circuit"].description)
     parser.add_argument("--out", type=Path, required=True,
-                        help="bag to write: a .bag file (ros1; .bag is added if missing) or a folder (ros2)")
-    parser.add_argument("--format", choices=("ros1", "ros2"), default="ros1")
-    parser.add_argument("--seed", type=int, default=0, help="seeds the noise and a random start")
-    parser.add_argument("--size", default="640x480", help="camera frame WIDTHxHEIGHT (default 640x480)")
-    parser.add_argument("--rate", type=float, default=10.0, help="camera frames per simulated second (default 10)")
-    parser.add_argument("--compressed", choices=("jpeg", "png"), default=None,
-                        help="write sensor_msgs/CompressedImage instead of raw rgb8 Image")
-    parser.add_argument("--noise", type=float, default=0.0,
-                        help="fraction of time the expert swerves and recovers (0 = never, e.g. 0.1)")
-    parser.add_argument("--renderer", choices=("ground", "pybullet"), default="ground",
-                        help="ground: fast ground-plane renderer (default); pybullet: TinyRenderer reference")
-    parser.add_argument("--start", default="0", help="start point, metres along the lap, or 'random'")
-    parser.add_argument("--max-seconds", type=float, default=None, help="stop after this much simulated time")
+                        help="bag to write: a folder (ros2, the default format) or a file ending in .bag "
+                             "(then ros1 unless --format says otherwise)")
+    parser.add_argument("--size", help="camera frame WIDTHxHEIGHT (default 640x480)")
+    add_spec_options(parser, RecordSpec, ["direction", "laps", "format", "seed", "rate_hz", "compressed", "noise",
+                                          "renderer", "start", "max_seconds"], flags={"rate_hz": ["--rate"]})
     parser.set_defaults(func=run)
 
 
@@ -42,21 +35,29 @@ def parse_size(text: str) -> tuple[int, int]:
     return int(match.group(1)), int(match.group(2))
 
 
+def camera_of(args: argparse.Namespace) -> dict:
+    """{"camera": ...} for --size, else nothing (the spec's default camera)."""
+    if args.size is None:
+        return {}
+    width, height = parse_size(args.size)
+    try:
+        return {"camera": CameraSize(width=width, height=height)}
+    except PilotlabError as error:
+        raise PilotlabError(f"--size {args.size}: {str(error).removeprefix('CameraSize: ')}") from None
+
+
 def run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from pilotlab.circuits import get_circuit
-    from pilotlab.sim.record import RecordSpec, record
-    width, height = parse_size(args.size)
-    start = args.start if args.start == "random" else float(args.start)
-    spec = RecordSpec(circuit=args.circuit, direction=args.direction, laps=args.laps, seed=args.seed, width=width,
-                      height=height, rate_hz=args.rate, format=args.format, compressed=args.compressed,
-                      noise=args.noise, renderer=args.renderer, start=start, max_seconds=args.max_seconds)
+    from pilotlab.sim.record import record
+    spec = spec_from_args(RecordSpec, args, circuit=args.circuit, **camera_of(args),
+                          **({"format": "ros1"} if args.out.suffix == ".bag" and not hasattr(args, "format") else {}))
     columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:.0f} m"),
                TextColumn("{task.fields[frames]} frames"), TimeElapsedColumn(), TimeRemainingColumn())
-    total = get_circuit(args.circuit).length * args.laps
+    total = get_circuit(args.circuit).length * spec.laps
     with Progress(*columns) as progress:
-        task = progress.add_task(f"recording {args.circuit} {args.direction}", total=total, frames=0)
+        task = progress.add_task(f"recording {spec.circuit} {spec.direction}", total=total, frames=0)
         summary = record(spec, args.out, lambda done, total, frames: progress.update(
             task, completed=done, total=total, frames=frames))
     print(f"{summary.path}: {summary.frames} frames, {summary.commands} commands, {summary.sim_seconds:.1f} s "

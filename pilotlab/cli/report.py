@@ -25,6 +25,6 @@ def run(args) -> int:
     if not any(status.state == FRESH or store.failure(status.job.key) for status in statuses):
         raise PilotlabError(f"the store {store.root} holds no result of recipe {recipe.name!r}, so the report "
                             f"would show nothing; run `pilotlab run {args.recipe}` first, or give the right --store")
-    folder = write_recipe_report(recipe, store, DOMAIN, force=True)
+    folder = write_recipe_report(recipe, store, [status.job for status in statuses], force=True)
     print(f"report written: {folder / 'README.md'} and {folder / 'index.html'}")
     return 0

@@ -13,48 +13,13 @@ A stack of frames (temporal models) gets the same transform on each of its frame
 """
 from __future__ import annotations
 
-import dataclasses
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import torch
 from torch.nn import functional as F
 
-from pilotlab.errors import PilotlabError
-
-
-@dataclass(frozen=True)
-class AugmentConfig:
-    version: int = 1
-    flip: bool = False
-    oversample_curves: float = 0.0
-    curve_threshold: float = 0.3
-    color_jitter: float = 0.0
-    blur: float = 0.0
-    affine: float = 0.0
-
-    def __post_init__(self):
-        for name in ("blur", "affine", "color_jitter", "curve_threshold"):
-            if not 0.0 <= getattr(self, name) <= 1.0:
-                raise PilotlabError(f"augment.{name} = {getattr(self, name)} must be between 0 and 1")
-        if self.oversample_curves < 0:
-            raise PilotlabError(f"augment.oversample_curves = {self.oversample_curves} must be >= 0 (extra weight)")
-
-    @classmethod
-    def from_params(cls, params: Mapping[str, Any] | None) -> AugmentConfig:
-        fields = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(params or {}) - fields)
-        if unknown:
-            raise PilotlabError(f"augment has no option(s) {', '.join(unknown)}; "
-                                f"its options are: {', '.join(sorted(fields - {'version'}))}")
-        return cls(**(params or {}))
-
-    @property
-    def transforms_images(self) -> bool:
-        return self.flip or self.color_jitter > 0 or self.blur > 0 or self.affine > 0
+from pilotlab.specs.train import AugmentConfig  # the settings live with the train job's
 
 
 def epoch_order(labels_w: np.ndarray, w_limit: float, config: AugmentConfig, rng: np.random.Generator) -> np.ndarray:

@@ -12,10 +12,8 @@ in training. `to_input` turns such frames into the network's float tensor.
 """
 from __future__ import annotations
 
-import dataclasses
 from collections import deque
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import cv2
@@ -24,43 +22,9 @@ import torch
 
 from pilotlab.data.frames import LabelRanges
 from pilotlab.errors import PilotlabError
+from pilotlab.specs.frames import INTERPOLATIONS, PreprocessConfig
 
-INTERPOLATIONS = ("fast_area", "area", "linear")
 ENCODINGS = ("rgb8", "bgr8", "mono8")
-
-
-@dataclass(frozen=True)
-class PreprocessConfig:
-    """Rows [crop_top, crop_bottom) of the image (fractions of its height) resized to width×height."""
-    version: int = 1
-    crop_top: float = 0.5            # DeepLearningStudio keeps rows 240:480 of a 640×480 image
-    crop_bottom: float = 1.0
-    width: int = 200
-    height: int = 66
-    interpolation: str = "fast_area"  # see `resize`
-
-    def __post_init__(self):
-        if not 0.0 <= self.crop_top < self.crop_bottom <= 1.0:
-            raise PilotlabError(f"preprocess crop_top={self.crop_top}, crop_bottom={self.crop_bottom}: "
-                                "need 0 <= crop_top < crop_bottom <= 1 (fractions of the image height)")
-        if self.width < 1 or self.height < 1:
-            raise PilotlabError(f"preprocess size {self.width}×{self.height}: width and height must be >= 1")
-        if self.interpolation not in INTERPOLATIONS:
-            raise PilotlabError(f"preprocess interpolation {self.interpolation!r} is not one of "
-                                f"{', '.join(INTERPOLATIONS)}")
-
-    @classmethod
-    def from_params(cls, params: Mapping[str, Any]) -> PreprocessConfig:
-        """The config from the matching keys of `params` (other keys are ignored)."""
-        names = {f.name for f in dataclasses.fields(cls)} - {"version"}
-        return cls(**{k: params[k] for k in names if k in params})
-
-    def as_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
-
-    def rows(self, image_height: int) -> slice:
-        top, bottom = round(self.crop_top * image_height), round(self.crop_bottom * image_height)
-        return slice(top, max(bottom, top + 1))
 
 
 def resize(image: np.ndarray, width: int, height: int, interpolation: str,
@@ -143,11 +107,8 @@ class DrivePreprocessor:
         settings = dict(preprocess)
         frames = int(settings.pop("frames", 1))
         settings.pop("frame_interval_s", None)  # the brain's concern: how far apart stacked frames are
-        unknown = sorted(set(settings) - {f.name for f in dataclasses.fields(PreprocessConfig)})
-        if unknown:
-            raise PilotlabError(f"preprocess settings {', '.join(unknown)} are unknown; expected the fields of "
-                                "PreprocessConfig, 'frames' and 'frame_interval_s' (as the train job writes them)")
-        return cls(PreprocessConfig(**settings), LabelRanges.from_dict(labels), frames)
+        config = PreprocessConfig.from_job_params(settings, "preprocess settings")
+        return cls(config, LabelRanges.from_dict(labels), frames)
 
     def reset(self) -> None:
         """Forget earlier frames (call at the start of each drive)."""

@@ -6,3 +6,4 @@ ODOMETRY_TOPIC = "/F1ROS/odom"
 
 # Tried in order when no image topic is named.
 DEFAULT_IMAGE_TOPICS = (IMAGE_TOPIC, COMPRESSED_IMAGE_TOPIC)
+METADATA_TOPIC = "/pilotlab/metadata"   # one JSON std_msgs/String at time 0: how the recording was made

@@ -8,13 +8,7 @@ Where the recording comes from (exactly one):
                      default topics;
   params["path"]     the same as inputs["bag"], for jobs built by hand (not hashed: prefer inputs).
 
-params (all optional):
-  image_topic: str     default: /F1ROS/cameraL/image_raw, else /F1ROS/cameraL/image_raw/compressed
-  command_topic: str   default: /F1ROS/cmd_vel (geometry_msgs/Twist or TwistStamped)
-  crop_top: 0.5, crop_bottom: 1.0      rows kept, as fractions of the image height
-  width: 200, height: 66               frame size after resizing
-  interpolation: "fast_area" (default) | "area" | "linear"   see pilotlab.data.preprocess.resize
-  label: str                           a name for the recording (shown in logs and results)
+params: pilotlab.specs.frames.FramesSpec (topics, the preprocessing crop and size, a label).
 
 artifacts: a FrameSet (frames.npy uint8 [N, 66, 200, 3] RGB, labels.npy float32 [N, 2] physical v, w,
 recording.npy, meta.json), loaded by `FrameSet.load(dep.artifacts)`.
@@ -26,21 +20,15 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from matrix.kinds import JobContext, job_kind
+from matrix.kinds import JobContext
+from pilotlab.data.bags import Topics, read_frames
 from pilotlab.data.topics import COMMAND_TOPIC
 from pilotlab.errors import PilotlabError
-
-if TYPE_CHECKING:  # bag readers and OpenCV: imported by the handler, not to plan
-    from pilotlab.data.bags import Topics
-
-CODE = ["pilotlab.data.bags", "pilotlab.data.images", "pilotlab.data.preprocess", "pilotlab.data.folder",
-        "pilotlab.data.frames", "pilotlab.data.topics"]
-PARAMS = {"path", "image_topic", "command_topic", "crop_top", "crop_bottom", "width", "height",
-          "interpolation", "label"}
+from pilotlab.specs.frames import FramesSpec, PreprocessConfig
 
 
 def recording_path(ctx: JobContext) -> Path:
@@ -55,8 +43,8 @@ def recording_path(ctx: JobContext) -> Path:
             raise PilotlabError(f"{ctx.name}: dependency {dep.name or dep.key} names no bag in its result "
                                 "(expected 'bag' or 'path', relative to its artifacts)")
         sources.append(Path(dep.artifacts) / relative)
-    if not sources and ctx.params.get("path"):
-        sources.append(Path(ctx.params["path"]))
+    if not sources and ctx.spec.path:
+        sources.append(Path(ctx.spec.path))
     if len(sources) != 1:
         raise PilotlabError(f"{ctx.name}: a frames job reads exactly one recording (an input 'bag', a "
                             f"'bag' dependency or a 'path' param); it was given {len(sources)}")
@@ -65,17 +53,9 @@ def recording_path(ctx: JobContext) -> Path:
 
 def job_topics(ctx: JobContext) -> Topics:
     """Topics named in params, else those a record dependency reports, else the conventions'."""
-    from pilotlab.data.bags import Topics
     recorded = dict(ctx.dep("bag").result.get("topics") or {}) if "bag" in ctx.deps else {}
-    return Topics(ctx.params.get("image_topic") or recorded.get("image"),
-                  ctx.params.get("command_topic") or recorded.get("cmd_vel") or COMMAND_TOPIC)
-
-
-def check_params(ctx: JobContext) -> None:
-    unknown = sorted(set(ctx.params) - PARAMS)
-    if unknown:
-        raise PilotlabError(f"{ctx.name}: frames job has no param(s) {', '.join(unknown)}; "
-                            f"known: {', '.join(sorted(PARAMS))}")
+    return Topics(ctx.spec.image_topic or recorded.get("image"),
+                  ctx.spec.command_topic or recorded.get("cmd_vel") or COMMAND_TOPIC)
 
 
 def summary(frameset, seconds: float) -> dict[str, Any]:
@@ -89,15 +69,12 @@ def summary(frameset, seconds: float) -> dict[str, Any]:
             "decode_fps": round(len(frameset) / max(seconds, 1e-9), 1)}
 
 
-@job_kind("frames", code=CODE)
 def run_frames(ctx: JobContext) -> dict[str, Any]:
-    from pilotlab.data.bags import read_frames
-    from pilotlab.data.preprocess import PreprocessConfig
-    check_params(ctx)
+    spec: FramesSpec = ctx.spec
     path = recording_path(ctx)
-    config = PreprocessConfig.from_params(ctx.params)
+    config = PreprocessConfig.from_params(spec.as_dict())
     topics = job_topics(ctx)
-    label = ctx.params.get("label") or path.name
+    label = spec.label or path.name
     ctx.log.info("reading %s", path)
     started = time.perf_counter()
     frameset = read_frames(path, config, topics, progress=lambda done, total: ctx.progress(

@@ -1,18 +1,8 @@
-"""The `train` job: frames from one or more recordings -> a trained network checkpoint.
+"""The `train` job's handler: frames from one or more recordings -> a trained network checkpoint.
 
 deps: "frames", a group of `frames` jobs (one recording each).
-params (defaults in brackets):
-  arch ["pilotnet"]        a registered model (pilotnet, pilotnet_stacked, ...)
-  options [{}]             fields of the arch's config, e.g. {"frames": 3} for pilotnet_stacked
-  epochs [20], batch_size [64], lr [1e-3], seed [0]
-  patience [5]             early stopping: epochs without a better validation loss (null: never)
-  val_fraction [0.2]       share of frames held out for validation (0: none)
-  val_by ["auto"]          "recording": whole recordings held out; "block": the last part of each;
-                           "auto": by recording with 3 or more recordings, else by block
-  augment [{}]             AugmentConfig fields: flip, oversample_curves, curve_threshold,
-                           color_jitter, blur, affine
-  labels ["auto"]          normalisation ranges {"v": [lo, hi], "w": [lo, hi]}, or "auto": v from its
-                           min to max, w symmetric about 0, over all the given frames
+params: pilotlab.specs.train.TrainSpec (arch and its options, epochs, batch size, lr, early
+stopping, the validation split, augmentation, label ranges, seed).
 
 artifacts: model.pt (pilotlab.models.save_checkpoint: arch, config, state_dict, labels, preprocess
 with "frames", history, training params and split), history.json.
@@ -23,46 +13,20 @@ labels, frames, seconds, checkpoint. Without validation frames the val_* entries
 """
 from __future__ import annotations
 
-import dataclasses
 import json
 import time
-from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
+import torch
 
-from matrix.fingerprint import module_closure
-from matrix.kinds import JobContext, job_kind
+from matrix.kinds import JobContext
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.data.split import Split, split_validation
 from pilotlab.errors import PilotlabError
-from pilotlab.models import MODELS, build_model, input_frames, make_config, save_checkpoint
-
-if TYPE_CHECKING:  # torch and the training loop are imported by the handler: planning imports this module
-    import torch
-
-    from pilotlab.training import FitConfig
-
-CODE = ["pilotlab.training", "pilotlab.data.augment", "pilotlab.data.split", "pilotlab.data.frames",
-        "pilotlab.models.registry"]
-DEFAULTS: dict[str, Any] = {"arch": "pilotnet", "options": {}, "epochs": 20, "batch_size": 64, "lr": 1e-3,
-                            "seed": 0, "patience": 5, "val_fraction": 0.2, "val_by": "auto",
-                            "augment": {}, "labels": "auto"}
-
-
-def arch_modules(params: Mapping[str, Any]) -> list[str]:
-    """The modules that define the arch: its network's, the model modules that one imports (the
-    networks it builds on, the configs), read from the source without importing them."""
-    entry = MODELS.get(params.get("arch", DEFAULTS["arch"]))
-    return module_closure(entry.network_module, "pilotlab.models", exclude=["pilotlab.models.registry"])
-
-
-def settings(ctx: JobContext) -> dict[str, Any]:
-    unknown = sorted(set(ctx.params) - set(DEFAULTS))
-    if unknown:
-        raise PilotlabError(f"{ctx.name}: train job has no param(s) {', '.join(unknown)}; "
-                            f"known: {', '.join(sorted(DEFAULTS))}")
-    return {**DEFAULTS, **ctx.params}
+from pilotlab.models import build_model, input_frames, make_config, save_checkpoint
+from pilotlab.specs.train import TrainSpec
+from pilotlab.training import FitConfig, evaluate, fit, mean_predictor_mse
 
 
 def load_frames(ctx: JobContext) -> tuple[FrameSet, dict[str, Any]]:
@@ -110,31 +74,26 @@ def progress_callbacks(ctx: JobContext, epochs: int):
 def validation_scores(model, train: FrameSet, val: FrameSet, ranges: LabelRanges, frames: int) -> dict:
     if not len(val):
         return {}
-    from pilotlab.training import evaluate, mean_predictor_mse
     scores, mean = evaluate(model, val, ranges, frames=frames), mean_predictor_mse(train, val, ranges)
     return {**{f"val_{k}": v for k, v in scores.items()},               # val_mse, val_mse_v, val_mse_w
             **{f"val_{k}_mean_predictor": v for k, v in mean.items()}}
 
 
-def split_frames(ctx: JobContext, data: FrameSet, p: dict) -> tuple[FrameSet, FrameSet, Split]:
-    split = split_validation(data.recording, p["val_fraction"], p["val_by"], p["seed"])
+def split_frames(ctx: JobContext, data: FrameSet, p: TrainSpec) -> tuple[FrameSet, FrameSet, Split]:
+    split = split_validation(data.recording, p.val_fraction, p.val_by, p.seed)
     if not len(split.train):
         raise PilotlabError(f"{ctx.name}: no frames left to train on after holding out val_fraction = "
-                            f"{p['val_fraction']} of {len(data)}; lower val_fraction or record more")
+                            f"{p.val_fraction} of {len(data)}; lower val_fraction or record more")
     return data.subset(split.train), data.subset(split.val), split
 
 
-def make_model(p: dict) -> tuple[torch.nn.Module, Any, FitConfig]:
+def make_model(p: TrainSpec) -> tuple[torch.nn.Module, Any, FitConfig]:
     """The freshly initialised (seeded) model, its config, and how to fit it."""
-    import torch
-    from pilotlab.data.augment import AugmentConfig
-    from pilotlab.training import FitConfig
-    torch.manual_seed(p["seed"])
-    config = make_config(p["arch"], p["options"])
-    fit_config = FitConfig(epochs=p["epochs"], batch_size=p["batch_size"], lr=p["lr"], seed=p["seed"],
-                           frames=input_frames(config), patience=p["patience"],
-                           augment=AugmentConfig.from_params(p["augment"]))
-    return build_model(p["arch"], config), config, fit_config
+    torch.manual_seed(p.seed)
+    config = make_config(p.arch, p.options)
+    fit_config = FitConfig(epochs=p.epochs, batch_size=p.batch_size, lr=p.lr, seed=p.seed,
+                           frames=input_frames(config), patience=p.patience, augment=p.augment)
+    return build_model(p.arch, config), config, fit_config
 
 
 def summarise(model, history: list[dict], data: FrameSet, train: FrameSet, val: FrameSet, split: Split,
@@ -149,20 +108,18 @@ def summarise(model, history: list[dict], data: FrameSet, train: FrameSet, val: 
             "frames": fit_config.frames, "seconds": round(seconds, 2), "checkpoint": "model.pt"}
 
 
-@job_kind("train", code=CODE, code_for=arch_modules)
 def run_train(ctx: JobContext) -> dict[str, Any]:
-    from pilotlab.training import fit
-    p = settings(ctx)
+    p: TrainSpec = ctx.spec
     data, preprocess = load_frames(ctx)
     train, val, split = split_frames(ctx, data, p)
-    ranges = label_ranges(p["labels"], data)
+    ranges = label_ranges(p.labels, data)
     model, config, fit_config = make_model(p)
-    on_batch, on_epoch = progress_callbacks(ctx, p["epochs"])
+    on_batch, on_epoch = progress_callbacks(ctx, p.epochs)
     started = time.perf_counter()
     history = fit(model, train, ranges, fit_config, val=val, on_epoch=on_epoch, on_batch=on_batch)
     result = summarise(model, history, data, train, val, split, ranges, fit_config, time.perf_counter() - started)
-    save_checkpoint(ctx.out / "model.pt", model, p["arch"], config, labels=ranges.as_dict(),
+    save_checkpoint(ctx.out / "model.pt", model, p.arch, config, labels=ranges.as_dict(),
                     preprocess={**preprocess, "frames": fit_config.frames}, history=history,
-                    training={**p, "fit": dataclasses.asdict(fit_config)}, result=result)
+                    training={**p.as_dict(), "fit": fit_config.as_dict()}, result=result)
     (ctx.out / "history.json").write_text(json.dumps(history, indent=1))
     return result

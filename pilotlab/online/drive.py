@@ -1,6 +1,6 @@
 """The closed loop: a brain drives the car in a DrivingEnv under one of three timing modes.
 
-    trajectory = drive(env, brain, DriveSettings(timing="latency", control_hz=20), start=0.0)
+    trajectory = drive(env, brain, DriveSettings(timing="latency"), start=0.0)   # pilotlab.specs.online
 
 Each brain iteration takes the camera image at the current simulated time, asks the brain for a
 command, and advances the world. How far the world moves on, and with which command, is the timing
@@ -28,7 +28,6 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -37,34 +36,10 @@ from pilotlab.errors import PilotlabError
 from pilotlab.online.brains import Brain
 from pilotlab.online.trajectory import Trajectory, TrajectoryBuilder
 from pilotlab.sim.env import DrivingEnv
+from pilotlab.specs.online import DriveSettings
 
-TIMINGS = ("latency", "lockstep", "realtime")
 FrameFn = Callable[[np.ndarray | None, dict[str, Any], tuple[float, float] | None], None]
 ProgressFn = Callable[[float, float], None]   # (metres driven, metres to drive)
-
-
-@dataclass(frozen=True)
-class DriveSettings:
-    timing: str = "latency"
-    control_hz: float = 20.0
-    extra_latency_ms: float = 0.0
-    fixed_inference_ms: float | None = None
-    version: int = 1
-
-    def __post_init__(self):
-        if self.timing not in TIMINGS:
-            raise PilotlabError(f"timing {self.timing!r} is not one of {', '.join(TIMINGS)}")
-        if not self.control_hz > 0:
-            raise PilotlabError(f"control_hz must be positive, got {self.control_hz}")
-        if self.extra_latency_ms < 0 or (self.fixed_inference_ms is not None and self.fixed_inference_ms < 0):
-            raise PilotlabError("extra_latency_ms and fixed_inference_ms must be >= 0 milliseconds")
-        if self.fixed_inference_ms is not None and self.timing != "latency":
-            raise PilotlabError(f"fixed_inference_ms only means something in the latency timing mode, "
-                                f"not {self.timing!r}")
-
-    @property
-    def period_s(self) -> float:
-        return 1.0 / self.control_hz
 
 
 def _run_segments(env: DrivingEnv, segments: list[tuple[tuple[float, float], int]], render: bool):
@@ -157,7 +132,7 @@ def drive(env: DrivingEnv, brain: Brain, settings: DriveSettings, *, start: floa
     clock = CLOCKS[settings.timing](env, settings)
     builder = TrajectoryBuilder(env.circuit.length, {
         "circuit": env.circuit.name, "direction": env.circuit.direction, "start_m": float(start),
-        "brain": brain.name, **{k: v for k, v in asdict(settings).items() if k != "version"}})
+        "brain": brain.name, **{k: getattr(settings, k) for k in DriveSettings.model_fields}})
     measured, previous, total = [], tuple(info["command"]), env.laps * env.circuit.length
     wall0 = clock.wall0 = clock.cycle_start = time.perf_counter()
     builder.sample(info, 0.0)

@@ -13,7 +13,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from matrix.engine import make_plan, slug
+from matrix.engine import slug
 from matrix.fingerprint import code_fingerprint
 from matrix.recipe import Recipe
 from matrix.store import Store, read_json, result_token
@@ -28,15 +28,9 @@ def report_folder(recipe: Recipe) -> Path:
     return Path(recipe.config.report.folder) / slug(recipe.name)
 
 
-def report_after_run(recipe: Recipe, summary, store: Store) -> Path | None:
-    """After `pilotlab run`: refresh the report if anything it shows changed."""
-    from pilotlab.domain import DOMAIN
-    return write_recipe_report(recipe, store, DOMAIN, force=False)
-
-
-def write_recipe_report(recipe: Recipe, store: Store, domain, force: bool = True) -> Path | None:
-    plan = make_plan(recipe, domain, store)
-    jobs = [status.job for status in plan.statuses]
+def write_recipe_report(recipe: Recipe, store: Store, jobs: list, force: bool = True) -> Path | None:
+    """Write the report of `jobs` (the recipe's plan) from the store; unless `force`, only when
+    something it shows changed. Returns the folder, or None when it was left as it was."""
     folder = report_folder(recipe)
     stamp = _stamp(recipe, jobs, store)
     if not force and read_json(folder / STAMP) == stamp:

@@ -13,7 +13,6 @@ the current step and closes the bag properly: what was recorded stays readable.
 from __future__ import annotations
 
 import contextlib
-import math
 import signal
 import time
 from collections.abc import Callable
@@ -30,38 +29,20 @@ from pilotlab.sim.camera import CameraSpec
 from pilotlab.sim.env import DrivingEnv
 from pilotlab.sim.expert import Expert, Swerves
 from pilotlab.sim.world import PHYSICS_HZ
+from pilotlab.specs.record import RecordSpec
 
 
-@dataclass(frozen=True)
-class RecordSpec:
-    circuit: str = "simple_circuit"
-    direction: str = "cw"
-    laps: float = 1.0
-    seed: int = 0
-    width: int = 640
-    height: int = 480
-    rate_hz: float = 10.0            # camera frames per simulated second (must divide control_hz)
-    control_hz: float = 20.0         # commands and odometry per simulated second
-    format: str = "ros1"             # ros1 (.bag file) | ros2 (folder)
-    compressed: str | None = None    # None (raw rgb8) | "jpeg" | "png"
-    noise: float = 0.0               # fraction of time the expert spends swerving
-    renderer: str = "ground"         # ground (fast) | pybullet (reference, ~50x slower at 640x480)
-    start: float | str = 0.0         # metres along the lap, or "random" (from the seed)
-    max_seconds: float | None = None  # stop after this much simulated time (default: circuit timeout × laps)
-    version: int = 1
-
-    def check(self) -> None:
-        steps = PHYSICS_HZ / self.control_hz
-        if self.control_hz <= 0 or abs(steps - round(steps)) > 1e-9:
-            raise PilotlabError(f"control_hz must divide the physics rate {PHYSICS_HZ:g} Hz (e.g. 20, 10); "
-                                f"got {self.control_hz}")
-        every = self.control_hz / self.rate_hz if self.rate_hz > 0 else math.nan
-        if not (every >= 1 and abs(every - round(every)) < 1e-9):
-            divisors = [f"{self.control_hz / k:g}" for k in range(1, 11) if (self.control_hz / k) % 1 == 0]
-            raise PilotlabError(f"rate_hz must divide the control rate {self.control_hz:g} Hz "
-                                f"({', '.join(divisors)}...); got {self.rate_hz}")
-        if self.laps <= 0:
-            raise PilotlabError(f"laps must be positive (fractions allowed), got {self.laps}")
+def check_rates(spec: RecordSpec) -> None:
+    """The control rate divides the physics rate, and the frame rate the control rate."""
+    steps = PHYSICS_HZ / spec.control_hz
+    if abs(steps - round(steps)) > 1e-9:
+        raise PilotlabError(f"control_hz must divide the physics rate {PHYSICS_HZ:g} Hz (e.g. 20, 10); "
+                            f"got {spec.control_hz}")
+    every = spec.control_hz / spec.rate_hz
+    if not (every >= 1 and abs(every - round(every)) < 1e-9):
+        divisors = [f"{spec.control_hz / k:g}" for k in range(1, 11) if (spec.control_hz / k) % 1 == 0]
+        raise PilotlabError(f"rate_hz must divide the control rate {spec.control_hz:g} Hz "
+                            f"({', '.join(divisors)}...); got {spec.rate_hz}")
 
 
 @dataclass
@@ -110,9 +91,9 @@ def stop_on_interrupt():
 def record(spec: RecordSpec, out: Path, progress: ProgressFn | None = None) -> RecordSummary:
     """Drive `spec.laps` laps with the expert and write them to a bag at `out` (a `.bag` file for
     ROS1, a folder for ROS2). Returns what was written."""
-    spec.check()
+    check_rates(spec)
     path = bag_path(out, spec.format)
-    camera = CameraSpec(width=spec.width, height=spec.height)
+    camera = CameraSpec(width=spec.camera.width, height=spec.camera.height)
     env = DrivingEnv(spec.circuit, direction=spec.direction, camera=camera, renderer=spec.renderer,
                      control_period=1.0 / spec.control_hz, laps=spec.laps, timeout_s=spec.max_seconds)
     started = time.perf_counter()
@@ -163,7 +144,7 @@ def metadata(spec: RecordSpec, env: DrivingEnv) -> dict[str, Any]:
     return {"pilotlab_version": pilotlab.__version__, "circuit": circuit.name, "direction": circuit.direction,
             "circuit_length_m": round(circuit.length, 3), "circuit_source": circuit.source,
             "road_width_m": circuit.road_width, "seed": spec.seed, "laps": spec.laps, "noise": spec.noise,
-            "camera": {"width": spec.width, "height": spec.height, "hfov_deg": env.camera.hfov_deg},
+            "camera": {**spec.camera.as_dict(), "hfov_deg": env.camera.hfov_deg},
             "rate_hz": spec.rate_hz, "control_hz": spec.control_hz, "renderer": spec.renderer,
             "compressed": spec.compressed, "start": spec.start, "driver": "expert"}
 

@@ -15,5 +15,5 @@ class BaselineConfig:
 @register_strategy("baseline", BaselineConfig)
 def baseline(config: BaselineConfig, source: StrategySource) -> dict:
     # Kept as a pilotlab checkpoint run eagerly, as the 2022 study timed its PyTorch baseline.
-    save_float_model(source.load_model(), source, "baseline", "checkpoint")
+    save_float_model(source.load_model(), source, "checkpoint")
     return {}

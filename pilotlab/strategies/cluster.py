@@ -30,7 +30,7 @@ class ClusterConfig:
 @register_strategy("cluster", ClusterConfig)
 def cluster(config: ClusterConfig, source: StrategySource) -> dict:
     if not 2 <= config.clusters <= 256:
-        raise PilotlabError(f"strategies.cluster.clusters: {config.clusters} must be between 2 and 256")
+        raise PilotlabError(f"clusters: {config.clusters} must be between 2 and 256")
     from pilotlab.strategies.kmeans import cluster_weights, share_gradients, snap_to_centroids  # torch
     model = source.load_model()
     assignments = {name: cluster_weights(layer.weight, config.clusters, config.iterations)
@@ -42,5 +42,5 @@ def cluster(config: ClusterConfig, source: StrategySource) -> dict:
     for name, layer in weight_layers(model):
         snap_to_centroids(layer.weight, assignments[name])   # remove float drift, if any
     distinct = {name: int(layer.weight.detach().unique().numel()) for name, layer in weight_layers(model)}
-    save_float_model(model, source, "cluster", config.format, extra={"clusters": config.clusters})
+    save_float_model(model, source, config.format, extra={"clusters": config.clusters})
     return {"clusters": config.clusters, "distinct_weights": distinct, "finetune": history}

@@ -29,27 +29,27 @@ def finetune(model: nn.Module, source: StrategySource, *, epochs: int, lr: float
     return fit(model, source.calibration, source.labels, config, on_epoch=on_epoch)
 
 
-def save_float_model(model: nn.Module, source: StrategySource, strategy: str, fmt: str,
+def save_float_model(model: nn.Module, source: StrategySource, fmt: str,
                      extra: dict | None = None, *, same_arch: bool = True) -> None:
     """Save a float32 model as a pilotlab checkpoint (eager, as the 2022 study ran its pruned
     models), TorchScript or ONNX, and write artifact.json."""
     model = model.eval()
     if fmt not in FLOAT_FORMATS:
-        raise PilotlabError(f"strategies.{strategy}.format: {fmt!r} is not one of {', '.join(FLOAT_FORMATS)}")
+        raise PilotlabError(f"format: {fmt!r} is not one of {', '.join(FLOAT_FORMATS)}")
     if fmt == "checkpoint":
         if not same_arch:
-            raise PilotlabError(f"strategies.{strategy}.format: 'checkpoint' cannot hold a network whose "
+            raise PilotlabError(f"format: 'checkpoint' cannot hold a network whose "
                                 "layers changed shape; use format: torchscript or onnx")
         write_checkpoint(model, source)
-        meta = source.meta(strategy, format="pilotlab-checkpoint", file="model.pt", runtime="torch",
+        meta = source.meta(format="pilotlab-checkpoint", file="model.pt", runtime="torch",
                            dtype="float32", extra=extra)
     elif fmt == "torchscript":
         save_torchscript(model, source.out / "model.ts", source.input_shape)
-        meta = source.meta(strategy, format="torchscript", file="model.ts", runtime="torch",
+        meta = source.meta(format="torchscript", file="model.ts", runtime="torch",
                            dtype="float32", extra=extra)
     else:
         export_onnx(model, source.out / "model.onnx", source.input_shape)
-        meta = source.meta(strategy, format="onnx", file="model.onnx", runtime="onnxruntime",
+        meta = source.meta(format="onnx", file="model.onnx", runtime="onnxruntime",
                            dtype="float32", extra=extra)
     source.write(meta)
 
@@ -82,8 +82,8 @@ def sparsity_report(model: nn.Module) -> dict:
 
 
 
-def require_cuda_target(source: StrategySource, strategy: str) -> None:
+def require_cuda_target(source: StrategySource) -> None:
     """NotApplicable unless the optimize job targets a CUDA profile and this host has the GPU."""
     if source.hardware.device != "cuda":
-        raise NotApplicable(f"{strategy} runs on a CUDA hardware target; {source.hardware.name!r} is a CPU profile")
+        raise NotApplicable(f"{source.strategy} runs on a CUDA hardware target; {source.hardware.name!r} is a CPU profile")
     check_available(source.hardware)

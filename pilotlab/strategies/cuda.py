@@ -20,17 +20,17 @@ class TensorRTConfig:
     fp16: bool = True
 
 
-@register_strategy("tensorrt", TensorRTConfig)
+@register_strategy("tensorrt", TensorRTConfig, hardware_dependent=True)
 def tensorrt(config: TensorRTConfig, source: StrategySource) -> dict:
     import onnxruntime
-    require_cuda_target(source, "tensorrt")
+    require_cuda_target(source)
     if "TensorrtExecutionProvider" not in onnxruntime.get_available_providers():
         raise NotApplicable("tensorrt: this onnxruntime has no TensorrtExecutionProvider "
                             f"(providers: {', '.join(onnxruntime.get_available_providers())}); "
                             "install onnxruntime-gpu with TensorRT")
     export_onnx(source.load_model(), source.out / "model.onnx", source.input_shape)
     precision = "float16" if config.fp16 else "float32"
-    source.write(source.meta("tensorrt", format="onnx", file="model.onnx", runtime="onnxruntime",
+    source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime",
                              dtype=precision, device="cuda",
                              extra={"providers": ["TensorrtExecutionProvider", "CUDAExecutionProvider"],
                                     "trt_fp16": config.fp16}))

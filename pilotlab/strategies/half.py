@@ -29,29 +29,29 @@ class HalfConfig:
     allow_emulated: bool = False     # run even where the CPU has no native 16-bit arithmetic
 
 
-@register_strategy("bf16", HalfConfig)
+@register_strategy("bf16", HalfConfig, hardware_dependent=True)
 def bf16(config: HalfConfig, source: StrategySource) -> dict:
     import torch
-    return save_half(config, source, "bf16", torch.bfloat16)
+    return save_half(config, source, torch.bfloat16)
 
 
-@register_strategy("fp16", HalfConfig)
+@register_strategy("fp16", HalfConfig, hardware_dependent=True)
 def fp16(config: HalfConfig, source: StrategySource) -> dict:
     import torch
-    return save_half(config, source, "fp16", torch.float16)
+    return save_half(config, source, torch.float16)
 
 
-def save_half(config: HalfConfig, source: StrategySource, strategy: str, dtype: torch.dtype) -> dict:
+def save_half(config: HalfConfig, source: StrategySource, dtype: torch.dtype) -> dict:
     device = source.hardware.device
     check_available(source.hardware)  # a CUDA target on a host without one: not applicable
     native = native_support(dtype, device)
     if not native and not config.allow_emulated:
-        raise NotApplicable(f"{strategy}: {device} here has no native {dtype_name(dtype)} arithmetic "
+        raise NotApplicable(f"{source.strategy}: {device} here has no native {dtype_name(dtype)} arithmetic "
                             f"(needs {' or '.join(sorted(NATIVE_CPU_FLAGS[dtype_name(dtype)]))} on a CPU, "
                             "or a CUDA GPU); torch would emulate it, slower than fp32")
     model = source.load_model().to(device=device, dtype=dtype)
     save_torchscript(model, source.out / "model.ts", source.input_shape, dtype=dtype, device=device)
-    source.write(source.meta(strategy, format="torchscript", file="model.ts", runtime="torch",
+    source.write(source.meta(format="torchscript", file="model.ts", runtime="torch",
                              dtype=dtype_name(dtype), device=device, extra={"native": native}))
     return {"native": native}
 

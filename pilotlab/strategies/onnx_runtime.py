@@ -39,7 +39,7 @@ class OnnxRuntimeConfig:
 @register_strategy("onnxruntime", OnnxRuntimeConfig)
 def onnxruntime_fp32(config: OnnxRuntimeConfig, source: StrategySource) -> dict:
     export_onnx(source.load_model(), source.out / "model.onnx", source.input_shape)
-    source.write(source.meta("onnxruntime", format="onnx", file="model.onnx", runtime="onnxruntime",
+    source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime",
                              dtype="float32"))
     return {}
 
@@ -57,13 +57,13 @@ class OnnxRuntimeInt8Config:
 
 @register_strategy("onnxruntime_int8", OnnxRuntimeInt8Config)
 def onnxruntime_int8(config: OnnxRuntimeInt8Config, source: StrategySource) -> dict:
-    extra = quantize_int8(source.load_model(), source, config, "onnxruntime_int8")
-    source.write(source.meta("onnxruntime_int8", format="onnx", file="model.onnx", runtime="onnxruntime",
+    extra = quantize_int8(source.load_model(), source, config)
+    source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime",
                              dtype="int8", extra=extra))
     return {"calibration_frames": min(config.calibration_frames, len(source.calibration))}
 
 
-def quantize_int8(model, source: StrategySource, config: OnnxRuntimeInt8Config, strategy: str) -> dict:
+def quantize_int8(model, source: StrategySource, config: OnnxRuntimeInt8Config) -> dict:
     """Export `model` and quantize it statically into source.out/model.onnx with ONNX Runtime's
     calibrator on training frames; returns what artifact.json's `extra` records about it."""
     from onnxruntime.quantization import CalibrationMethod, QuantFormat, QuantType, quantize_static
@@ -75,7 +75,7 @@ def quantize_int8(model, source: StrategySource, config: OnnxRuntimeInt8Config, 
                                  ("quant_format", config.quant_format, formats),
                                  ("weight_type", config.weight_type, types)):
         if value not in known:
-            raise PilotlabError(f"strategies.{strategy}.{option}: {value!r} is not one of {', '.join(known)}")
+            raise PilotlabError(f"{option}: {value!r} is not one of {', '.join(known)}")
     with tempfile.TemporaryDirectory() as tmp, _quiet():
         prepared = _prepared_fp32(model, source, Path(tmp))
         excluded = _first_conv(prepared) if config.float_first_conv else []
@@ -100,7 +100,7 @@ def dynamic_quant(config: DynamicQuantConfig, source: StrategySource) -> dict:
         prepared = _prepared_fp32(source.load_model(), source, Path(tmp))
         quantize_dynamic(str(prepared), str(source.out / "model.onnx"), weight_type=QuantType.QInt8,
                          op_types_to_quantize=list(config.op_types))
-    source.write(source.meta("dynamic_quant", format="onnx", file="model.onnx", runtime="onnxruntime",
+    source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime",
                              dtype="int8", extra={"quantizer": "onnxruntime.quantize_dynamic",
                                                   "op_types": list(config.op_types)}))
     return {}

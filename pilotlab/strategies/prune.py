@@ -30,8 +30,8 @@ class LocalPruneConfig:
     format: str = "checkpoint"       # checkpoint (eager, as the study) | torchscript | onnx
 
     def __post_init__(self) -> None:  # checked when the recipe is read, not when the job runs
-        check_fraction("local_prune", "conv", self.conv)
-        check_fraction("local_prune", "linear", self.linear)
+        check_fraction("conv", self.conv)
+        check_fraction("linear", self.linear)
 
 
 @dataclass(frozen=True)
@@ -44,7 +44,7 @@ class GlobalPruneConfig:
     format: str = "checkpoint"
 
     def __post_init__(self) -> None:
-        check_fraction("global_prune", "amount", self.amount)
+        check_fraction("amount", self.amount)
 
 
 @register_strategy("local_prune", LocalPruneConfig)
@@ -52,7 +52,7 @@ def local_prune(config: LocalPruneConfig, source: StrategySource) -> dict:
     model = source.load_model()
     history = prune_and_finetune(model, source, config,
                                  lambda m: prune_local(m, config.conv, config.linear))
-    save_float_model(model, source, "local_prune", config.format)
+    save_float_model(model, source, config.format)
     return {**sparsity_report(model), "finetune": history}
 
 
@@ -60,7 +60,7 @@ def local_prune(config: LocalPruneConfig, source: StrategySource) -> dict:
 def global_prune(config: GlobalPruneConfig, source: StrategySource) -> dict:
     model = source.load_model()
     history = prune_and_finetune(model, source, config, lambda m: prune_global(m, config.amount))
-    save_float_model(model, source, "global_prune", config.format)
+    save_float_model(model, source, config.format)
     return {**sparsity_report(model), "finetune": history}
 
 
@@ -88,6 +88,6 @@ def prune_global(model: nn.Module, amount: float) -> None:
     prune.global_unstructured(parameters, pruning_method=prune.L1Unstructured, amount=amount)
 
 
-def check_fraction(strategy: str, option: str, value: float) -> None:
+def check_fraction(option: str, value: float) -> None:
     if not 0.0 <= value < 1.0:
-        raise PilotlabError(f"strategies.{strategy}.{option}: {value} is not a fraction in [0, 1)")
+        raise PilotlabError(f"{option}: {value} is not a fraction in [0, 1)")

@@ -24,8 +24,8 @@ class PruneQuantConfig:
     batch_size: int = 64
 
     def __post_init__(self) -> None:
-        check_fraction("prune_quant", "conv", self.conv)
-        check_fraction("prune_quant", "linear", self.linear)
+        check_fraction("conv", self.conv)
+        check_fraction("linear", self.linear)
 
 
 @register_strategy("prune_quant", PruneQuantConfig)
@@ -34,5 +34,5 @@ def prune_quant(config: PruneQuantConfig, source: StrategySource) -> dict:
     prune_history = prune_and_finetune(model, source, config,
                                        lambda m: prune_local(m, config.conv, config.linear))
     pruned = sparsity_report(model)
-    qat_history = quantization_aware_finetune(model, source, config, "prune_quant", keep_zeros=True)
+    qat_history = quantization_aware_finetune(model, source, config, keep_zeros=True)
     return {**pruned, "finetune": prune_history + qat_history}

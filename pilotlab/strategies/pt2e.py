@@ -36,7 +36,7 @@ def static_quant(config: StaticQuantConfig, source: StrategySource) -> dict:
     with torch.no_grad():
         for batch in source.calibration_batches(config.calibration_frames):
             prepared(batch)
-    save_quantized(convert_pt2e(prepared), source, "static_quant")
+    save_quantized(convert_pt2e(prepared), source)
     return {"calibration_frames": min(config.calibration_frames, len(source.calibration))}
 
 
@@ -51,11 +51,11 @@ class QatConfig:
 
 @register_strategy("qat", QatConfig)
 def qat(config: QatConfig, source: StrategySource) -> dict:
-    history = quantization_aware_finetune(source.load_model(), source, config, "qat")
+    history = quantization_aware_finetune(source.load_model(), source, config)
     return {"finetune": history}
 
 
-def quantization_aware_finetune(model: nn.Module, source: StrategySource, config, strategy: str,
+def quantization_aware_finetune(model: nn.Module, source: StrategySource, config,
                                 keep_zeros: bool = False) -> list[dict]:
     """Insert fake-quant, fine-tune, convert, save. `keep_zeros` keeps pruned weights at zero."""
     import torch
@@ -72,5 +72,5 @@ def quantization_aware_finetune(model: nn.Module, source: StrategySource, config
     history = finetune(trainable, source, epochs=config.finetune_epochs, lr=config.lr,
                        batch_size=config.batch_size)
     trainable.eval()
-    save_quantized(convert_pt2e(prepared), source, strategy)
+    save_quantized(convert_pt2e(prepared), source)
     return history

@@ -27,11 +27,11 @@ def x86_quantizer(qat: bool):
     return x86.X86InductorQuantizer().set_global(x86.get_default_x86_inductor_quantization_config(is_qat=qat))
 
 
-def save_quantized(converted: torch.fx.GraphModule, source: StrategySource, strategy: str) -> None:
+def save_quantized(converted: torch.fx.GraphModule, source: StrategySource) -> None:
     from torchao.quantization.pt2e import move_exported_model_to_eval
     move_exported_model_to_eval(converted)
     export_onnx(converted, source.out / "model.onnx", source.input_shape)
-    source.write(source.meta(strategy, format="onnx", file="model.onnx", runtime="onnxruntime", dtype="int8",
+    source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime", dtype="int8",
                              extra={"quantizer": "torchao pt2e X86InductorQuantizer",
                                     "weights": "int8 per channel", "activations": "uint8 per tensor"}))
 

@@ -5,11 +5,15 @@
         version: int = 1
         conv: float = 0.3
 
-    @register_strategy("local_prune", LocalPruneConfig)
+    @register_strategy("local_prune", LocalPruneConfig)   # the name, given once
     def local_prune(config: LocalPruneConfig, source: StrategySource) -> dict:
         model = source.load_model()          # a fresh copy of the trained checkpoint
         ...                                  # write the artifact into source.out
+        source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime", dtype="fp32"))
         return {"sparsity": 0.4}             # strategy-specific results
+
+`register_strategy(..., hardware_dependent=True)` says the artifact depends on the target hardware
+(fp16, tensorrt): the planner then makes one optimize job per target device.
 
 Options come from the recipe's `strategies:` section; an unknown option is an error naming the
 strategy and its known options. Every handler starts from the checkpoint on disk, so no strategy
@@ -55,6 +59,7 @@ class StrategySource:
     out: Path
     calibration_dirs: tuple[Path, ...] = ()
     hardware: HardwareProfile = BUILTIN["cpu"]
+    strategy: str = ""               # the strategy being applied (set by apply_strategy)
     log: logging.Logger = field(default_factory=lambda: logging.getLogger("pilotlab.strategies"))
     progress: Callable[..., None] = lambda *args, **kwargs: None
 
@@ -103,10 +108,11 @@ class StrategySource:
         for start in range(0, len(index), batch_size):
             yield data.inputs(index[start:start + batch_size], self.frames)
 
-    def meta(self, strategy: str, *, format: str, file: str, runtime: str, dtype: str,
+    def meta(self, *, format: str, file: str, runtime: str, dtype: str,
              device: str = "cpu", extra: dict | None = None) -> ArtifactMeta:
-        entry = STRATEGIES.get(strategy)
-        return ArtifactMeta(strategy=strategy, strategy_version=entry.version, format=format, file=file,
+        """What artifact.json says of the artifact the applied strategy wrote."""
+        entry = STRATEGIES.get(self.strategy)
+        return ArtifactMeta(strategy=self.strategy, strategy_version=entry.version, format=format, file=file,
                             runtime=runtime, dtype=dtype, input_shape=self.input_shape,
                             arch=self.checkpoint["arch"], config=self.checkpoint.get("config", {}),
                             labels=self.checkpoint.get("labels", {}),
@@ -126,6 +132,7 @@ class StrategyEntry:
     config_cls: type
     handler: Handler
     module: str                      # the module that implements it (its code fingerprint)
+    hardware_dependent: bool = False  # its artifact depends on the target device (one job per device)
 
     @property
     def version(self) -> int:
@@ -135,18 +142,24 @@ class StrategyEntry:
     def options(self) -> list[str]:
         return [f.name for f in dataclasses.fields(self.config_cls) if f.name != "version"]
 
+    @cached_property
+    def validator(self) -> pydantic.TypeAdapter:
+        """Built once per strategy: a recipe with thousands of strategy aliases plans quickly."""
+        return pydantic.TypeAdapter(self.config_cls)
+
 
 STRATEGIES: Registry[StrategyEntry] = Registry("strategy")
 
 
-def register_strategy(name: str, config_cls: type) -> Callable[[Handler], Handler]:
+def register_strategy(name: str, config_cls: type, *, hardware_dependent: bool = False
+                      ) -> Callable[[Handler], Handler]:
     if not (dataclasses.is_dataclass(config_cls) and config_cls.__dataclass_params__.frozen):
         raise TypeError(f"strategy {name!r}: its config must be a frozen dataclass")
     if "version" not in {f.name for f in dataclasses.fields(config_cls)}:
         raise TypeError(f"strategy {name!r}: its config needs a `version` field")
 
     def decorate(handler: Handler) -> Handler:
-        STRATEGIES.add(name, StrategyEntry(name, config_cls, handler, handler.__module__))
+        STRATEGIES.add(name, StrategyEntry(name, config_cls, handler, handler.__module__, hardware_dependent))
         return handler
     return decorate
 
@@ -161,15 +174,18 @@ def make_strategy_config(name: str, options: dict[str, Any] | None = None):
         raise PilotlabError(f"strategies.{name}: unknown option(s) {', '.join(unknown)}{guesses}; "
                             f"{name} takes: {', '.join(entry.options) or '(no options)'}")
     try:
-        return pydantic.TypeAdapter(entry.config_cls).validate_python(options)
+        return entry.validator.validate_python(options)
     except pydantic.ValidationError as error:
         problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors())
         raise PilotlabError(f"strategies.{name}: {problems}") from None
+    except PilotlabError as error:   # a config's own range check (its __post_init__) names the option
+        raise PilotlabError(f"strategies.{name}: {error}") from None
 
 
 def apply_strategy(name: str, options: dict[str, Any] | None, source: StrategySource) -> dict[str, Any]:
     """Run strategy `name` on the checkpoint; returns its result (artifact summary + specifics)."""
     config = make_strategy_config(name, options)
+    source.strategy = name
     source.out.mkdir(parents=True, exist_ok=True)
     specifics = STRATEGIES.get(name).handler(config, source) or {}
     meta = read_meta(source.out)

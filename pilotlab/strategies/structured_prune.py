@@ -30,8 +30,8 @@ class StructuredPruneConfig:
     multiple_of: int = 8             # round kept counts to a multiple of this: whole SIMD blocks (1: exact)
 
     def __post_init__(self) -> None:
-        check_fraction("structured_prune", "amount", self.amount)
-        check_multiple("structured_prune", self.multiple_of)
+        check_fraction("amount", self.amount)
+        check_multiple(self.multiple_of)
 
 
 @register_strategy("structured_prune", StructuredPruneConfig)
@@ -43,13 +43,13 @@ def structured_prune(config: StructuredPruneConfig, source: StrategySource) -> d
     kept = remove_channels(model, config.amount, source.input_shape, config.multiple_of)
     history = finetune(model, source, epochs=config.finetune_epochs, lr=config.lr, batch_size=config.batch_size)
     macs = multiply_accumulates(model, source.input_shape)
-    save_float_model(model, source, "structured_prune", config.format, extra={"kept_channels": kept, "macs": macs},
+    save_float_model(model, source, config.format, extra={"kept_channels": kept, "macs": macs},
                      same_arch=False)
     params = sum(p.numel() for p in model.parameters())
     return {"params": params, "nonzero_params": params, "params_before": params_before, "macs": macs,
             "macs_before": macs_before, "kept_channels": kept, "finetune": history}
 
 
-def check_multiple(strategy: str, multiple_of: int) -> None:
+def check_multiple(multiple_of: int) -> None:
     if multiple_of < 1:
-        raise PilotlabError(f"strategies.{strategy}.multiple_of: {multiple_of} must be an integer ≥ 1")
+        raise PilotlabError(f"multiple_of: {multiple_of} must be an integer ≥ 1")

@@ -33,8 +33,8 @@ class StructuredPruneInt8Config:
     float_first_conv: bool = True    # the 3-channel input conv stays fp32 (faster here)
 
     def __post_init__(self) -> None:
-        check_fraction("structured_prune_int8", "amount", self.amount)
-        check_multiple("structured_prune_int8", self.multiple_of)
+        check_fraction("amount", self.amount)
+        check_multiple(self.multiple_of)
 
 
 @register_strategy("structured_prune_int8", StructuredPruneInt8Config)
@@ -47,9 +47,9 @@ def structured_prune_int8(config: StructuredPruneInt8Config, source: StrategySou
     quantization = OnnxRuntimeInt8Config(calibration_frames=config.calibration_frames,
                                          calibrate_method=config.calibrate_method,
                                          float_first_conv=config.float_first_conv)
-    extra = quantize_int8(model.eval(), source, quantization, "structured_prune_int8")
+    extra = quantize_int8(model.eval(), source, quantization)
     macs = multiply_accumulates(model, source.input_shape)
-    source.write(source.meta("structured_prune_int8", format="onnx", file="model.onnx", runtime="onnxruntime",
+    source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime",
                              dtype="int8", extra={**extra, "kept_channels": kept, "macs": macs}))
     return {"params": _params(model), "params_before": params_before, "macs": macs, "macs_before": macs_before,
             "kept_channels": kept, "calibration_frames": min(config.calibration_frames, len(source.calibration)),

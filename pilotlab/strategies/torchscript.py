@@ -19,6 +19,6 @@ class TorchScriptConfig:
 @register_strategy("torchscript", TorchScriptConfig)
 def torchscript(config: TorchScriptConfig, source: StrategySource) -> dict:
     save_torchscript(source.load_model(), source.out / "model.ts", source.input_shape)
-    source.write(source.meta("torchscript", format="torchscript", file="model.ts", runtime="torch",
+    source.write(source.meta(format="torchscript", file="model.ts", runtime="torch",
                              dtype="float32", extra={"frozen": True}))
     return {}

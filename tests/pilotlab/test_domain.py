@@ -53,7 +53,7 @@ def test_jobs_are_shared_wherever_inputs_are_equal(tmp_path):
 def test_a_strategy_alias_is_its_own_optimization_of_the_same_strategy(tmp_path):
     jobs = {job.name: job for job in engine.plan_jobs(recipe_at(tmp_path), DOMAIN)}
     alias = jobs["optimize small/prune_more"]
-    assert alias.params == {"strategy": "local_prune", "options": {"conv": 0.5}}
+    assert alias.params == {"strategy": "local_prune", "options": {"conv": 0.5}, "hardware": None, "host": None}
     assert jobs["optimize small/local_prune"].params["options"] == {"finetune_epochs": 1}
 
 

@@ -53,7 +53,7 @@ def test_early_stopping_stops_and_restores_the_best_epoch():
 def test_same_seed_same_history_with_augmentation():
     data = stripe_frameset(recordings=2, per_recording=12)
     ranges = LabelRanges.covering(data.labels)
-    config = FitConfig(epochs=2, batch_size=8, seed=7,
+    config = FitConfig(epochs=2, batch_size=8, lr=1e-3, seed=7,
                        augment=AugmentConfig(flip=True, color_jitter=0.2, blur=0.5, affine=0.5, oversample_curves=1))
     runs = []
     for _ in range(2):
@@ -77,7 +77,7 @@ def test_stacked_frames_model_trains_and_callbacks_report_progress():
         def on_epoch(row):
             epochs.append(row)
             bar.on_epoch(row)
-        fit(model, train, ranges, FitConfig(epochs=2, batch_size=4, frames=2), val=val,
+        fit(model, train, ranges, FitConfig(epochs=2, batch_size=4, lr=1e-3, frames=2), val=val,
             on_epoch=on_epoch, on_batch=on_batch)
     assert [b[:3] for b in batches] == [(e, b, 3) for e in (1, 2) for b in (1, 2, 3)]
     assert [r["epoch"] for r in epochs] == [1, 2] and all(np.isfinite(r["val_loss"]) for r in epochs)

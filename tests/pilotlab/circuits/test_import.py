@@ -12,7 +12,7 @@ from tests.pilotlab.tracks import stadium
 
 
 def record_lap(circuit: str, out, format: str):
-    spec = RecordSpec(circuit=circuit, width=32, height=24, rate_hz=1.0, format=format)
+    spec = RecordSpec(circuit=circuit, camera={"width": 32, "height": 24}, rate_hz=1.0, format=format)
     return record(spec, out)
 
 

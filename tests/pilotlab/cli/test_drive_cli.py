@@ -27,10 +27,13 @@ def test_drive_refuses_a_used_out_path_and_meaningless_numbers_before_starting(t
     (tmp_path / "used" / "result.json").write_text("{}")
     for extra, message in ((["--out", str(tmp_path / "file.bag")], "is a file"),
                            (["--out", str(tmp_path / "used")], "is a folder that is not empty"),
-                           (["--out", str(tmp_path / "a"), "--laps", "0"], "--laps 0: must be above 0"),
-                           (["--out", str(tmp_path / "a"), "--repetitions", "0"], "--repetitions 0: must be above 0"),
-                           (["--out", str(tmp_path / "a"), "--control-hz", "0"], "--control-hz 0: must be above 0"),
-                           (["--out", str(tmp_path / "a"), "--extra-latency-ms", "-5"], "must be 0 or more")):
+                           (["--out", str(tmp_path / "a"), "--laps", "0"], "--laps: Input should be greater than 0"),
+                           (["--out", str(tmp_path / "a"), "--laps", "nan"], "--laps: Input should be a finite number"),
+                           (["--out", str(tmp_path / "a"), "--repetitions", "0"],
+                            "--repetitions: Input should be greater than or equal to 1"),
+                           (["--out", str(tmp_path / "a"), "--control-hz", "0"], "--control-hz: Input should be greater"),
+                           (["--out", str(tmp_path / "a"), "--extra-latency-ms", "-5"],
+                            "--extra-latency-ms: Input should be greater than or equal to 0")):
         assert main(base + extra) == 2
         assert message in capsys.readouterr().err
     assert not (tmp_path / "a").exists()

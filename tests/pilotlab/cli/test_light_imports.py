@@ -44,7 +44,7 @@ def test_plan_imports_no_heavy_library(tmp_path):
     assert process.returncode == 0, process.stderr
     jobs = json.loads(process.stdout)
     assert {job["kind"] for job in jobs} == {"record", "frames", "train", "optimize", "offline", "online"}
-    assert {"pilotlab.strategies.pt2e", "pilotlab.models.configs", "pilotlab.jobs.online"} <= modules
+    assert {"pilotlab.strategies.pt2e", "pilotlab.models.configs", "pilotlab.specs.online"} <= modules
     assert modules & HEAVY == set()
 
 

@@ -69,7 +69,7 @@ def test_oversampling_repeats_curve_frames():
 
 
 def test_unknown_or_bad_options_are_refused():
-    with pytest.raises(PilotlabError, match="augment has no option.s. flipp; its options are: affine, blur"):
-        AugmentConfig.from_params({"flipp": True})
-    with pytest.raises(PilotlabError, match="augment.blur = 2 must be between 0 and 1"):
-        AugmentConfig.from_params({"blur": 2})
+    with pytest.raises(PilotlabError, match="augment: unknown param 'flipp' .did you mean 'flip'..; known: affine, blur"):
+        AugmentConfig.from_job_params({"flipp": True}, "augment")
+    with pytest.raises(PilotlabError, match="augment: blur: Input should be less than or equal to 1"):
+        AugmentConfig.from_job_params({"blur": 2}, "augment")

@@ -57,7 +57,7 @@ def test_exactly_one_source_and_known_params(tmp_path):
     record = DepResult(key="rec", kind="record", params={}, result={"path": "a.bag"}, artifacts=tmp_path)
     with pytest.raises(PilotlabError, match="it was given 2"):
         run(context(tmp_path, "frames", "two", deps={"bag": record}, inputs={"bag": tmp_path / "a.bag"}))
-    with pytest.raises(PilotlabError, match="frames job has no param.s. crop; known: command_topic, crop_bottom"):
+    with pytest.raises(PilotlabError, match="unknown param 'crop' .did you mean 'crop_top'..; known: command_topic, crop_bottom"):
         run(context(tmp_path, "frames", "typo", {"crop": 0.5}, inputs={"bag": tmp_path / "a.bag"}))
 
 

@@ -81,13 +81,14 @@ def test_the_kind_runs_alone_and_asks_for_a_gpu_only_for_cuda():
     assert kind.exclusive
     assert kind.resources_for({"hardware": {"name": "cuda", "device": "cuda"}}) == {"GPU": 1}
     assert kind.resources_for({"hardware": {"name": "cpu1", "device": "cpu", "threads": 1}}) == {}
-    names = set(kind.code)
-    assert {"pilotlab.online.metrics", "pilotlab.online.drive", "pilotlab.sim.env", "pilotlab.predictor"} <= names
+    names = set(kind.base_modules())
+    assert {"pilotlab.online.metrics", "pilotlab.online.drive", "pilotlab.sim.env", "pilotlab.predictor",
+            "pilotlab.hardware", "pilotlab.specs.online"} <= names
 
 
 @pytest.mark.parametrize("params, deps, message", [
-    ({"circuit": "simple_circuit", "brain": "expert", "timout_s": 3}, False, "has no param.s. timout_s"),
-    ({"brain": "expert"}, False, "needs a 'circuit' param"),
+    ({"circuit": "simple_circuit", "brain": "expert", "timout_s": 3}, False, "online-bad: unknown param 'timout_s' .did you mean 'timeout_s'.."),
+    ({"brain": "expert"}, False, "circuit: Field required"),
     ({"circuit": "simple_circuit"}, False, "an 'artifact' dependency .an optimize job. or brain: one of explicit"),
     ({"circuit": "simple_circuit", "brain": "explicit"}, True, "has an artifact dependency and brain='explicit'"),
     ({"circuit": "simple_circuit", "brain": "expert", "starts": [0.0, 10.0], "repetitions": 3}, False,

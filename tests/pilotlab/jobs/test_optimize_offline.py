@@ -15,7 +15,7 @@ from pilotlab.errors import PilotlabError
 from pilotlab.hardware import host_fingerprint, make_profile
 
 QUICK = {"warmup_runs": 5, "warmup_seconds": 0.0, "min_runs": 30, "max_seconds": 0.5, "block": 10,
-         "throughput_batch": 8, "throughput_seconds": 0.1}
+         "throughput_seconds": 0.1}
 
 
 def context(tmp_path, kind, params, deps) -> JobContext:
@@ -43,7 +43,7 @@ def test_optimize_then_offline(tmp_path, trained, frames, test_frames):
     assert result["strategy"] == "local_prune" and result["sparsity"] > 0.4
     assert result["options"]["conv"] == 0.3 and json.dumps(result)
     offline = context(tmp_path, "offline",
-                      {"hardware": make_profile("cpu1").as_dict(), "host": host_fingerprint(), "timing": QUICK},
+                      {"hardware": make_profile("cpu1").as_dict(), "host": host_fingerprint(), "batch": 8, "batch": 8, "timing": QUICK},
                       {"artifact": dep("optimize", ctx.out, result), "test": (dep("frames", test_frames),)})
     metrics = KINDS.get("offline").handler(offline)
     assert {"mse", "mse_v", "mse_w", "latency_ms", "throughput_ips", "size_mb", "peak_mem_mb"} <= set(metrics)
@@ -54,7 +54,7 @@ def test_optimize_then_offline(tmp_path, trained, frames, test_frames):
 def test_offline_refuses_to_time_for_another_host(tmp_path, trained, frames, test_frames):
     ctx, result = optimize(tmp_path, trained, frames, "baseline")
     other = {**host_fingerprint(), "cpu": "Some Other CPU"}
-    offline = context(tmp_path, "offline", {"hardware": {"name": "cpu"}, "host": other, "timing": QUICK},
+    offline = context(tmp_path, "offline", {"hardware": {"name": "cpu"}, "host": other, "batch": 8, "batch": 8, "timing": QUICK},
                       {"artifact": dep("optimize", ctx.out, result), "test": (dep("frames", test_frames),)})
     with pytest.raises(PilotlabError, match="Some Other CPU"):
         KINDS.get("offline").handler(offline)
@@ -70,5 +70,8 @@ def test_a_cuda_only_strategy_is_not_applicable_here(tmp_path, trained, frames):
 
 def test_kinds_are_registered_with_their_fingerprints():
     assert KINDS.get("offline").exclusive
-    modules = KINDS.get("optimize").code_for({"strategy": "qat"})
-    assert set(modules) == {"pilotlab.strategies.pt2e", "pilotlab.strategies.pt2e_graph"}
+    own = set(KINDS.get("optimize").code_for({"strategy": "qat"}))
+    assert {"pilotlab.strategies.pt2e", "pilotlab.strategies.pt2e_graph", "pilotlab.training"} <= own
+    assert not own & {"pilotlab.strategies.prune", "pilotlab.strategies.onnx_runtime"}   # other strategies'
+    shared = set(KINDS.get("optimize").base_modules())
+    assert {"pilotlab.strategies.registry", "pilotlab.hardware"} <= shared and "pilotlab.strategies.pt2e" not in shared

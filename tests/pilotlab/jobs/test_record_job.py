@@ -14,7 +14,7 @@ run = KINDS.get("record").handler
 
 def test_the_record_job_writes_its_bag_into_ctx_out(stadium_csv, tmp_path):
     calls = []
-    params = {"circuit": stadium_csv, "direction": "ccw", "laps": 0.1, "seed": 1, "width": 32, "height": 24,
+    params = {"circuit": stadium_csv, "direction": "ccw", "laps": 0.1, "seed": 1, "camera": {"width": 32, "height": 24},
               "rate_hz": 10, "format": "ros2", "compressed": True, "noise": 0.1}
     ctx = context(tmp_path, "record", "record-stadium", params, progress=lambda **kw: calls.append(kw))
     result = run(ctx)
@@ -30,7 +30,7 @@ def test_the_record_job_writes_its_bag_into_ctx_out(stadium_csv, tmp_path):
 
 
 def test_a_frames_job_reads_the_recorded_bag(stadium_csv, tmp_path):
-    record = context(tmp_path, "record", "record", {"circuit": stadium_csv, "laps": 0.1, "width": 64, "height": 48})
+    record = context(tmp_path, "record", "record", {"circuit": stadium_csv, "laps": 0.1, "camera": {"width": 64, "height": 48}})
     recorded = run(record)
     frames = context(tmp_path, "frames", "frames", {"label": "stadium"}, deps={"bag": finished(record, recorded)})
     result = KINDS.get("frames").handler(frames)
@@ -41,7 +41,7 @@ def test_a_frames_job_reads_the_recorded_bag(stadium_csv, tmp_path):
 
 
 def test_unknown_params_are_named(stadium_csv, tmp_path):
-    with pytest.raises(PilotlabError, match="unknown param.*lapz.*known: circuit"):
+    with pytest.raises(PilotlabError, match="unknown param 'lapz' .did you mean 'laps'..; known: camera, circuit"):
         run(context(tmp_path, "record", "typo", {"circuit": stadium_csv, "lapz": 2}))
-    with pytest.raises(PilotlabError, match="'circuit' is required"):
+    with pytest.raises(PilotlabError, match="circuit: Field required"):
         run(context(tmp_path, "record", "empty", {}))

@@ -9,7 +9,7 @@ from pilotlab.jobs import frames as frames_job  # noqa: F401  (registers "frames
 from pilotlab.jobs import record as record_job  # noqa: F401  (registers "record")
 from tests.pilotlab.jobs.context import context, finished
 
-SHORT = {"circuit": "simple_circuit", "width": 160, "height": 120, "max_seconds": 2.0}
+SHORT = {"circuit": "simple_circuit", "camera": {"width": 160, "height": 120}, "max_seconds": 2.0}
 
 
 def recorded_frames(tmp_path, fmt, compressed=None):

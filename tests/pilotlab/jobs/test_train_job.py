@@ -82,7 +82,7 @@ def test_stacked_model_with_block_split_and_stated_ranges(tmp_path, frames_deps)
 
 def test_train_job_params_are_checked(tmp_path, frames_deps):
     deps = {"frames": (frames_deps[0][0],)}
-    with pytest.raises(PilotlabError, match="train job has no param.s. epoch; known: arch, augment"):
+    with pytest.raises(PilotlabError, match="unknown param 'epoch' .did you mean 'epochs'..; known: arch, augment"):
         KINDS.get("train").handler(context(tmp_path, "train", "t1", {"epoch": 3}, deps=deps))
     with pytest.raises(PilotlabError, match="labels = .*: each range needs lo < hi"):
         KINDS.get("train").handler(context(tmp_path, "train", "t2", {"labels": {"v": [1, 1], "w": [-1, 1]}}, deps=deps))

@@ -1,0 +1,61 @@
+"""What every params model shares: frozen, unknown keys rejected, errors in pilotlab's words."""
+from __future__ import annotations
+
+import types
+import typing
+from typing import Any, Literal
+
+import pydantic
+from pydantic import Field
+
+from matrix.kinds import params_problem
+from pilotlab.errors import PilotlabError
+
+CONTROL_HZ = 20.0          # BehaviorMetrics' 50 ms brain cycle: commands and odometry per simulated second
+Direction = Literal["cw", "ccw"]
+
+
+class Spec(pydantic.BaseModel):
+    """A frozen settings model. In a recipe, a bad value is the recipe's error (file, line, key);
+    as job params, the job's (`from_job_params`); built directly, pydantic's ValidationError, which
+    `spec_problem` words in one line (the CLI does so)."""
+    model_config = pydantic.ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @classmethod
+    def from_job_params(cls, params: dict[str, Any], job: str):
+        """The job's params as this model; a bad one is a PilotlabError naming the job."""
+        try:
+            return cls.model_validate(params)
+        except pydantic.ValidationError as error:
+            raise PilotlabError(f"{job}: {params_problem(error, cls)}") from None
+
+    @pydantic.model_validator(mode="before")
+    @classmethod
+    def _no_bools_for_numbers(cls, data: Any) -> Any:
+        """YAML's `true` is not the number 1 (pydantic's lax mode would take it for one)."""
+        if isinstance(data, dict):
+            for name, value in data.items():
+                info = cls.model_fields.get(name) if isinstance(name, str) else None
+                if isinstance(value, bool) and info is not None and _takes_numbers_not_bools(info.annotation):
+                    raise ValueError(f"{name}: {value} is not a number")
+        return data
+
+    def as_dict(self) -> dict[str, Any]:
+        return self.model_dump(mode="json")
+
+
+def spec_problem(error: pydantic.ValidationError) -> str:
+    """One line for a settings model's complaint: 'RecordSpec: laps: Input should be greater than 0'."""
+    return f"{error.title}: {params_problem(error, None)}"
+
+
+def _takes_numbers_not_bools(annotation: Any) -> bool:
+    arms = typing.get_args(annotation) if typing.get_origin(annotation) in (typing.Union, types.UnionType) \
+        else (annotation,)
+    return bool(set(arms) & {int, float}) and bool not in arms
+
+
+class CameraSize(Spec):
+    """The camera image the simulator renders (what the network's preprocessing crops and resizes)."""
+    width: int = Field(640, ge=16, le=4096)
+    height: int = Field(480, ge=16, le=4096)

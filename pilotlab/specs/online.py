@@ -1,0 +1,97 @@
+"""The `online` job: a closed-loop evaluation of one brain on one circuit in the simulator, with
+BehaviorMetrics' metrics. Exclusive (its latency may be measured live) and asking Dask for a GPU
+when its hardware profile is a CUDA one.
+
+deps: `artifact` (optional): the optimize job whose artifact the network brain runs; without it,
+`brain` names a reference brain. The recipe's `online:` section and `pilotlab drive` share the
+lap settings below.
+"""
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import Field, model_validator
+
+from matrix.kinds import register_kind
+from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, Spec
+from pilotlab.specs.offline import gpu_resources
+
+
+class DriveSettings(Spec):
+    """How simulated time advances around the brain (pilotlab.online.drive explains the modes)."""
+    timing: Literal["latency", "lockstep", "realtime"] = Field(
+        "latency", description="latency: each measured inference time passes in simulated time with the previous "
+                               "command in force; lockstep: the world waits for the brain; realtime: simulated "
+                               "time follows the wall clock")
+    control_hz: float = Field(CONTROL_HZ, gt=0, le=1000, description="brain iterations per simulated second when "
+                                                                     "the brain keeps up")
+    extra_latency_ms: float = Field(0.0, ge=0, le=60_000, description="artificial latency added to every brain "
+                                                                      "iteration (a slower network)")
+    fixed_inference_ms: float | None = Field(None, ge=0, le=60_000, description="latency timing: charge this "
+                                             "instead of the measured brain time (exactly reproducible runs)")
+
+    @model_validator(mode="after")
+    def _fixed_needs_latency(self):
+        if self.fixed_inference_ms is not None and self.timing != "latency":
+            raise ValueError(f"fixed_inference_ms only means something in the latency timing mode, not "
+                             f"{self.timing!r}")
+        return self
+
+    @property
+    def period_s(self) -> float:
+        return 1.0 / self.control_hz
+
+    @property
+    def drive(self) -> DriveSettings:
+        return self
+
+
+class LapSettings(DriveSettings):
+    laps: float = Field(1.0, gt=0, le=100, description="laps to drive")
+    repetitions: int | None = Field(None, ge=1, le=1000, description="runs, each from its own start point "
+                                                                      "(default 1, or one per start)")
+    starts: Literal["spread", "random"] | list[float] = Field(
+        "spread", description="spread: evenly round the lap (the first at the start line); random (from seed); "
+                              "or metres along the lap, one per run")
+    seed: int = Field(0, ge=0, lt=2**32)
+    timeout_s: float | None = Field(None, gt=0, description="simulated seconds (default: BehaviorMetrics' "
+                                                            "per-circuit timeout × laps)")
+    stop_off_road: bool = Field(True, description="stop a run when the car's centre leaves the road")
+    trapped_s: float = Field(10.0, gt=0, description="stop a run after this long without 1 m of progress")
+    camera: CameraSize = CameraSize()
+    renderer: Literal["ground", "pybullet"] = "ground"
+    frame_interval_ms: float | None = Field(None, gt=0, description="temporal models: time between stacked "
+                                                                    "frames (default: the training frames')")
+    video: bool = Field(False, description="write camera.mp4, the first run's camera view")
+    video_seconds: float = Field(20.0, gt=0, description="length of that video (simulated seconds)")
+    camera_frames: int = Field(4, ge=0, le=1000, description="JPEG stills of the first run's camera view")
+
+    @model_validator(mode="after")
+    def _one_start_per_run(self):
+        if isinstance(self.starts, list) and self.repetitions not in (None, len(self.starts)):
+            raise ValueError(f"starts lists {len(self.starts)} point(s) but repetitions is {self.repetitions}; "
+                             "give one start point per repetition")
+        return self
+
+    @property
+    def runs(self) -> int:
+        return self.repetitions or (len(self.starts) if isinstance(self.starts, list) else 1)
+
+    @property
+    def video_length_s(self) -> float | None:
+        return self.video_seconds if self.video else None
+
+
+class OnlineSpec(LapSettings):
+    circuit: str = Field(min_length=1, description="circuit name (built-in, ./circuits/NAME.csv) or CSV path")
+    direction: Direction = "cw"
+    brain: str = Field("network", description='"network" (runs the artifact dependency) | "explicit" (OpenCV '
+                                              'line follower) | "expert" (ground truth): the reference rows')
+    brain_options: dict[str, Any] = Field({}, description="fields of the reference brain's config")
+    hardware: dict[str, Any] = Field({"name": "cpu"}, description='the profile {"name", "device", "threads"}')
+    host: dict[str, Any] | None = Field(None, description="the host the planner expects; another is an error")
+    version: int = 1
+
+
+register_kind("online", "pilotlab.jobs.online:run_online", params=OnlineSpec, exclusive=True,
+              resources_for=gpu_resources)
