@@ -19,7 +19,7 @@ from rich.table import Table
 from matrix import engine
 from matrix.display import RichDisplay
 from matrix.recipe import Domain, load_recipe
-from matrix.store import ARTIFACTS, LOG, Store, read_json
+from matrix.store import ARTIFACTS, LOG, read_json
 
 GetDomain = Callable[[], Domain]
 STATE_STYLE = {"fresh": "green", "stale": "yellow", "new": "cyan"}

@@ -15,7 +15,7 @@ from matrix.dag import graph_of, toposort
 from matrix.errors import MatrixError, did_you_mean
 from matrix.execute import RunSummary, run_local
 from matrix.kinds import KINDS
-from matrix.recipe import Domain, Recipe, load_recipe
+from matrix.recipe import Domain, Recipe
 from matrix.stale import FRESH, JobStatus, job_status
 from matrix.store import Store, read_json, write_json_atomic
 

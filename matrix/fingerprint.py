@@ -19,6 +19,7 @@ from matrix.errors import MatrixError
 
 _FILE_HASHES: dict[tuple[str, int, int], str] = {}
 _SOURCE_HASHES: dict[Any, str] = {}
+_GENERATION = [0]   # bumped by clear_caches: whatever was derived from source text is stale
 CHUNK = 1 << 20
 
 
@@ -102,8 +103,19 @@ def module_closure(name: str, within: str, exclude: Iterable[str] = ()) -> list[
     return found
 
 
+_IMPORTS: dict[tuple, list[str]] = {}
+
+
 def _imported_modules(name: str, within: str) -> list[str]:
-    """The modules below package `within` that `name`'s source imports."""
+    """The modules below package `within` that `name`'s source imports (read once per process,
+    until `clear_caches`)."""
+    key = (_GENERATION[0], name, within)
+    if key not in _IMPORTS:
+        _IMPORTS[key] = _read_imports(name, within)
+    return _IMPORTS[key]
+
+
+def _read_imports(name: str, within: str) -> list[str]:
     origin = _module_origin(name)
     package = name if origin.name == "__init__.py" else name.rpartition(".")[0]
     modules = []
@@ -133,9 +145,6 @@ def _is_package(name: str) -> bool:
         return False
 
 
-_GENERATION = [0]
-
-
 def cache_generation() -> int:
     """Changes whenever the caches are cleared: what is derived from source text is stale then."""
     return _GENERATION[0]
@@ -144,6 +153,7 @@ def cache_generation() -> int:
 def clear_caches() -> None:
     """Forget remembered hashes (for long-lived processes that watch code change)."""
     _GENERATION[0] += 1
+    _IMPORTS.clear()
     _FILE_HASHES.clear()
     _SOURCE_HASHES.clear()
 

@@ -22,7 +22,7 @@ import torch
 
 from pilotlab.data.frames import LabelRanges
 from pilotlab.errors import PilotlabError
-from pilotlab.specs.frames import INTERPOLATIONS, PreprocessConfig
+from pilotlab.specs.frames import PreprocessConfig
 
 ENCODINGS = ("rgb8", "bgr8", "mono8")
 

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 from matrix.registry import Registry
 from pilotlab.errors import PilotlabError
+from pilotlab.specs.base import build_config
 
 if TYPE_CHECKING:
     from torch import nn
@@ -62,13 +63,7 @@ def register_model(name: str, *, network: str):
 
 def make_config(arch: str, params: dict[str, Any] | None = None):
     """The arch's config dataclass filled from `params`; unknown fields are an error."""
-    entry = MODELS.get(arch)
-    fields = {f.name for f in dataclasses.fields(entry.config_cls)}
-    unknown = sorted(set(params or {}) - fields)
-    if unknown:
-        raise PilotlabError(f"model {arch!r} has no option(s) {', '.join(unknown)}; "
-                            f"its options are: {', '.join(sorted(fields))}")
-    return entry.config_cls(**(params or {}))
+    return build_config(MODELS.get(arch).config_cls, params, f"model {arch!r}")
 
 
 def input_frames(config) -> int:

@@ -15,20 +15,19 @@ predict call; a reference brain's whole computation), which the metrics report.
 """
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
-import pydantic
 
 from matrix.registry import Registry
 from pilotlab.circuits import Circuit
 from pilotlab.data.frames import LabelRanges
 from pilotlab.data.preprocess import PreprocessConfig, preprocess, to_input
 from pilotlab.errors import PilotlabError
+from pilotlab.specs.base import build_config
 from pilotlab.sim.expert import Expert, ExpertConfig
 from pilotlab.sim.explicit import ExplicitBrain, ExplicitBrainConfig
 
@@ -188,14 +187,5 @@ REFERENCE_BRAINS.add("expert", ReferenceEntry("expert", ExpertConfig, ExpertRefe
 def make_reference_brain(name: str, options: dict[str, Any] | None = None) -> Brain:
     """A reference brain by name, its config fields overridden by `options`."""
     entry = REFERENCE_BRAINS.get(name)
-    known = [f.name for f in dataclasses.fields(entry.config_cls) if f.name != "version"]
-    unknown = sorted(set(options or {}) - set(known))
-    if unknown:
-        raise PilotlabError(f"brain_options: the {name} brain has no option(s) {', '.join(unknown)}; "
-                            f"it takes: {', '.join(known)}")
-    try:
-        config = pydantic.TypeAdapter(entry.config_cls).validate_python(dict(options or {}))
-    except pydantic.ValidationError as error:
-        problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors())
-        raise PilotlabError(f"brain_options for the {name} brain: {problems}") from None
+    config = build_config(entry.config_cls, options, f"brain_options of the {name} brain")
     return entry.factory(config)

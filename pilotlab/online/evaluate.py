@@ -19,7 +19,6 @@ from typing import Any
 import numpy as np
 
 from pilotlab.circuits import Circuit
-from pilotlab.errors import PilotlabError
 from pilotlab.online.brains import Brain
 from pilotlab.online.drive import drive
 from pilotlab.online.media import CameraRecorder, plot_trajectories

@@ -20,7 +20,7 @@ from typing import Any
 
 import pilotlab
 from pilotlab.columns import BY_NAME
-from pilotlab.report import render
+import pilotlab.report.render as render
 from pilotlab.report.data import ROW_FIELDS, ReportData, ReportRow
 from pilotlab.report.plots import CAPTIONS, save_plots
 from pilotlab.report.summary import summarise

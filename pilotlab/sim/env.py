@@ -38,6 +38,7 @@ from pilotlab.sim.camera import CameraSpec, camera_pose
 from pilotlab.sim.car import Car, CarSpec
 from pilotlab.sim.render import GroundRenderer, PybulletRenderer, check_renderer
 from pilotlab.sim.world import PHYSICS_HZ, World
+from pilotlab.specs.base import CONTROL_HZ
 
 INFO_KEYS = {
     "sim_time": "simulated seconds since reset",
@@ -68,7 +69,7 @@ class DrivingEnv:
 
     def __init__(self, circuit: str | Circuit = "simple_circuit", *, direction: str = "cw",
                  camera: CameraSpec | None = CameraSpec(), renderer: str = "pybullet",
-                 control_period: float = 0.05, physics_hz: float = PHYSICS_HZ, walls: bool = False,
+                 control_period: float = 1.0 / CONTROL_HZ, physics_hz: float = PHYSICS_HZ, walls: bool = False,
                  car: CarSpec = CarSpec(), laps: float = 1, timeout_s: float | None = None,
                  stop_off_road: bool = True, trapped_s: float = 10.0):
         self.camera, self.renderer_name = camera, check_renderer(renderer, walls)

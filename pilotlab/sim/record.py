@@ -24,7 +24,7 @@ import numpy as np
 
 import pilotlab
 from pilotlab.errors import PilotlabError
-from pilotlab.sim.bagwriter import BagWriter, bag_path
+from pilotlab.data.bagwrite import BagWriter, bag_path, to_nanoseconds
 from pilotlab.sim.camera import CameraSpec
 from pilotlab.sim.env import DrivingEnv
 from pilotlab.sim.expert import Expert, Swerves
@@ -98,7 +98,8 @@ def record(spec: RecordSpec, out: Path, progress: ProgressFn | None = None) -> R
                      control_period=1.0 / spec.control_hz, laps=spec.laps, timeout_s=spec.max_seconds)
     started = time.perf_counter()
     try:
-        with BagWriter(path, spec.format, spec.compressed) as bag, stop_on_interrupt() as interrupt:
+        storage = "ros1" if spec.format == "ros1" else "sqlite3"
+        with BagWriter(path, storage=storage, compression=spec.compressed) as bag, stop_on_interrupt() as interrupt:
             stats = _drive(env, spec, bag, interrupt, progress)
     finally:
         env.close()
@@ -120,12 +121,12 @@ def _drive(env: DrivingEnv, spec: RecordSpec, bag: BagWriter, interrupt: dict, p
     total = spec.laps * env.circuit.length
     distances, steps = [], 0
     while True:
-        time_s = info["sim_time"]
+        stamp = to_nanoseconds(info["sim_time"])
         command = expert.act(info)
         if steps % frame_every == 0:
-            bag.image(obs if obs is not None else env.render(), time_s)
-        bag.command(*command, time_s)
-        bag.odometry(info, time_s)
+            bag.image(stamp, obs if obs is not None else env.render())
+        bag.command(stamp, *command)
+        bag.odometry(stamp, info["position"], info["orientation"], info["speed"], info["yaw_rate"])
         distances.append(info["distance_to_line"])
         obs, _, terminated, truncated, info = env.step(swerves(command, info, env.control_period), render=False)
         steps += 1

@@ -1,6 +1,8 @@
 """What every params model shares: frozen, unknown keys rejected, errors in pilotlab's words."""
 from __future__ import annotations
 
+import dataclasses
+import functools
 import types
 import typing
 from typing import Any, Literal
@@ -8,6 +10,7 @@ from typing import Any, Literal
 import pydantic
 from pydantic import Field
 
+from matrix.errors import did_you_mean
 from matrix.kinds import params_problem
 from pilotlab.errors import PilotlabError
 
@@ -59,3 +62,27 @@ class CameraSize(Spec):
     """The camera image the simulator renders (what the network's preprocessing crops and resizes)."""
     width: int = Field(640, ge=16, le=4096)
     height: int = Field(480, ge=16, le=4096)
+
+
+@functools.cache
+def _validator(config_cls: type) -> pydantic.TypeAdapter:
+    return pydantic.TypeAdapter(config_cls)
+
+
+def build_config(config_cls: type, options: dict[str, Any] | None, where: str):
+    """A registry entry's frozen config dataclass (a strategy's, a model's, a brain's) from a
+    recipe's options: unknown names get "did you mean", bad values the config's own words, and
+    every message starts with `where` (e.g. "strategies.local_prune")."""
+    options = dict(options or {})
+    known = [f.name for f in dataclasses.fields(config_cls) if f.name != "version"]
+    if unknown := sorted(set(options) - set(known) - {"version"}):   # a checkpoint's config keeps its version
+        guesses = "".join(did_you_mean(option, known) for option in unknown)
+        raise PilotlabError(f"{where}: unknown option(s) {', '.join(unknown)}{guesses}; "
+                            f"known: {', '.join(known) or '(none)'}")
+    try:
+        return _validator(config_cls).validate_python(options)
+    except pydantic.ValidationError as error:
+        problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors())
+        raise PilotlabError(f"{where}: {problems}") from None
+    except PilotlabError as error:   # a config's own range check (its __post_init__)
+        raise PilotlabError(f"{where}: {error}") from None

@@ -36,14 +36,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pydantic
-
-from matrix.errors import did_you_mean
 from matrix.registry import Registry
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.errors import PilotlabError
 from pilotlab.hardware import BUILTIN, HardwareProfile
 from pilotlab.models import load_checkpoint
+from pilotlab.specs.base import build_config
 from pilotlab.strategies.artifact import ArtifactMeta, artifact_size_mb, read_meta, write_meta
 
 if TYPE_CHECKING:
@@ -142,10 +140,6 @@ class StrategyEntry:
     def options(self) -> list[str]:
         return [f.name for f in dataclasses.fields(self.config_cls) if f.name != "version"]
 
-    @cached_property
-    def validator(self) -> pydantic.TypeAdapter:
-        """Built once per strategy: a recipe with thousands of strategy aliases plans quickly."""
-        return pydantic.TypeAdapter(self.config_cls)
 
 
 STRATEGIES: Registry[StrategyEntry] = Registry("strategy")
@@ -166,20 +160,7 @@ def register_strategy(name: str, config_cls: type, *, hardware_dependent: bool =
 
 def make_strategy_config(name: str, options: dict[str, Any] | None = None):
     """The strategy's config from recipe options; unknown options and wrong types are errors."""
-    entry = STRATEGIES.get(name)
-    options = dict(options or {})
-    unknown = sorted(set(options) - set(entry.options))
-    if unknown:
-        guesses = "".join(did_you_mean(option, entry.options) for option in unknown)
-        raise PilotlabError(f"strategies.{name}: unknown option(s) {', '.join(unknown)}{guesses}; "
-                            f"{name} takes: {', '.join(entry.options) or '(no options)'}")
-    try:
-        return entry.validator.validate_python(options)
-    except pydantic.ValidationError as error:
-        problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors())
-        raise PilotlabError(f"strategies.{name}: {problems}") from None
-    except PilotlabError as error:   # a config's own range check (its __post_init__) names the option
-        raise PilotlabError(f"strategies.{name}: {error}") from None
+    return build_config(STRATEGIES.get(name).config_cls, options, f"strategies.{name}")
 
 
 def apply_strategy(name: str, options: dict[str, Any] | None, source: StrategySource) -> dict[str, Any]:

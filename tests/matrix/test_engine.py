@@ -1,7 +1,6 @@
 """Incremental runs on the toy domain: exactly the jobs downstream of an edit rerun."""
 import importlib
 import sys
-import textwrap
 
 import pytest
 

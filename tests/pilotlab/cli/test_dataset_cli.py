@@ -55,4 +55,4 @@ def test_convert_to_ros2_mcap_with_compressed_images(tmp_path, capsys):
     main(["dataset", "inspect", str(tmp_path / "ros2"), "--json"])
     info = json.loads(capsys.readouterr().out)
     assert info["format"] == "ros2-mcap"
-    assert info["images"]["/F1ROS/cameraL/image_raw/compressed"]["encoding"] == "png"
+    assert info["images"]["/F1ROS/cameraL/image_raw/compressed"]["encoding"] == "rgb8; png compressed bgr8"

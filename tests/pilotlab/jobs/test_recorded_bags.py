@@ -1,6 +1,5 @@
 """Bags written by our recorder (the `record` job) read back the same in ROS1 and ROS2."""
 import numpy as np
-import pytest
 
 from matrix.kinds import KINDS
 from pilotlab.data.bags import open_bag, read_commands

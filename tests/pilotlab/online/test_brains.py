@@ -93,7 +93,7 @@ def test_reference_brains_are_a_registry_with_checked_options():
     assert REFERENCE_BRAINS.names() == ["explicit", "expert"]
     brain = make_reference_brain("explicit", {"max_speed": 9.0, "near_rows": [0.7, 0.8]})
     assert isinstance(brain, ExplicitReference) and brain.brain.config.near_rows == (0.7, 0.8)
-    with pytest.raises(PilotlabError, match="has no option.s. top_sped; it takes: top_speed"):
+    with pytest.raises(PilotlabError, match="unknown option.s. top_sped .did you mean 'top_speed'..; known: top_speed"):
         make_reference_brain("expert", {"top_sped": 3})
     with pytest.raises(PilotlabError, match="max_speed"):
         make_reference_brain("explicit", {"max_speed": "fast"})

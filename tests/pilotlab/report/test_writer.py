@@ -7,7 +7,7 @@ from PIL import Image
 
 from pilotlab.columns import BY_NAME
 from pilotlab.report import ReportData, write_report
-from tests.pilotlab.report.toy import draw_trajectory, offline_row, repeated_rows, small_dict, study_dict
+from tests.pilotlab.report.toy import draw_trajectory, offline_row, repeated_rows, small_dict
 
 OFFLINE_HEADER = ("| Method | Model size (MB) | MSE | Inference time (ms) | Throughput (images/s) "
                   "| Size × | Speed-up × | MSE Δ |")

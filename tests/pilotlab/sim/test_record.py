@@ -1,4 +1,3 @@
-import dataclasses
 import json
 import os
 import signal
@@ -16,7 +15,10 @@ from rosbags.highlevel import AnyReader
 from pilotlab.circuits import CIRCUITS, get_circuit
 from pilotlab.cli import main
 from pilotlab.errors import PilotlabError
-from pilotlab.sim.bagwriter import CMD_TOPIC, COMPRESSED_TOPIC, IMAGE_TOPIC, METADATA_TOPIC, ODOM_TOPIC
+from pilotlab.data.topics import COMMAND_TOPIC as CMD_TOPIC
+from pilotlab.data.topics import COMPRESSED_IMAGE_TOPIC as COMPRESSED_TOPIC
+from pilotlab.data.topics import IMAGE_TOPIC, METADATA_TOPIC
+from pilotlab.data.topics import ODOMETRY_TOPIC as ODOM_TOPIC
 from pilotlab.sim.record import RecordSpec, record
 
 ROOT = Path(__file__).resolve().parents[3]

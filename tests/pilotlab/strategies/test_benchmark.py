@@ -23,7 +23,7 @@ import pytest
 from matrix.kinds import NotApplicable
 from pilotlab.hardware import apply_profile, cpu_count, describe_host, host_fingerprint, make_profile
 from pilotlab.offline import TimingSettings, measure_latency, measure_throughput, sample_batch
-from pilotlab.predictor import OnnxPredictor, TorchPredictor, load_predictor
+from pilotlab.predictor import OnnxPredictor, load_predictor
 from pilotlab.strategies.artifact import read_meta
 from pilotlab.models import load_checkpoint
 from pilotlab.strategies import STRATEGIES, StrategySource, apply_strategy

@@ -33,7 +33,7 @@ def test_options_from_the_recipe_are_typed():
 
 def test_unknown_option_names_the_strategy_and_its_options():
     with pytest.raises(PilotlabError, match=r"strategies.local_prune: unknown option\(s\) amount; "
-                                            r"local_prune takes: conv, linear"):
+                                            r"known: conv, linear"):
         make_strategy_config("local_prune", {"amount": 0.3})
 
 
