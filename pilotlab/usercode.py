@@ -60,7 +60,8 @@ def parse(spec: str, base: Path) -> UserCode:
         file = Path(target).expanduser()
         file = (file if file.is_absolute() else Path(base) / file).resolve()
         if not file.is_file():
-            raise UserCodeError(f"{target}: no such file (looked for {file}; a relative path is relative to {base})")
+            raise UserCodeError(f"{target}: no such file (looked for {file}; a relative path is relative to "
+                                f"{Path(base).resolve()})")
         return UserCode(str(spec), file, None, name)
     if not all(part.isidentifier() for part in target.split(".")):
         raise UserCodeError(f"{spec!r}: {target!r} is neither a .py file nor a module name")

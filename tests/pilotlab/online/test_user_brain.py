@@ -1,5 +1,8 @@
 """A brain the user wrote (pilotlab.online.brains.UserBrain) drives in the simulator with every metric,
 and whatever goes wrong in its code is one line naming the file and line."""
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -62,3 +65,15 @@ def test_a_syntax_error_names_its_line(tmp_path):
     (tmp_path / "brains" / "bad.py").write_text("class B:\n    def act(self, image)\n        return 5.0, 0.0\n")
     with pytest.raises(UserCodeError, match=r"bad\.py:2: syntax error"):
         UserBrain("brains/bad.py:B", tmp_path)
+
+
+def test_the_brain_in_the_docs_loads_and_steers_towards_the_line(tmp_path):
+    doc = Path(__file__).resolve().parents[3] / "docs" / "brains.md"
+    source = re.findall(r"```python\n(.*?)```", doc.read_text(), re.S)[0]
+    (tmp_path / "brains").mkdir()
+    (tmp_path / "brains" / "mine.py").write_text(source)
+    brain = UserBrain("brains/mine.py:MyBrain", tmp_path)
+    image = np.zeros((480, 640, 3), np.uint8)
+    image[240:, 100:110] = (205, 30, 30)       # the line on the left
+    v, w = brain.act(image, {})
+    assert v == 7.0 and w > 0
