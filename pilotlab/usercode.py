@@ -140,8 +140,8 @@ def _is_library(filename: str) -> bool:
 # --- the source hash -------------------------------------------------------------------------------
 
 def source_files(spec: str, base: Path) -> list[Path]:
-    """The file `spec` names (for a module: its file) and the user's modules it imports, transitively.
-    An installed module (found on sys.path, not in `base`) is taken alone: it is not the user's to edit."""
+    """The file `spec` names (for a module: its file), then the user's modules it imports, transitively
+    (sorted). An installed module (found on sys.path, not in `base`) is taken alone: it is not the user's to edit."""
     code = parse(spec, base)
     if code.file is not None:
         first, roots = code.file, []
@@ -157,7 +157,7 @@ def source_files(spec: str, base: Path) -> list[Path]:
         if file not in seen:
             seen[file] = None
             pending += _local_imports(file, [file.parent, *roots])
-    return sorted(seen)
+    return [first, *sorted(set(seen) - {first})]
 
 
 def source_hash(spec: str, base: Path) -> str:

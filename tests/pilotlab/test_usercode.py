@@ -75,7 +75,7 @@ def test_errors_name_the_file_and_line(brains):
 
 def test_the_source_hash_follows_the_file_and_its_local_imports(brains):
     spec = "brains/mine.py:MyBrain"
-    assert [f.name for f in source_files(spec, brains)] == ["helpers.py", "mine.py"]   # not numpy, not unrelated.py
+    assert [f.name for f in source_files(spec, brains)] == ["mine.py", "helpers.py"]   # not numpy, not unrelated.py
     first = source_hash(spec, brains)
     write(brains, "brains/unrelated.py", "X = 2\n")
     assert source_hash(spec, brains) == first
