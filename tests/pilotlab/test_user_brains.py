@@ -129,3 +129,10 @@ def test_pilotlab_drive_names_the_line_of_a_broken_brain(tmp_path, monkeypatch, 
     (tmp_path / "brains" / "bad.py").write_text("class B:\n    def act(self, image)\n")
     assert main([*bad, "--out", "run2"]) == 2
     assert f"{tmp_path / 'brains' / 'bad.py'}:2: syntax error" in capsys.readouterr().err
+
+
+def test_planning_reads_a_user_brain_but_never_runs_it(tmp_path):
+    recipe = recipe_at(tmp_path)
+    (tmp_path / "brains" / "mine.py").write_text("raise SystemExit('planning ran the brain')\n")
+    (lap,) = user_laps(engine.plan_jobs(load_recipe(recipe.file, DOMAIN), DOMAIN))
+    assert lap.inputs["brain_source"].sha256 == source_hash(SPEC, tmp_path)
