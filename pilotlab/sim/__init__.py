@@ -21,18 +21,24 @@ def _register() -> None:
 
 class _RegisterOnImport(importlib.abc.MetaPathFinder):
     """Finds gymnasium as the other finders do, and registers the environment once it has loaded."""
+    _finding = False
 
     def find_spec(self, name, path, target=None):
-        if name != "gymnasium":
+        if name != "gymnasium" or self._finding:
             return None
-        sys.meta_path.remove(self)
-        spec = importlib.util.find_spec(name)
+        self._finding = True   # the search below asks every finder, this one too
+        try:
+            spec = importlib.util.find_spec(name)
+        finally:
+            self._finding = False
         if spec is None or spec.loader is None:
             return spec
         load = spec.loader.exec_module
 
         def exec_module(module):
             load(module)
+            if self in sys.meta_path:
+                sys.meta_path.remove(self)
             _register()
         spec.loader.exec_module = exec_module
         return spec

@@ -179,7 +179,8 @@ def test_the_expert_drives_a_lap_of_the_registered_env(stadium_csv):
 
 def test_importing_pilotlab_sim_registers_the_env_without_importing_gymnasium():
     """Planning imports pilotlab.sim; gymnasium is imported only by whoever uses it."""
-    code = ("import sys, pilotlab.sim; assert 'gymnasium' not in sys.modules; import gymnasium; "
+    code = ("import sys, importlib.util, pilotlab.sim; assert 'gymnasium' not in sys.modules; "
+            "assert importlib.util.find_spec('gymnasium'); import gymnasium; "   # a look first, then the import
             f"assert {ENV_ID!r} in gymnasium.registry; print('ok')")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert done.stdout.strip() == "ok", done.stderr
