@@ -1,8 +1,8 @@
 """The picture `DrivingEnv.render()` returns in render mode "rgb_array": the circuit seen from above
 with the path driven since the reset and the car, and the camera view inset in a corner.
 
-Drawn with OpenCV on a map of the whole circuit made once per circuit, so a frame costs about a
-millisecond (a video of a lap is cheap: `gymnasium.wrappers.RecordVideo` works as is).
+Drawn with OpenCV on a map of the whole circuit made once per circuit, so a frame costs a
+millisecond or two (a video of a lap is cheap: `gymnasium.wrappers.RecordVideo` works as is).
 """
 from __future__ import annotations
 
