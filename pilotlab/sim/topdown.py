@@ -2,7 +2,7 @@
 with the path driven since the reset and the car, and the camera view inset in a corner.
 
 Drawn with OpenCV on a map of the whole circuit made once per circuit, so a frame costs a
-millisecond or two (a video of a lap is cheap: `gymnasium.wrappers.RecordVideo` works as is).
+millisecond or two: a video of a lap (`gymnasium.wrappers.RecordVideo`, with moviepy installed) is cheap.
 """
 from __future__ import annotations
 
