@@ -5,7 +5,7 @@ A recipe becomes jobs, shared wherever their inputs are equal:
     record (per recording) -> frames (per recording) -> train (per model)
         -> optimize (per model × strategy) -> offline (per model × strategy × hardware)
                                            -> online  (per model × strategy × hardware × circuit × direction)
-    plus reference laps (explicit brain, expert) per hardware × circuit × direction.
+    plus reference laps (explicit brain, expert, the user's brains) per hardware × circuit × direction.
 
 Relative paths in a recipe (bags, dataset folders, circuit CSVs) are relative to the recipe's folder.
 """
@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from matrix.errors import MatrixError, did_you_mean
-from matrix.jobs import Job, input_file
+from matrix.jobs import InputFile, Job, input_file
 from matrix.recipe import Domain, Recipe
 from pilotlab.recipe import SECTIONS, DatasetSpec, ModelSpec, RecordingsSpec
 from pilotlab.specs import KIND_MODULES
@@ -224,27 +224,47 @@ def online_jobs(planner: Planner, optimize: Job, combination: dict, hardware: st
 
 
 def reference_jobs(planner: Planner) -> list[Job]:
-    """The explicit brain and the expert on every CPU profile and circuit the matrix drives (they
-    use no GPU, so a CUDA profile adds nothing)."""
+    """The reference brains (explicit, expert, the user's) on every CPU profile and circuit the matrix
+    drives (they use no GPU, so a CUDA profile adds nothing)."""
     cells = {(str(c.get("hardware", "cpu")), str(c["circuit"])) for c in planner.recipe.combinations
              if "circuit" in c and planner.profile(str(c.get("hardware", "cpu"))).device == "cpu"}
-    return [_lap(planner, f"online {brain} on {hardware}", {"model": "reference", "strategy": brain,
-                                                            "hardware": hardware},
-                 hardware, circuit, direction, {"brain": brain}, {})
-            for brain in planner.config.online.references for hardware, circuit in sorted(cells)
-            for direction in planner.config.online.directions]
+    jobs = []
+    for index, reference in enumerate(planner.config.online.references):
+        name, brain, inputs = reference_brain(planner, reference, index)
+        jobs += [_lap(planner, f"online {name} on {hardware}", {"model": "reference", "strategy": name,
+                                                                "hardware": hardware},
+                      hardware, circuit, direction, brain, {}, inputs)
+                 for hardware, circuit in sorted(cells) for direction in planner.config.online.directions]
+    return jobs
+
+
+def reference_brain(planner: Planner, reference: str | dict[str, str], index: int) -> tuple[str, dict, dict]:
+    """(row name, the online job's brain params, its input files) of a reference: a built-in brain's
+    name, or {name: file.py:Class} for a brain the user wrote (its source hash goes into the key;
+    planning reads the files, never runs them)."""
+    if isinstance(reference, str):
+        return reference, {"brain": reference}, {}
+    from pilotlab import usercode
+    (name, spec), = reference.items()
+    try:
+        source = usercode.source_files(spec, planner.folder)[0]
+        digest = usercode.source_hash(spec, planner.folder)
+    except MatrixError as error:
+        raise planner.recipe.error(str(error), ["online", "references", index, name]) from None
+    brain = {"brain": "user", "user_brain": {"name": name, "spec": spec, "base": str(planner.folder)}}
+    return name, brain, {"brain_source": InputFile(str(source), digest)}
 
 
 def _lap(planner: Planner, name: str, labels: dict, hardware: str, circuit: str, direction: str,
-         brain: dict, deps: dict) -> Job:
+         brain: dict, deps: dict, inputs: dict | None = None) -> Job:
     from pilotlab.hardware import host_fingerprint
     online = planner.config.online
-    params, inputs = planner.circuit_param(circuit, ["matrix", "circuit"])
+    params, circuit_inputs = planner.circuit_param(circuit, ["matrix", "circuit"])
     settings = {field: getattr(online, field) for field in LapSettings.model_fields}
     spec = OnlineSpec(**settings, **params, **brain, direction=direction, host=host_fingerprint(),
                       hardware=planner.profile(hardware).as_dict())
-    return job("online", f"{name} at {circuit} {direction}", spec, deps=deps, inputs=inputs,
-               labels={**labels, "circuit": circuit, "direction": direction})
+    return job("online", f"{name} at {circuit} {direction}", spec, deps=deps,
+               inputs={**circuit_inputs, **(inputs or {})}, labels={**labels, "circuit": circuit, "direction": direction})
 
 
 def plan(recipe: Recipe) -> list[Job]:

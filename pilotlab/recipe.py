@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from matrix.errors import did_you_mean
 from pilotlab.specs.base import Direction, Spec
@@ -71,7 +71,28 @@ class OfflineSection(OfflineSettings):
 
 class OnlineSection(LapSettings):
     directions: list[Direction] = Field(["cw"], min_length=1)
-    references: list[Literal["explicit", "expert"]] = ["explicit", "expert"]
+    # Reference rows: the built-in brains, and brains users write ({name: file.py:Class}, docs/brains.md).
+    references: list[Literal["explicit", "expert"] | dict[str, str]] = ["explicit", "expert"]
+
+    @field_validator("references")
+    @classmethod
+    def _user_brains(cls, references: list) -> list:
+        names: list[str] = []
+        for entry in references:
+            name = entry
+            if isinstance(entry, dict):
+                if len(entry) != 1:
+                    raise ValueError("a brain of yours is one entry {name: file.py:Class}, e.g. "
+                                     "{mine: brains/mine.py:MyBrain}")
+                (name, spec), = entry.items()
+                if name in ("explicit", "expert"):
+                    raise ValueError(f"{name!r} is a built-in reference brain; give your brain another name")
+                if ":" not in spec:
+                    raise ValueError(f"{name}: {spec!r}: name your brain as file.py:Class or module:Class")
+            if name in names:
+                raise ValueError(f"the reference {name!r} is listed twice")
+            names.append(name)
+        return references
 
 
 class ReportSpec(Spec):

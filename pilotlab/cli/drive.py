@@ -2,6 +2,7 @@
 
     pilotlab drive --artifact .pilotlab/<key>/artifacts --circuit simple_circuit --out runs/baseline
     pilotlab drive --brain explicit --circuit montreal --direction ccw --repetitions 3 --out runs/explicit
+    pilotlab drive --brain brains/mine.py:MyBrain --circuit simple_circuit --out runs/mine   (docs/brains.md)
 """
 from __future__ import annotations
 
@@ -26,7 +27,9 @@ def register(subparsers) -> None:
                     "artifact folder (what an optimize job wrote, or `pilotlab export` copied) or --brain.")
     which = parser.add_mutually_exclusive_group(required=True)
     which.add_argument("--artifact", type=Path, help="artifact folder (artifact.json + model file)")
-    which.add_argument("--brain", choices=("explicit", "expert"), help="a reference brain")
+    which.add_argument("--brain", metavar="BRAIN",
+                       help="a reference brain (explicit, expert) or yours: file.py:Class or module:Class, a class "
+                            "with act(image) -> (v, w) (docs/brains.md)")
     parser.add_argument("--circuit", required=True, help="circuit name (pilotlab circuit list) or CSV path")
     parser.add_argument("--out", type=Path, required=True, help="folder for the pictures, data and result.json")
     parser.add_argument("--hardware", default="cpu", help="hardware profile: cpu, cpu1 or cuda (default cpu)")
@@ -43,22 +46,47 @@ def check_arguments(args: argparse.Namespace) -> None:
         raise PilotlabError(f"--out {args.out} {what}; give a new folder (drive does not mix two runs' files)")
 
 
+def brain_params(brain: str | None) -> dict:
+    """The online job's brain params for --brain: a reference brain's name, or the user's
+    `file.py:Class` (relative to the current folder), its row named after the class."""
+    from matrix.errors import did_you_mean
+    from pilotlab.online.brains import REFERENCE_BRAINS
+    if brain is None:
+        return {"brain": "network"}
+    if ":" in brain:
+        return {"brain": "user", "user_brain": {"name": brain.rpartition(":")[2], "spec": brain,
+                                                "base": str(Path.cwd())}}
+    if brain not in REFERENCE_BRAINS:
+        known = REFERENCE_BRAINS.names()
+        raise PilotlabError(f"--brain {brain}: unknown brain{did_you_mean(brain, known)}; give {', '.join(known)}, "
+                            "or your own as file.py:Class or module:Class")
+    return {"brain": brain}
+
+
+def make_brain(spec: OnlineSpec):
+    from pilotlab.online.brains import UserBrain, make_reference_brain
+    if spec.user_brain is not None:
+        mine = spec.user_brain
+        return UserBrain(mine.spec, Path(mine.base), name=mine.name)
+    return make_reference_brain(spec.brain)
+
+
 def run(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from pilotlab.hardware import check_available, make_profile
-    from pilotlab.online.brains import NetworkBrain, make_reference_brain
+    from pilotlab.online.brains import NetworkBrain
     from pilotlab.online.evaluate import evaluate_online
     from pilotlab.predictor import load_predictor
     from pilotlab.report import pick_metrics
 
     check_arguments(args)
-    spec = spec_from_args(OnlineSpec, args, circuit=args.circuit, brain=args.brain or "network")
+    spec = spec_from_args(OnlineSpec, args, circuit=args.circuit, **brain_params(args.brain))
     profile = make_profile(args.hardware)
     check_available(profile)
     brain = (NetworkBrain(load_predictor(args.artifact, profile)) if args.artifact is not None
-             else make_reference_brain(args.brain))
+             else make_brain(spec))
     columns = (TextColumn("[bold]{task.description}"), BarColumn(),
                TextColumn("{task.completed:.0f}/{task.total:.0f} m"), TimeElapsedColumn())
     with Progress(*columns) as progress:

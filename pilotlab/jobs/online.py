@@ -8,7 +8,8 @@ result:
     off_road_events): the mean over the runs (lap_seconds over the completed laps; lap_completed true
     only when every run completed); spread {metric: {std, min, max, runs}} (lap_completed:
     {completed, runs}); runs [{start_m, termination, sim_seconds, wall_seconds, iterations, metrics}];
-    repetitions, brain, strategy (the artifact's, or the reference brain's name), hardware (profile),
+    repetitions, brain, strategy (the artifact's, or the reference brain's name: for a brain the user
+    wrote, its user_brain.name), hardware (profile),
     host, circuit, direction, circuit_length_m, laps, timeout_s, timing, control_hz, extra_latency_ms,
     fixed_inference_ms (if set), measured_inference_ms (the real mean, without artificial latency),
     wall_seconds; and the files, relative to the artifacts folder: trajectory ("trajectory.png"),
@@ -17,6 +18,7 @@ result:
 """
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -43,7 +45,10 @@ def make_brain(ctx: JobContext, spec: OnlineSpec, profile) -> tuple[brains.Brain
     if spec.brain == "network":
         names = ", ".join(brains.REFERENCE_BRAINS.names())
         raise PilotlabError(f"{ctx.name}: give the online job an 'artifact' dependency (an optimize job) or "
-                            f"brain: one of {names}")
+                            f"brain: one of {names}, or user (with user_brain)")
+    if spec.brain == "user":
+        mine = spec.user_brain
+        return brains.UserBrain(mine.spec, Path(mine.base), name=mine.name), mine.name
     return brains.make_reference_brain(spec.brain, spec.brain_options), spec.brain
 
 

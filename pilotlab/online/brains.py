@@ -3,6 +3,7 @@
     brain = NetworkBrain(load_predictor(artifact_dir, "cpu1"))     # any optimized artifact
     brain = make_reference_brain("explicit")                      # the OpenCV line follower
     brain = make_reference_brain("expert")                        # the ground-truth driver
+    brain = UserBrain("brains/mine.py:MyBrain", base=Path.cwd())  # a brain the user wrote
     brain.reset(env.circuit); v, w = brain.act(image, info)
 
 A network brain feeds the network exactly what training saw: `pilotlab.data.preprocess` on the
@@ -18,6 +19,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
@@ -189,3 +191,56 @@ def make_reference_brain(name: str, options: dict[str, Any] | None = None) -> Br
     entry = REFERENCE_BRAINS.get(name)
     config = build_config(entry.config_cls, options, f"brain_options of the {name} brain")
     return entry.factory(config)
+
+
+class UserBrain:
+    """A brain the user wrote: any class with `act(image) -> (v, w)` (the camera image, RGB uint8
+    H×W×3, the full frame as the explicit brain gets it) and optionally `reset()`, called before each
+    run. Named `file.py:Class` (relative to `base`) or `module:Class`; `options` go to its constructor.
+    An exception in the user's code, or a command that is not two finite numbers, is one line naming
+    the file and line (pilotlab.usercode)."""
+    needs_camera = True
+
+    def __init__(self, spec: str, base: Path, name: str | None = None, options: dict[str, Any] | None = None):
+        from pilotlab import usercode
+        self.spec, self.last_inference_s = spec, 0.0
+        found = usercode.load_object(spec, base)
+        self.name = name or spec.rpartition(":")[2]
+        try:
+            self.brain = found(**(options or {})) if isinstance(found, type) else found
+        except Exception as error:
+            raise usercode.UserCodeError(f"{usercode.error_line(error, spec)} (making {spec})") from None
+        if not callable(getattr(self.brain, "act", None)):
+            raise usercode.UserCodeError(f"{spec}: has no act(image) method; a brain's act(image) returns (v, w)")
+
+    def reset(self, circuit: Circuit) -> None:
+        if callable(getattr(self.brain, "reset", None)):
+            self._call("reset")
+
+    def warm_up(self) -> None:
+        pass
+
+    def act(self, image: np.ndarray | None, info: dict[str, Any]) -> tuple[float, float]:
+        if image is None:
+            raise PilotlabError(f"the {self.name} brain needs the camera image; the env was made without a camera")
+        started = time.perf_counter()
+        command = self._call("act", image)
+        self.last_inference_s = time.perf_counter() - started
+        return self._check(command)
+
+    def _call(self, method: str, *args):
+        from pilotlab import usercode
+        try:
+            return getattr(self.brain, method)(*args)
+        except Exception as error:
+            raise usercode.UserCodeError(f"{usercode.error_line(error, self.spec)} (in {self.spec}.{method})") from None
+
+    def _check(self, command) -> tuple[float, float]:
+        try:
+            v, w = (float(c) for c in np.asarray(command, dtype=np.float64).reshape(2))
+        except (TypeError, ValueError):
+            v = w = float("nan")
+        if not (np.isfinite(v) and np.isfinite(w)):
+            raise PilotlabError(f"{self.spec}: act returned {command!r}; it must return (v, w), two finite numbers "
+                                "(m/s and rad/s)")
+        return v, w

@@ -126,7 +126,7 @@ def drive(env: DrivingEnv, brain: Brain, settings: DriveSettings, *, start: floa
     every iteration; `on_frame(image, info, command)` sees each image with the command decided on it."""
     render = brain.needs_camera if render is None else render
     obs, info = env.reset(seed=seed, options={"start": start, "control_period": settings.period_s})
-    if render and obs is None:
+    if render and env.camera is None:
         raise PilotlabError(f"the {brain.name} brain needs the camera; make the DrivingEnv with a camera")
     brain.reset(env.circuit)
     clock = CLOCKS[settings.timing](env, settings)

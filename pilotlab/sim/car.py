@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import pybullet as p
 
+REVERSE_SPEED = 5.0  # m/s: the fastest a command may drive backwards
+
 
 @dataclass(frozen=True)
 class CarSpec:
@@ -34,8 +36,16 @@ class CarSpec:
     drive_torque: float = 110.0       # N·m per rear wheel: accelerates at about 4.4 m/s²
     brake_torque: float = 80.0        # N·m per front wheel, added when slowing: about 8 m/s² in all
     tyre_friction: float = 1.2
-    max_speed: float = 25.0           # m/s, commands are clipped to [-5, max_speed]
+    max_speed: float = 25.0           # m/s, commands are clipped to [-REVERSE_SPEED, max_speed]
     version: int = 1
+
+    @property
+    def command_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """((v_min, v_max), (w_min, w_max)) of the commands that mean something to this car: v as
+        clipped by `Car.apply`; beyond |w| = max_speed · tan(max_steer) / wheelbase the steering is at
+        its stop at every speed the car can reach, so a larger w changes nothing."""
+        w_max = self.max_speed * math.tan(self.max_steer) / self.wheelbase
+        return (-REVERSE_SPEED, self.max_speed), (-w_max, w_max)
 
     def urdf(self) -> str:
         """The car as URDF text: base_link is the chassis, centred between the axles at axle height."""
@@ -157,7 +167,8 @@ class Car:
         """Set the command in force until the next one: steering targets and wheel speeds. The rear
         wheels drive (and brake); the front wheels roll freely, and brake too when the car must slow."""
         spec, client, body = self.spec, self.client, self.body
-        v = max(-5.0, min(spec.max_speed, float(v)))
+        (v_min, v_max), _ = spec.command_bounds
+        v = max(v_min, min(v_max, float(v)))
         w = float(w)
         self.command = (v, w)
         for joint, angle in zip(self.steer, self.steering_angles(v, w)):

@@ -1,34 +1,54 @@
-"""DrivingEnv: a Gymnasium-style environment of the car on a circuit.
+"""DrivingEnv: the car on a circuit as a Gymnasium environment (`gymnasium.Env`).
 
     env = DrivingEnv("simple_circuit", camera=CameraSpec(), renderer="pybullet")
     obs, info = env.reset(seed=0, options={"direction": "ccw"})
     obs, reward, terminated, truncated, info = env.step((v, w))           # control_period later
     obs, reward, terminated, truncated, info = env.step((v, w), duration=0.12)  # 0.12 s later
 
+Registered as `pilotlab/FollowLine-v0` (see `pilotlab.sim.follow_line` and docs/simulator-python.md):
+`gymnasium.make("pilotlab/FollowLine-v0", circuit="montreal", camera=(320, 240))` after
+`import pilotlab.sim`.
+
+Spaces (`pilotlab.sim.observation`): the observation is the camera image (uint8 RGB, H×W×3), or with
+`observation="state"` the ground truth (`STATE_KEYS`), or `"image+state"` both in a Dict; without a
+camera it is the state. The action is (v, w) in m/s and rad/s within the car's limits
+(`actions="normalized"`: the same range mapped onto [-1, 1]²).
+
 `step` keeps Gymnasium's signature (`step(action)`) and adds two keyword arguments: `duration`, the
-simulated seconds this command stays in force (default: `env.control_period`, 0.05 s = 20 Hz; the
-"latency" timing mode passes max(control period, inference time) here, so a slow brain reacts
-late), and `render=False` to skip the camera (obs is then None). Time advances in physics steps
-(1/120 s): a duration is rounded to the nearest step, at least one; `info["sim_time"]` is exact.
+simulated seconds this command stays in force (default: `env.control_period`, 0.05 s = 20 Hz;
+pilotlab's "latency" timing mode passes max(control period, inference time) here, so a slow brain
+reacts late), and `render=False` to skip the camera (obs is then None: for callers that only advance
+time). Time advances in physics steps (1/120 s): a duration is rounded to the nearest step, at least
+one; `info["sim_time"]` is exact. `timing="latency"` does the same inside `step` for agents that
+call plain `step(action)`: the wall-clock time since the last observation was returned (or
+`fixed_inference_ms`), plus `extra_latency_ms`, passes with the previous command in force before the
+new one applies, and the step lasts max(control period, that time). The default, `"lockstep"`, is the
+world waiting for the agent: every step lasts one control period.
 
 reset options (all optional): `circuit` (name or CSV path; changing it rebuilds the world),
 `direction` ("cw" | "ccw"), `start` (metres along the driving direction from the start line, or
 "random": uniform over the lap from the seed), `lateral` (metres left of the red line), `heading`
 (radians relative to the line), `speed` (initial forward speed, m/s), `laps`, `timeout_s`,
-`control_period`. The same seed and options give the same run, step for step.
+`control_period`. The same seed and options give the same run.
 
 Episodes end (terminated) when the laps are completed, when the car's centre leaves the road (unless
 `stop_off_road=False`: then `info["off_road"]` just flags it), or when it is trapped (less than 1 m of
 progress in `trapped_s` seconds, or tipped over); they are truncated at the timeout (BehaviorMetrics'
 per-circuit timeout × laps, at least one lap's). The reward is the progress along the red line during
-the step, in metres. `info` holds everything BehaviorMetrics' metrics need; see `INFO_KEYS`.
-A reset with no options returns to the constructor's circuit, direction, laps and timeout.
+the step, in metres (negative when driving backwards). `info` holds everything BehaviorMetrics'
+metrics need; see `INFO_KEYS`. A reset with no options returns to the constructor's circuit,
+direction, start, laps and timeout.
+
+`render()`: in render mode "rgb_array", the circuit from above with the path driven since the reset,
+the car, and the camera view inset (`pilotlab.sim.topdown`); without a render mode, the camera image.
 """
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
+import gymnasium
 import numpy as np
 
 from pilotlab.circuits import Circuit, get_circuit, wrap_angle
@@ -36,10 +56,14 @@ from pilotlab.circuits.circuit import check_direction
 from pilotlab.errors import PilotlabError
 from pilotlab.sim.camera import CameraSpec, camera_pose
 from pilotlab.sim.car import Car, CarSpec
+from pilotlab.sim.observation import ActionSpace, check_observation, observation_space, state_vector
 from pilotlab.sim.render import GroundRenderer, PybulletRenderer, check_renderer
 from pilotlab.sim.world import PHYSICS_HZ, World
 from pilotlab.specs.base import CONTROL_HZ
 
+TIMINGS = ("lockstep", "latency")
+RESET_OPTIONS = ("circuit", "direction", "start", "lateral", "heading", "speed", "laps", "timeout_s",
+                 "control_period")
 INFO_KEYS = {
     "sim_time": "simulated seconds since reset",
     "dt": "simulated seconds this step lasted",
@@ -64,33 +88,40 @@ INFO_KEYS = {
 }
 
 
-class DrivingEnv:
+class DrivingEnv(gymnasium.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
 
     def __init__(self, circuit: str | Circuit = "simple_circuit", *, direction: str = "cw",
                  camera: CameraSpec | None = CameraSpec(), renderer: str = "pybullet",
                  control_period: float = 1.0 / CONTROL_HZ, physics_hz: float = PHYSICS_HZ, walls: bool = False,
                  car: CarSpec = CarSpec(), laps: float = 1, timeout_s: float | None = None,
-                 stop_off_road: bool = True, trapped_s: float = 10.0):
+                 stop_off_road: bool = True, trapped_s: float = 10.0, start: float | str = 0.0,
+                 observation: str | None = None, actions: str = "physical", render_mode: str | None = None,
+                 timing: str = "lockstep", extra_latency_ms: float = 0.0, fixed_inference_ms: float | None = None):
         self.camera, self.renderer_name = camera, check_renderer(renderer, walls)
         self.physics_hz, self.walls, self.car_spec = physics_hz, walls, car
         self.stop_off_road, self.trapped_s = stop_off_road, trapped_s
         self._defaults = {"circuit": circuit, "direction": check_direction(direction), "laps": laps,
-                          "timeout_s": timeout_s, "control_period": control_period}
+                          "timeout_s": timeout_s, "control_period": control_period, "start": start}
         self.control_period = control_period
+        self.observation = check_observation(observation or ("image" if camera else "state"), camera)
+        self.observation_space = observation_space(self.observation, camera)
+        self.actions = ActionSpace(car, actions)
+        self.action_space = self.actions.space
+        self.render_mode = _check_render_mode(render_mode)
+        self.metadata = {**self.metadata, "render_fps": 1.0 / control_period}
+        self.timing, self.extra_latency_s = _check_timing(timing, extra_latency_ms, fixed_inference_ms)
+        self.fixed_inference_s = None if fixed_inference_ms is None else fixed_inference_ms / 1000
         self.world: World | None = None
         self.car: Car | None = None
-        self._renderer = None
+        self._renderer = self._view = None
         self.circuit = self._load_circuit(circuit, direction)
-        self.np_random, self._seeded = np.random.default_rng(), False
 
     # -- Gymnasium API ----------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        if seed is not None or not self._seeded:  # as Gymnasium: a later reset without a seed goes on
-            self.np_random, self._seeded = np.random.default_rng(seed), True
+        super().reset(seed=seed)  # as Gymnasium: a later reset without a seed goes on with the same generator
         options = dict(options or {})
-        unknown = set(options) - {"circuit", "direction", "start", "lateral", "heading", "speed", "laps",
-                                  "timeout_s", "control_period"}
+        unknown = set(options) - set(RESET_OPTIONS)
         if unknown:
             raise PilotlabError(f"unknown reset option(s) {sorted(unknown)}; see DrivingEnv's docstring")
         settings = {**self._defaults, **{k: v for k, v in options.items() if k in self._defaults}}
@@ -99,29 +130,33 @@ class DrivingEnv:
         self.laps = float(settings["laps"])
         self.timeout_s = settings["timeout_s"] or self.circuit.timeout_s * max(self.laps, 1.0)
         self._build_world()
-        self._place_car(options)
-        return self._observe(True), self._info()
+        self._place_car({**options, "start": settings["start"]})
+        info = self._info()
+        return self._observe(True, info), info
 
     def step(self, action, duration: float | None = None, render: bool = True):
         if self.car is None:
             raise PilotlabError("call reset() before step()")
-        v, w = (float(a) for a in action)
-        if not (math.isfinite(v) and math.isfinite(w)):
-            raise PilotlabError(f"the command must be finite numbers (v, w), got {action!r}")
-        duration = self.control_period if duration is None else float(duration)
-        if duration <= 0:
-            raise PilotlabError(f"a step must last a positive time, got duration={duration}")
+        command = self.actions.command(action)
         before = self._progress
-        self.car.apply(v, w)
-        self._advance(duration)
+        segments = self._schedule(command, duration)
+        for segment_command, steps in segments:
+            self.car.apply(*segment_command)
+            self._advance(steps)
+        self._steps += 1
+        self._last_dt = sum(steps for _, steps in segments) / self.physics_hz
         self._termination_reason = termination = self._termination()
         truncated = termination == "timeout"
         terminated = termination is not None and not truncated
-        return self._observe(render), self._progress - before, terminated, truncated, self._info()
+        info, self._image = self._info(), None
+        return self._observe(render, info), self._progress - before, terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
-        """The camera image now (None without a camera)."""
-        return self._observe(True)
+        """Render mode "rgb_array": the top-down view with the camera view inset; no render mode: the
+        camera image now (None without a camera)."""
+        if self.render_mode == "rgb_array":
+            return self._top_down()
+        return self._camera_image()
 
     def close(self) -> None:
         if self.world is not None:
@@ -163,10 +198,10 @@ class DrivingEnv:
         return GroundRenderer(canonical, self.camera)
 
     def _place_car(self, options: dict[str, Any]) -> None:
-        start = options.get("start", 0.0)
+        start = options["start"]
         if start == "random":
             start = float(self.np_random.uniform(0.0, self.circuit.length))
-        elif not isinstance(start, (int, float)):
+        elif isinstance(start, bool) or not isinstance(start, (int, float)):
             raise PilotlabError(f"reset option start must be metres along the lap or 'random', got {start!r}")
         x, y, yaw = self.circuit.start_pose(float(start), float(options.get("lateral", 0.0)))
         yaw += float(options.get("heading", 0.0))
@@ -175,16 +210,26 @@ class DrivingEnv:
         self._start_s = float(start) % self.circuit.length
         self._s, self._progress, self._lap_times = self._start_s, 0.0, []
         self._progress_marks: list[tuple[float, float]] = [(0.0, 0.0)]
-        self._termination_reason = None
+        self._termination_reason, self._path, self._image = None, [], None
         self._track()
 
-    def _advance(self, duration: float) -> None:
-        substeps = max(1, round(duration * self.physics_hz))
-        self.world.step(substeps)
-        self._physics_steps += substeps
-        self._steps += 1
-        self._last_dt = substeps / self.physics_hz
-        self._track()
+    def _schedule(self, command: tuple[float, float], duration: float | None) -> list[tuple[tuple, int]]:
+        """(command, physics steps) to apply in turn during this step (see the module docstring)."""
+        if duration is not None or self.timing == "lockstep":
+            seconds = self.control_period if duration is None else float(duration)
+            if not seconds > 0:
+                raise PilotlabError(f"a step must last a positive time, got duration={seconds}")
+            return [(command, max(1, round(seconds * self.physics_hz)))]
+        thought = time.perf_counter() - self._observed_at if self.fixed_inference_s is None else self.fixed_inference_s
+        return latency_segments(self.car.command, command, thought + self.extra_latency_s,
+                                max(1, round(self.control_period * self.physics_hz)), self.physics_hz)
+
+    def _advance(self, steps: int) -> None:
+        if steps > 0:
+            self.world.step(steps)
+            self._physics_steps += steps
+            self._last_dt = steps / self.physics_hz
+            self._track()
 
     def _track(self) -> None:
         """Read the car's state and advance progress along the red line."""
@@ -195,6 +240,7 @@ class DrivingEnv:
         length = self.circuit.length
         self._progress += (projection.s - self._s + length / 2) % length - length / 2
         self._s, self._projection = projection.s, projection
+        self._path.append((position[0], position[1]))
         while self._progress >= (len(self._lap_times) + 1) * length:
             self._lap_times.append(self.sim_time)
         if self._progress > self._progress_marks[-1][1] + 1.0:
@@ -222,12 +268,36 @@ class DrivingEnv:
         last_mark_time = self._progress_marks[-1][0]
         return self.sim_time - last_mark_time > self.trapped_s
 
-    def _observe(self, render: bool) -> np.ndarray | None:
-        if not render or self._renderer is None:
+    def _observe(self, render: bool, info: dict[str, Any]):
+        """The observation (None when the caller skipped rendering)."""
+        self._observed_at = time.perf_counter()
+        if not render:
+            return None
+        if self.observation == "state":
+            return state_vector(info, self.circuit)
+        image = self._camera_image()
+        if self.observation == "image":
+            return image
+        return {"image": image, "state": state_vector(info, self.circuit)}
+
+    def _camera_image(self) -> np.ndarray | None:
+        if self._renderer is None or self.car is None:
             return None
         position, orientation = self._state[:2]
         eye, rotation = camera_pose(self.camera, position, orientation, self.car_spec.wheel_radius)
-        return self._renderer.render(eye, rotation)
+        self._image = self._renderer.render(eye, rotation)
+        return self._image
+
+    def _top_down(self) -> np.ndarray:
+        if self.car is None:
+            raise PilotlabError("call reset() before render()")
+        canonical = self.circuit.directed("cw")
+        if self._view is None or self._view[0] is not canonical:
+            from pilotlab.sim.topdown import TopDownView
+            self._view = (canonical, TopDownView(canonical))
+        camera = self._image if self._image is not None else self._camera_image()
+        x, y, yaw = self._info()["pose"]
+        return self._view[1].draw(np.array(self._path), (x, y, yaw), self.car_spec.body_length, camera)
 
     def _info(self) -> dict[str, Any]:
         position, orientation, speed, yaw_rate = self._state
@@ -245,3 +315,30 @@ class DrivingEnv:
             "termination": self._termination_reason, "circuit": circuit.name, "direction": circuit.direction,
             "circuit_length": circuit.length, "road_width": circuit.road_width,
         }
+
+
+def latency_segments(previous: tuple[float, float], command: tuple[float, float], brain_s: float,
+                     period_steps: int, physics_hz: float) -> list[tuple[tuple[float, float], int]]:
+    """The latency timing mode: `previous` stays in force while the brain thinks (`brain_s`, rounded
+    up to whole physics steps: a command ready mid-step applies from the next one), then `command`,
+    for max(control period, thinking time) in all (as `pilotlab.online.drive.LatencyClock`)."""
+    late = math.ceil(brain_s * physics_hz - 1e-6)
+    total = max(period_steps, late)
+    return [(previous, late), (command, total - late)]
+
+
+def _check_render_mode(render_mode: str | None) -> str | None:
+    if render_mode not in (None, *DrivingEnv.metadata["render_modes"]):
+        raise PilotlabError(f"unknown render_mode {render_mode!r}; use one of: "
+                            f"{', '.join(DrivingEnv.metadata['render_modes'])} (or None)")
+    return render_mode
+
+
+def _check_timing(timing: str, extra_latency_ms: float, fixed_inference_ms: float | None) -> tuple[str, float]:
+    if timing not in TIMINGS:
+        raise PilotlabError(f"unknown timing {timing!r}; use one of: {', '.join(TIMINGS)}")
+    if extra_latency_ms < 0 or (fixed_inference_ms is not None and fixed_inference_ms < 0):
+        raise PilotlabError("extra_latency_ms and fixed_inference_ms must be >= 0 milliseconds")
+    if timing == "lockstep" and (extra_latency_ms or fixed_inference_ms is not None):
+        raise PilotlabError("extra_latency_ms and fixed_inference_ms only mean something with timing='latency'")
+    return timing, extra_latency_ms / 1000

@@ -82,15 +82,31 @@ class LapSettings(DriveSettings):
         return self.video_seconds if self.video else None
 
 
+class UserBrainSpec(Spec):
+    """A brain the user wrote (docs/brains.md). Its source hash is the job's input `brain_source`
+    (pilotlab.usercode.source_hash: the file and the local modules it imports), so an edit reruns it."""
+    name: str = Field(min_length=1, description="the report row's name")
+    spec: str = Field(pattern=r".:[A-Za-z_][\w.]*$", description="file.py:Class or module:Class")
+    base: str = Field(".", description="the folder a relative file is in (the recipe's)")
+
+
 class OnlineSpec(LapSettings):
     circuit: str = Field(min_length=1, description="circuit name (built-in, ./circuits/NAME.csv) or CSV path")
     direction: Direction = "cw"
     brain: str = Field("network", description='"network" (runs the artifact dependency) | "explicit" (OpenCV '
-                                              'line follower) | "expert" (ground truth): the reference rows')
+                                              'line follower) | "expert" (ground truth): the reference rows | '
+                                              '"user": a brain the user wrote, `user_brain`')
     brain_options: dict[str, Any] = Field({}, description="fields of the reference brain's config")
+    user_brain: UserBrainSpec | None = Field(None, description="with brain 'user': which class")
     hardware: dict[str, Any] = Field({"name": "cpu"}, description='the profile {"name", "device", "threads"}')
     host: dict[str, Any] | None = Field(None, description="the host the planner expects; another is an error")
     version: int = 1
+
+    @model_validator(mode="after")
+    def _user_brain_with_brain_user(self):
+        if (self.brain == "user") != (self.user_brain is not None):
+            raise ValueError("brain 'user' and user_brain go together: give both or neither")
+        return self
 
 
 register_kind("online", "pilotlab.jobs.online:run_online", params=OnlineSpec, exclusive=True,

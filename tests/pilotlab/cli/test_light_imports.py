@@ -9,7 +9,7 @@ import pytest
 
 from pilotlab.strategies import STRATEGIES
 
-HEAVY = {"torch", "torchao", "onnx", "onnxruntime", "matplotlib", "cv2", "pybullet", "rosbags"}
+HEAVY = {"torch", "torchao", "onnx", "onnxruntime", "matplotlib", "cv2", "pybullet", "rosbags", "gymnasium"}
 ROOT = Path(__file__).resolve().parents[3]
 RECIPE = """
 name: light

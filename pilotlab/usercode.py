@@ -1,0 +1,215 @@
+"""Code users write: a class (or any object) named `file.py:Name` or `module:Name`.
+
+    brain_class = load_object("brains/mine.py:MyBrain", base=recipe_folder)
+    digest = source_hash("brains/mine.py:MyBrain", base=recipe_folder)   # for job keys, reads files only
+
+A file is read relative to `base` (the recipe's folder, or the current one on the command line), and
+its folder goes on `sys.path` as when Python runs a script, so the modules beside it import. A
+module is imported by name (with `base` on `sys.path`). `Name` may be dotted (`Outer.Inner`).
+
+Whatever goes wrong is a `UserCodeError` of one line that names the file and line: a missing file,
+a syntax error, an exception while the file is imported (the line in the user's file it came from),
+a name the file does not define (with "did you mean" and what it does define).
+
+`source_hash` is the sha256 of the file's text and of the user's own modules it imports (those found
+beside it, followed transitively; `import x`, `from x import y`, `from .x import y`, at any depth of
+the file), so editing any of them changes the key of the jobs that run the code. Nothing is imported
+to compute it: planning never runs user code.
+"""
+from __future__ import annotations
+
+import ast
+import hashlib
+import importlib
+import importlib.util
+import os.path
+import sys
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+from matrix.errors import did_you_mean
+from pilotlab.errors import PilotlabError
+
+
+PILOTLAB = str(Path(__file__).resolve().parent) + os.sep   # frames of pilotlab itself are not the user's
+
+
+class UserCodeError(PilotlabError):
+    """The user's code cannot be loaded; the message names the file and line."""
+
+
+@dataclass(frozen=True)
+class UserCode:
+    spec: str              # as the user wrote it
+    file: Path | None      # the file named (file.py:Name), absolute
+    module: str | None     # the module named (module:Name)
+    name: str              # the object inside it
+
+    @property
+    def where(self) -> str:
+        return str(self.file) if self.file is not None else self.module
+
+
+def parse(spec: str, base: Path) -> UserCode:
+    """What `spec` names; the file must exist."""
+    target, colon, name = str(spec).rpartition(":")
+    if not colon or not target or not all(part.isidentifier() for part in name.split(".")):
+        raise UserCodeError(f"{spec!r}: name user code as file.py:Class or module:Class")
+    if target.endswith(".py") or "/" in target or "\\" in target:
+        file = Path(target).expanduser()
+        file = (file if file.is_absolute() else Path(base) / file).resolve()
+        if not file.is_file():
+            raise UserCodeError(f"{target}: no such file (looked for {file}; a relative path is relative to "
+                                f"{Path(base).resolve()})")
+        return UserCode(str(spec), file, None, name)
+    if not all(part.isidentifier() for part in target.split(".")):
+        raise UserCodeError(f"{spec!r}: {target!r} is neither a .py file nor a module name")
+    return UserCode(str(spec), None, target, name)
+
+
+def load_object(spec: str, base: Path) -> object:
+    """The object `spec` names (see the module docstring); imports the user's file or module."""
+    code = parse(spec, base)
+    module = _import_file(code) if code.file is not None else _import_module(code, Path(base))
+    found: object = module
+    for i, part in enumerate(code.name.split(".")):
+        if not hasattr(found, part):
+            defined = sorted(n for n in vars(found) if not n.startswith("_") and isinstance(vars(found)[n], type))
+            inside = code.where if i == 0 else f"{code.where}:{'.'.join(code.name.split('.')[:i])}"
+            raise UserCodeError(f"{inside} has no {part!r}{did_you_mean(part, defined)}; it defines: "
+                                f"{', '.join(defined) or '(no classes)'}")
+        found = getattr(found, part)
+    return found
+
+
+def _import_file(code: UserCode) -> object:
+    folder = str(code.file.parent)
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
+    digest = hashlib.sha256(str(code.file).encode()).hexdigest()[:12]
+    name = f"pilotlab_user_{code.file.stem}_{digest}"     # unique per path: two mine.py never clash
+    spec = importlib.util.spec_from_file_location(name, code.file)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException as error:
+        sys.modules.pop(name, None)
+        raise _import_error(code, error) from None
+    return module
+
+
+def _import_module(code: UserCode, base: Path) -> object:
+    if str(base) not in sys.path:
+        sys.path.insert(0, str(base))
+    try:
+        return importlib.import_module(code.module)
+    except ModuleNotFoundError as error:
+        if error.name is not None and (code.module == error.name or code.module.startswith(error.name + ".")):
+            raise UserCodeError(f"{code.spec}: no module {code.module!r} (looked on sys.path and in {base})") from None
+        raise _import_error(code, error) from None
+    except BaseException as error:
+        raise _import_error(code, error) from None
+
+
+def _import_error(code: UserCode, error: BaseException) -> UserCodeError:
+    if isinstance(error, KeyboardInterrupt):
+        raise error
+    return UserCodeError(error_line(error, code.where) + f" (importing {code.spec})")
+
+
+def error_line(error: BaseException, where: str) -> str:
+    """`file:line: Type: message` for an exception raised in the user's code: the line of the user's
+    file it came from (the last frame outside Python's machinery and installed packages), else `where`."""
+    if isinstance(error, SyntaxError):
+        text = (error.text or "").strip()
+        return f"{error.filename}:{error.lineno}: syntax error: {error.msg}" + (f": {text}" if text else "")
+    frames = traceback.extract_tb(error.__traceback__)
+    mine = [f for f in frames if not _is_library(f.filename)]
+    place = f"{mine[-1].filename}:{mine[-1].lineno}" if mine else where
+    message = str(error).splitlines()[0] if str(error) else ""
+    return f"{place}: {type(error).__name__}" + (f": {message}" if message else "")
+
+
+def _is_library(filename: str) -> bool:
+    """Frames of Python's import machinery, installed packages and pilotlab: not the user's."""
+    return filename.startswith(("<frozen", PILOTLAB)) or "site-packages" in filename
+
+
+# --- the source hash -------------------------------------------------------------------------------
+
+def source_files(spec: str, base: Path) -> list[Path]:
+    """The file `spec` names (for a module: its file), then the user's modules it imports, transitively
+    (sorted). An installed module (found on sys.path, not in `base`) is taken alone: it is not the user's to edit."""
+    code = parse(spec, base)
+    if code.file is not None:
+        first, roots = code.file, []
+    else:
+        first, root = _module_file(code, Path(base))
+        if root != Path(base).resolve():
+            return [first]
+        roots = [root]
+    seen: dict[Path, None] = {}
+    pending = [first]
+    while pending:
+        file = pending.pop()
+        if file not in seen:
+            seen[file] = None
+            pending += _local_imports(file, [file.parent, *roots])
+    return [first, *sorted(set(seen) - {first})]
+
+
+def source_hash(spec: str, base: Path) -> str:
+    """sha256 over the text of `source_files(spec, base)` and their names (relative to their common folder)."""
+    files = source_files(spec, base)
+    root = Path(os.path.commonpath([str(f.parent) for f in files]))
+    digest = hashlib.sha256()
+    for file in files:
+        digest.update(f"# {file.relative_to(root).as_posix()}\n".encode())
+        digest.update(file.read_bytes())
+    return digest.hexdigest()
+
+
+def _module_file(code: UserCode, base: Path) -> tuple[Path, Path]:
+    """(the module's file, the folder its top-level package is in)."""
+    for folder in [base, *map(Path, sys.path)]:
+        for candidate in _candidates(folder, code.module):
+            if candidate.is_file():
+                return candidate.resolve(), folder.resolve()
+    raise UserCodeError(f"{code.spec}: no module {code.module!r} found as a file (looked in {base} and on sys.path)")
+
+
+def _candidates(folder: Path, module: str) -> list[Path]:
+    path = Path(folder, *module.split("."))
+    return [path.with_suffix(".py"), path / "__init__.py"]
+
+
+def _imported_names(tree: ast.AST) -> list[str]:
+    """Dotted names a module imports: `import a.b` gives a.b; `from a import b` gives a and a.b
+    (b may be a module); `from . import b` (level 1) gives b. Deeper relative imports are left out."""
+    names: list[str] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level <= 1:
+            prefix = f"{node.module}." if node.module else ""
+            names += [node.module] if node.module else []
+            names += [prefix + alias.name for alias in node.names if alias.name != "*"]
+    return names
+
+
+def _local_imports(file: Path, roots: list[Path]) -> list[Path]:
+    """Files under `roots` that `file` imports (and the packages' __init__.py on the way); a file
+    that does not parse imports nothing here (loading it will say why)."""
+    try:
+        tree = ast.parse(file.read_text(encoding="utf-8"), str(file))
+    except (SyntaxError, UnicodeDecodeError, ValueError):
+        return []
+    found = []
+    for name in _imported_names(tree):
+        parts = name.split(".")
+        for root in roots:
+            for depth in range(1, len(parts) + 1):
+                found += [c.resolve() for c in _candidates(root, ".".join(parts[:depth])) if c.is_file()]
+    return list(dict.fromkeys(found))

@@ -1,0 +1,99 @@
+"""Loading code users write (file.py:Name, module:Name): the object, one-line errors naming the file
+and line, and the source hash that goes into job keys."""
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from pilotlab.usercode import UserCodeError, load_object, source_files, source_hash
+
+BRAIN = """
+import numpy as np
+from helpers import gain
+
+
+class MyBrain:
+    def act(self, image):
+        return 5.0, gain() * float(np.mean(image))
+"""
+
+
+def write(folder: Path, name: str, text: str) -> Path:
+    path = folder / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+@pytest.fixture
+def brains(tmp_path) -> Path:
+    write(tmp_path, "brains/mine.py", BRAIN)
+    write(tmp_path, "brains/helpers.py", "def gain():\n    return 0.0\n")
+    write(tmp_path, "brains/unrelated.py", "X = 1\n")
+    return tmp_path
+
+
+def error_of(spec: str, base: Path) -> str:
+    with pytest.raises(UserCodeError) as caught:
+        load_object(spec, base)
+    message = str(caught.value)
+    assert "\n" not in message
+    return message
+
+
+def test_a_class_from_a_file_relative_to_base_imports_its_neighbours(brains):
+    cls = load_object("brains/mine.py:MyBrain", brains)
+    assert cls.__name__ == "MyBrain" and cls().act([1.0]) == (5.0, 0.0)
+    assert load_object(str(brains / "brains/mine.py") + ":MyBrain", Path("/")).__name__ == "MyBrain"
+
+
+def test_a_class_from_a_module(brains, monkeypatch):
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    write(brains, "userpkg/__init__.py", "")
+    write(brains, "userpkg/drivers.py", "class Slow:\n    class Inner:\n        pass\n")
+    assert load_object("userpkg.drivers:Slow.Inner", brains).__qualname__ == "Slow.Inner"
+    assert "no module 'userpkg.missing'" in error_of("userpkg.missing:Slow", brains)
+
+
+def test_errors_name_the_file_and_line(brains):
+    assert error_of("brains/none.py:MyBrain", brains).startswith("brains/none.py: no such file")
+    write(brains, "brains/syntax.py", "class A:\n    def act(self image):\n        pass\n")
+    message = error_of("brains/syntax.py:A", brains)
+    assert message.startswith(f"{brains / 'brains/syntax.py'}:2: syntax error") and "def act(self image):" in message
+    write(brains, "brains/imports.py", "import os\nimport no_such_module_here\n")
+    message = error_of("brains/imports.py:A", brains)
+    assert message.startswith(f"{brains / 'brains/imports.py'}:2: ModuleNotFoundError: No module named")
+    write(brains, "brains/deep.py", "import failing\n")
+    write(brains, "brains/failing.py", "x = 1\nraise RuntimeError('the helper is broken')\n")
+    assert error_of("brains/deep.py:A", brains).startswith(
+        f"{brains / 'brains/failing.py'}:2: RuntimeError: the helper is broken (importing brains/deep.py:A)")
+    message = error_of("brains/mine.py:MyBrian", brains)
+    assert "has no 'MyBrian' (did you mean 'MyBrain'?); it defines: MyBrain" in message
+    assert "name user code as file.py:Class" in error_of("brains/mine.py", brains)
+
+
+def test_the_source_hash_follows_the_file_and_its_local_imports(brains):
+    spec = "brains/mine.py:MyBrain"
+    assert [f.name for f in source_files(spec, brains)] == ["mine.py", "helpers.py"]   # not numpy, not unrelated.py
+    first = source_hash(spec, brains)
+    write(brains, "brains/unrelated.py", "X = 2\n")
+    assert source_hash(spec, brains) == first
+    write(brains, "brains/helpers.py", "def gain():\n    return 1.0\n")
+    second = source_hash(spec, brains)
+    write(brains, "brains/mine.py", BRAIN + "\n# an edit\n")
+    assert len({first, second, source_hash(spec, brains)}) == 3
+    elsewhere = brains / "copy"
+    for name in ("mine.py", "helpers.py"):
+        write(elsewhere, f"brains/{name}", (brains / "brains" / name).read_text())
+    assert source_hash(spec, elsewhere) == source_hash(spec, brains)   # the content counts, not the place
+
+
+@pytest.fixture(autouse=True)
+def clean_imports(monkeypatch):
+    """User modules (helpers, failing...) leave no trace in sys.path or sys.modules for other tests."""
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    before = set(sys.modules)
+    yield
+    for name in set(sys.modules) - before:
+        del sys.modules[name]
