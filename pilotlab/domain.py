@@ -164,6 +164,9 @@ class Planner:
         options = dict(self.config.strategies.get(name, {}))
         base = options.pop("use", name)
         where = ["strategies", name]
+        if not isinstance(base, str):
+            kind = {list: "a list", dict: "a mapping", type(None): "nothing"}.get(type(base), type(base).__name__)
+            raise self.recipe.error(f"`use` names one strategy (got {kind}); e.g. use: local_prune", where + ["use"])
         if base not in STRATEGIES:
             raise self.recipe.error(f"unknown strategy {base!r}{did_you_mean(base, STRATEGIES.names())}; "
                                     f"known: {', '.join(sorted(STRATEGIES.names()))}", where + ["use"])

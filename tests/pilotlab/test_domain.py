@@ -97,6 +97,10 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
      ":6: models.small: model 'pilotnet' has no option(s) dropuot"),
     (("train: {record: {circuits: [simple_circuit],", "train: {bags: [missing.bag], record: {circuits: [simple_circuit],"),
      ":3: datasets.train.bags: missing.bag does not exist"),
+    (("{use: local_prune, conv: 0.5}", "{use: [local_prune, baseline]}"),
+     ":10: strategies.prune_more.use: `use` names one strategy (got a list); e.g. use: local_prune"),
+    (("{use: local_prune, conv: 0.5}", "{use: {}}"),
+     ":10: strategies.prune_more.use: `use` names one strategy (got a mapping); e.g. use: local_prune"),
     (("laps: 0.2}}", "laps: 0.2, camera: {width: 8}}}"),
      ":3: datasets.train.record.camera.width: Input should be greater than or equal to 16 (got 8)"),
 ])
