@@ -125,11 +125,17 @@ class Planner:
         return {"circuit": circuit}, ({"circuit_csv": input_file(str(csv))} if csv else {})
 
     def path(self, value: str, where: list) -> Path:
-        path = Path(value).expanduser()
-        path = path if path.is_absolute() else self.folder / path
-        if not path.exists():
-            raise self.recipe.error(f"{value} does not exist (looked for {path}; relative paths are "
-                                    "relative to the recipe's folder)", where)
+        from matrix.fingerprint import shown_path
+        try:
+            path = Path(value).expanduser()
+            path = path if path.is_absolute() else self.folder / path
+            exists = path.exists()
+        except (OSError, ValueError, RuntimeError) as error:   # too long, a NUL byte, an unknown ~user
+            raise self.recipe.error(f"{shown_path(Path(value))} cannot be a path: "
+                                    f"{getattr(error, 'strerror', None) or error}", where) from None
+        if not exists:
+            raise self.recipe.error(f"{shown_path(Path(value))} does not exist (looked for {shown_path(path)}; relative "
+                                    "paths are relative to the recipe's folder)", where)
         return path
 
     # models and strategies ------------------------------------------------------------------------
