@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+from matrix.errors import MatrixError
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
 from matrix.store import LOG, Store, result_token
 
@@ -109,10 +110,21 @@ def _not_applicable_dep(deps: dict) -> DepResult | None:
     return None
 
 
+def failure_message(error: Exception) -> str:
+    """One line a user can act on: an error the domain raised on purpose (MatrixError) is its own
+    message; anything else is a bug, shown with its type (the traceback is in the failure record)."""
+    text = str(error).strip()
+    if not isinstance(error, MatrixError) or not text:
+        text = f"{type(error).__name__}: {text}" if text else type(error).__name__
+    lines = text.splitlines()
+    return lines[0][:300]
+
+
 def _fail(store: Store, spec: dict, workdir: Path, error: Exception, started: float) -> dict:
-    message = f"{type(error).__name__}: {error}".splitlines()[0][:300]
+    message = failure_message(error)
     log_tail = _tail(workdir / LOG)
-    store.record_failure(spec["key"], {"error": message, "traceback": traceback.format_exc(),
+    store.record_failure(spec["key"], {"error": message, "expected": isinstance(error, MatrixError),
+                                       "traceback": traceback.format_exc(),
                                        "log_tail": log_tail, "spec": spec, "workdir": str(workdir)})
     return {"status": FAILED, "reason": message, "duration_s": time.time() - started}
 

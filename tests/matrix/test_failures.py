@@ -1,0 +1,20 @@
+"""How a failed job's error is stored: the domain's own errors as their message, bugs with their type."""
+from matrix.errors import MatrixError, RecipeError
+from matrix.worker import failure_message
+
+
+class DomainError(MatrixError):
+    pass
+
+
+def test_an_error_raised_on_purpose_is_stored_as_its_message():
+    assert failure_message(DomainError("run.bag, topic /cmd: 3 of 60 messages are lost; record it again")) == \
+        "run.bag, topic /cmd: 3 of 60 messages are lost; record it again"
+    assert failure_message(RecipeError("bad", file="r.yaml", line=3)) == "r.yaml:3: bad"
+
+
+def test_anything_else_is_a_bug_named_by_its_type_on_one_line():
+    assert failure_message(OverflowError("cannot convert float infinity to integer\nmore")) == \
+        "OverflowError: cannot convert float infinity to integer"
+    assert failure_message(KeyError()) == "KeyError"
+    assert len(failure_message(ValueError("x" * 1000))) == 300
