@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import importlib
 import logging
+import math
 import os
 import sys
 import time
@@ -87,7 +88,24 @@ def _call_handler(store: Store, spec: dict, deps: dict, workdir: Path) -> tuple[
         except NotApplicable as na:
             log.info("not applicable: %s", na)
             return NOT_APPLICABLE, str(na), {}
-    return OK, "", dict(value or {})
+    value = dict(value or {})
+    where = non_finite(value)
+    if where:
+        raise MatrixError(f"the job's result holds a number that is not finite ({where}): "
+                          "a NaN or infinite result is never reported as ok; see its log")
+    return OK, "", value
+
+
+def non_finite(value: Any, path: str = "") -> str | None:
+    """'key.path = nan' of the first NaN or infinite float in a result, or None."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"{path or 'value'} = {value}"
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, (list, tuple)) else ()
+    for key, item in items:
+        found = non_finite(item, f"{path}.{key}" if path else str(key))
+        if found:
+            return found
+    return None
 
 
 def _dep_results(store: Store, spec: dict) -> dict[str, DepResult | tuple[DepResult, ...]]:

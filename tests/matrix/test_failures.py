@@ -18,3 +18,10 @@ def test_anything_else_is_a_bug_named_by_its_type_on_one_line():
         "OverflowError: cannot convert float infinity to integer"
     assert failure_message(KeyError()) == "KeyError"
     assert len(failure_message(ValueError("x" * 1000))) == 300
+
+
+def test_a_nan_anywhere_in_a_result_is_found():
+    from matrix.worker import non_finite
+    assert non_finite({"mse": 0.1, "history": [{"loss": 1.0}, {"loss": float("nan")}]}) == "history.1.loss = nan"
+    assert non_finite({"latency_ms": float("inf")}) == "latency_ms = inf"
+    assert non_finite({"mse": 0.1, "name": "x", "n": 3, "none": None}) is None
