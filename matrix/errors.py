@@ -14,12 +14,13 @@ class MatrixError(Exception):
 
 
 class RecipeError(MatrixError):
-    """A recipe is malformed. The message starts with `file:line: key.path:`."""
+    """A recipe is malformed. The message starts with `file:line: key.path:` (`file:line:column:` where
+    the column is known)."""
 
     def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
-                 path: Iterable[object] = ()):
-        self.message, self.file, self.line, self.path = message, file, line, tuple(path)
-        where = ":".join(str(p) for p in (file, line) if p is not None)
+                 path: Iterable[object] = (), column: int | None = None):
+        self.message, self.file, self.line, self.path, self.column = message, file, line, tuple(path), column
+        where = ":".join(str(p) for p in (file, line, column if line is not None else None) if p is not None)
         key = ".".join(str(p) for p in self.path)
         prefix = ": ".join(p for p in (where, key) if p)
         super().__init__(f"{prefix}: {message}" if prefix else message)
