@@ -56,7 +56,7 @@ def test_bad_yaml_names_file_and_line(tmp_path):
     (("name: toy", "name: t\x07oy"), ":1:8: not valid YAML: character U+0007 (a control character or a lone "
                                      "surrogate) is not allowed; remove it"),
     (("name: toy", "name: toy\x00"), ":1:10: not valid YAML: character U+0000"),
-    (("matrix:", "matrix\n"), ":6:1: not valid YAML: this key has no ':' after it"),
+    (("matrix:", "matrix\n"), ":5:1: not valid YAML: this key has no ':' after it (could not find expected ':' at line 7"),
 ])
 def test_yaml_syntax_errors_point_at_line_and_column(tmp_path, edit, message):
     assert error_of(tmp_path, GOOD.replace(*edit)).startswith(f"{tmp_path / 'recipe.yaml'}{message}")
