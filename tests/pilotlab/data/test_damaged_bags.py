@@ -117,3 +117,12 @@ def test_many_randomly_damaged_bags(tmp_path):
     outcomes = [check_random_damage(tmp_path, kind, how, seed, encoding="png" if seed % 2 else "rgb8")
                 for kind, how, seed in random_damage_cases(240)]
     print({o: outcomes.count(o) for o in set(outcomes)})
+
+
+def test_the_frames_job_reports_what_it_left_out(tmp_path):
+    from matrix.kinds import KINDS
+    from pilotlab.jobs import frames as frames_job  # noqa: F401  (registers "frames")
+    from tests.pilotlab.jobs.context import context
+    path = recording(bag_path(tmp_path, "mcap"), "mcap", damaged_images={30})
+    result = KINDS.get("frames").handler(context(tmp_path, "frames", "frames", inputs={"bag": path}))
+    assert result["frames"] == FRAMES - 1 and result["damaged"][0]["times_s"] == [4.0]
