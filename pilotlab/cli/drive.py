@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import shutil
 from pathlib import Path
 
 from pilotlab.errors import PilotlabError
@@ -54,12 +56,18 @@ def check_arguments(args: argparse.Namespace) -> None:
         raise PilotlabError(f"--out {args.out} {what}; give a new folder (drive does not mix two runs' files)")
     for option, value, least in (("--laps", args.laps, 0.0), ("--repetitions", args.repetitions, 0),
                                  ("--control-hz", args.control_hz, 0.0)):
-        if value is not None and value <= least:
+        if value is not None and not value > least:   # also true for NaN
             raise PilotlabError(f"{option} {value:g}: must be above {least:g}")
+    for option, value in (("--laps", args.laps), ("--control-hz", args.control_hz), ("--timeout", args.timeout),
+                          ("--extra-latency-ms", args.extra_latency_ms)):
+        if value is not None and not math.isfinite(value):
+            raise PilotlabError(f"{option} {value:g}: must be a finite number")
     if args.timeout is not None and args.timeout <= 0:
         raise PilotlabError(f"--timeout {args.timeout:g}: must be above 0 simulated seconds")
     if args.extra_latency_ms < 0:
         raise PilotlabError(f"--extra-latency-ms {args.extra_latency_ms:g}: must be 0 or more")
+    from pilotlab.circuits import get_circuit
+    get_circuit(args.circuit, args.direction)   # an unknown or broken circuit, before the progress bar
 
 
 def run(args: argparse.Namespace) -> int:
@@ -81,10 +89,16 @@ def run(args: argparse.Namespace) -> int:
     spec = online_spec({**DEFAULTS, **params_of(args)})
     columns = (TextColumn("[bold]{task.description}"), BarColumn(),
                TextColumn("{task.completed:.0f}/{task.total:.0f} m"), TimeElapsedColumn())
-    with Progress(*columns) as progress:
-        task = progress.add_task("starting", total=1.0)
-        result = evaluate_online(brain, spec, args.out, lambda done, total, what: progress.update(
-            task, completed=done, total=total, description=what))
+    created = not args.out.exists()
+    try:
+        with Progress(*columns) as progress:
+            task = progress.add_task("starting", total=1.0)
+            result = evaluate_online(brain, spec, args.out, lambda done, total, what: progress.update(
+                task, completed=done, total=total, description=what))
+    except BaseException:
+        if created:   # a failed or interrupted drive leaves no half-written --out behind
+            shutil.rmtree(args.out, ignore_errors=True)
+        raise
     result = {**result, "hardware": profile.as_dict()}
     (args.out / "result.json").write_text(json.dumps(result, indent=1))
     console = Console()

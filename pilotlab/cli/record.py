@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import re
 from pathlib import Path
 
@@ -42,16 +43,37 @@ def parse_size(text: str) -> tuple[int, int]:
     return int(match.group(1)), int(match.group(2))
 
 
+def parse_start(text: str) -> float | str:
+    try:
+        start = text if text == "random" else float(text)
+    except ValueError:
+        start = math.nan
+    if start != "random" and not math.isfinite(start):
+        raise PilotlabError(f"--start must be metres along the lap or 'random'; got {text[:40]!r}")
+    return start
+
+
+def check_numbers(args: argparse.Namespace) -> None:
+    """Numbers that would make a recording never end (NaN laps) or never start, refused before it starts."""
+    for option, value in (("--laps", args.laps), ("--rate", args.rate), ("--max-seconds", args.max_seconds)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise PilotlabError(f"{option} must be a positive number; got {value}")
+    if not 0 <= args.noise <= 1:   # also false for NaN
+        raise PilotlabError(f"--noise must be a fraction in [0, 1]; got {args.noise}")
+
+
 def run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from pilotlab.circuits import get_circuit
     from pilotlab.sim.record import RecordSpec, record
+    check_numbers(args)
     width, height = parse_size(args.size)
-    start = args.start if args.start == "random" else float(args.start)
+    start = parse_start(args.start)
     spec = RecordSpec(circuit=args.circuit, direction=args.direction, laps=args.laps, seed=args.seed, width=width,
                       height=height, rate_hz=args.rate, format=args.format, compressed=args.compressed,
                       noise=args.noise, renderer=args.renderer, start=start, max_seconds=args.max_seconds)
+    spec.check()   # before the progress bar: an error is then the only line printed
     columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:.0f} m"),
                TextColumn("{task.fields[frames]} frames"), TimeElapsedColumn(), TimeRemainingColumn())
     total = get_circuit(args.circuit).length * args.laps
