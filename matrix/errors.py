@@ -6,6 +6,7 @@ and gets a traceback.
 from __future__ import annotations
 
 import difflib
+import re
 from collections.abc import Iterable
 
 
@@ -13,14 +14,19 @@ class MatrixError(Exception):
     """Root of every error a user can cause: bad recipe, bad input file, failed job, unknown name."""
 
 
+_LONG_TOKEN = re.compile(r"\S{240,}")   # a value quoted whole would drown the message
+
+
 class RecipeError(MatrixError):
-    """A recipe is malformed. The message starts with `file:line: key.path:`."""
+    """A recipe is malformed. The message starts with `file:line: key.path:` (`file:line:column:` where
+    the column is known)."""
 
     def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
-                 path: Iterable[object] = ()):
-        self.message, self.file, self.line, self.path = message, file, line, tuple(path)
-        where = ":".join(str(p) for p in (file, line) if p is not None)
-        key = ".".join(str(p) for p in self.path)
+                 path: Iterable[object] = (), column: int | None = None):
+        message = _LONG_TOKEN.sub(lambda m: f"{m[0][:60]}...{m[0][-20:]} ({len(m[0])} characters)", message)
+        self.message, self.file, self.line, self.path, self.column = message, file, line, tuple(path), column
+        where = ":".join(str(p) for p in (file, line, column if line is not None else None) if p is not None)
+        key = ".".join(str(p) if len(str(p)) <= 60 else str(p)[:50] + "..." for p in self.path)
         prefix = ": ".join(p for p in (where, key) if p)
         super().__init__(f"{prefix}: {message}" if prefix else message)
 
@@ -46,3 +52,10 @@ def did_you_mean(name: str, known: Iterable[str]) -> str:
     """' (did you mean 'x'?)' for the closest known name, or '' when nothing is close."""
     close = difflib.get_close_matches(str(name), [str(k) for k in known], n=1, cutoff=0.6)
     return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def shown(value: object, limit: int = 80) -> str:
+    """repr(value), cut to about `limit` characters: an error message quotes what it was given, not
+    the 5,000 characters of it."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit - 10]}...{text[-6:]} ({len(text)} characters)"

@@ -2,7 +2,8 @@
 
 Code is fingerprinted by its source text, so editing a strategy's module changes the keys of that
 strategy's jobs and nothing else. Files are hashed by content (sha256), remembered by
-(path, size, mtime) so an unchanged multi-GB bag is read once per process.
+(path, size, mtime, inode) in the process and, for large files, across processes (HashCache), so
+an unchanged multi-GB bag is read once.
 """
 from __future__ import annotations
 
@@ -10,6 +11,9 @@ import ast
 import hashlib
 import importlib.util
 import os
+import stat
+import sys
+import time
 from collections.abc import Iterable
 from pathlib import Path
 from types import ModuleType
@@ -17,7 +21,7 @@ from typing import Any
 
 from matrix.errors import MatrixError
 
-_FILE_HASHES: dict[tuple[str, int, int], str] = {}
+_FILE_HASHES: dict[tuple[str, int, int, int], str] = {}
 _SOURCE_HASHES: dict[Any, str] = {}
 _GENERATION = [0]   # bumped by clear_caches: whatever was derived from source text is stale
 CHUNK = 1 << 20
@@ -159,28 +163,196 @@ def clear_caches() -> None:
 
 
 def hash_path(path: Path | str) -> str:
-    """sha256 of a file, or of a folder's files (names and contents, sorted), e.g. a ROS2 bag."""
+    """sha256 of a file, or of a folder's files (names and contents, sorted), e.g. a ROS2 bag.
+    Only regular files and folders are inputs: a device, pipe, socket or a file of /proc, /sys or
+    /dev is refused (reading one may never end). Hashes are remembered across processes (see
+    HashCache), and a progress line is printed when hashing takes long."""
     path = Path(path)
-    if path.is_dir():
-        digest = hashlib.sha256()
-        for file in sorted(p for p in path.rglob("*") if p.is_file()):
-            digest.update(f"{file.relative_to(path).as_posix()}:{_hash_file(file)}\n".encode())
+    mode = _input_stat(path).st_mode
+    if stat.S_ISDIR(mode):
+        files = _folder_files(path)
+        with _HashProgress(path, sum(size for _, size in files)) as progress:
+            digest = hashlib.sha256()
+            for file, _ in files:
+                digest.update(f"{file.relative_to(path).as_posix()}:{_hash_file(file, progress)}\n".encode())
         return digest.hexdigest()
-    if not path.is_file():
-        raise MatrixError(f"input file {path} does not exist")
-    return _hash_file(path)
+    if not stat.S_ISREG(mode):
+        raise MatrixError(f"input {shown_path(path)} is not a regular file or folder ({_file_type(mode)})")
+    with _HashProgress(path, path.stat().st_size) as progress:
+        return _hash_file(path, progress)
 
 
-def _hash_file(path: Path) -> str:
-    stat = path.stat()
-    marker = (str(path.resolve()), stat.st_size, stat.st_mtime_ns)
-    if marker not in _FILE_HASHES:
-        digest = hashlib.sha256()
-        with open(path, "rb") as handle:
-            while chunk := handle.read(CHUNK):
-                digest.update(chunk)
-        _FILE_HASHES[marker] = digest.hexdigest()
-    return _FILE_HASHES[marker]
+_PSEUDO_ROOTS = ("/proc", "/sys", "/dev")
+
+
+def shown_path(path: Path, limit: int = 120) -> str:
+    text = str(path)
+    return text if len(text) <= limit else f"{text[:limit // 2]}...{text[-limit // 2:]} ({len(text)} characters)"
+
+
+def _input_stat(path: Path) -> os.stat_result:
+    try:
+        result = path.stat()
+        resolved = path.resolve()
+    except (OSError, ValueError, RuntimeError) as error:
+        raise MatrixError(f"input {shown_path(path)} cannot be read: {getattr(error, 'strerror', None) or error}") from None
+    for root in map(Path, _PSEUDO_ROOTS):
+        if resolved == root or root in resolved.parents:
+            raise MatrixError(f"input {shown_path(path)} is a system file (below {root}), not data; "
+                              "name a bag, a dataset folder or a CSV")
+    return result
+
+
+def _file_type(mode: int) -> str:
+    for test, name in ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISFIFO, "a pipe"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return name
+    return "not a file"
+
+
+def _folder_files(folder: Path) -> list[tuple[Path, int]]:
+    """(file, size) of every regular file below `folder`, sorted as before (by path parts), so keys
+    stay the same. Symbolic links to files count as files, links to folders are not followed (as
+    `rglob` did); a device, pipe or socket, or an unreadable folder, is an error naming it, found
+    before anything is hashed (names are walked in sorted order, so `/` fails at once on /dev)."""
+    found: list[tuple[Path, int]] = []
+    pending = [folder]
+    while pending:
+        current = pending.pop()
+        try:
+            entries = sorted(os.scandir(current), key=lambda e: e.name, reverse=True)
+        except OSError as error:
+            raise MatrixError(f"input folder {shown_path(Path(current))} cannot be read: {error.strerror}") from None
+        for entry in entries:
+            path = Path(entry.path)
+            try:
+                if entry.is_dir(follow_symlinks=False):
+                    pending.append(path)
+                    continue
+                info = path.stat() if entry.is_symlink() else entry.stat(follow_symlinks=False)
+            except FileNotFoundError:   # a broken link: nothing to read, skipped as before
+                continue
+            except OSError as error:
+                raise MatrixError(f"input {shown_path(path)} cannot be read: {error.strerror}") from None
+            if stat.S_ISREG(info.st_mode):
+                found.append((path, info.st_size))
+            elif not stat.S_ISDIR(info.st_mode):   # (a link to a folder is skipped, as before)
+                raise MatrixError(f"input folder {shown_path(folder)} holds {shown_path(path)}, which is "
+                                  f"{_file_type(info.st_mode)}, not data")
+    return sorted(found)
+
+
+def _hash_file(path: Path, progress: _HashProgress | None = None) -> str:
+    try:
+        info = path.stat()
+        marker = (str(path.resolve()), info.st_size, info.st_mtime_ns, info.st_ino)
+        if marker not in _FILE_HASHES:
+            _FILE_HASHES[marker] = HASH_CACHE.get(marker) or HASH_CACHE.put(marker, _read_hash(path, progress))
+        elif progress is not None:
+            progress.advance(info.st_size)
+        return _FILE_HASHES[marker]
+    except OSError as error:
+        raise MatrixError(f"input {shown_path(path)} cannot be read: {error.strerror or error}") from None
+
+
+def _read_hash(path: Path, progress: _HashProgress | None) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        while chunk := handle.read(CHUNK):
+            digest.update(chunk)
+            if progress is not None:
+                progress.advance(len(chunk))
+    return digest.hexdigest()
+
+
+class _HashProgress:
+    """Prints `hashing PATH: 1.2 of 5.9 GB` to stderr every few seconds once hashing has taken longer
+    than `after_s` (inputs seen before come from the cache and take no time)."""
+
+    def __init__(self, path: Path, total: int, after_s: float = 2.0, every_s: float = 5.0):
+        self.path, self.total, self.done = path, total, 0
+        self.started = time.monotonic()
+        self.next_print, self.every_s, self.printed = self.started + after_s, every_s, False
+
+    def __enter__(self) -> _HashProgress:
+        return self
+
+    def advance(self, n: int) -> None:
+        self.done += n
+        now = time.monotonic()
+        if now >= self.next_print:
+            self.next_print, self.printed = now + self.every_s, True
+            self._print(f"hashing input {shown_path(self.path, 80)}: {_size(self.done)} of {_size(self.total)} "
+                        f"({now - self.started:.0f} s; remembered afterwards)")
+
+    def __exit__(self, *exc) -> None:
+        if self.printed and exc[0] is None:
+            self._print(f"hashed input {shown_path(self.path, 80)}: {_size(self.total)} in "
+                        f"{time.monotonic() - self.started:.0f} s")
+
+    @staticmethod
+    def _print(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
+
+def _size(n: int) -> str:
+    return f"{n / 1e9:.1f} GB" if n >= 1e9 else f"{n / 1e6:.1f} MB"
+
+
+class HashCache:
+    """sha256 of input files remembered across processes by (path, size, mtime, inode), as DVC does,
+    in a small SQLite file: `$MATRIX_HASH_CACHE`, else `$XDG_CACHE_HOME/matrix/file_hashes.sqlite`
+    (`~/.cache/...`). Only files of at least `min_size` bytes are kept (smaller ones hash faster than a
+    look-up). A cache that cannot be opened or written is ignored: it only saves time."""
+
+    def __init__(self, min_size: int = 1 << 20):
+        self.min_size, self._db, self._broken = min_size, None, False
+
+    @staticmethod
+    def location() -> Path:
+        if os.environ.get("MATRIX_HASH_CACHE"):
+            return Path(os.environ["MATRIX_HASH_CACHE"])
+        base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+        return Path(base) / "matrix" / "file_hashes.sqlite"
+
+    def get(self, marker: tuple) -> str | None:
+        if marker[1] < self.min_size:
+            return None
+        row = self._query("SELECT sha256 FROM hashes WHERE path=? AND size=? AND mtime_ns=? AND inode=?", marker)
+        return row[0] if row else None
+
+    def put(self, marker: tuple, sha256: str) -> str:
+        if marker[1] >= self.min_size:
+            self._query("INSERT OR REPLACE INTO hashes VALUES (?, ?, ?, ?, ?)", (*marker, sha256), commit=True)
+        return sha256
+
+    def _query(self, sql: str, args: tuple, commit: bool = False):
+        import sqlite3
+        try:
+            db = self._connect()
+            if db is None:
+                return None
+            row = db.execute(sql, args).fetchone()
+            if commit:
+                db.commit()
+            return row
+        except (sqlite3.Error, OSError):
+            self._broken = True
+            return None
+
+    def _connect(self):
+        import sqlite3
+        if self._db is None and not self._broken:
+            location = self.location()
+            location.parent.mkdir(parents=True, exist_ok=True)
+            self._db = sqlite3.connect(location, timeout=5)
+            self._db.execute("CREATE TABLE IF NOT EXISTS hashes (path TEXT PRIMARY KEY, size INTEGER, "
+                             "mtime_ns INTEGER, inode INTEGER, sha256 TEXT)")
+        return self._db
+
+
+HASH_CACHE = HashCache()
 
 
 def host_fingerprint_cpu() -> dict[str, Any]:

@@ -14,7 +14,7 @@ from typing import Any
 
 import pydantic
 
-from matrix.errors import RecipeError, did_you_mean
+from matrix.errors import RecipeError, did_you_mean, shown
 from matrix.grid import RESERVED, expand_grid
 from matrix.yamlfile import Lines, read_yaml
 
@@ -114,8 +114,8 @@ def _message(err: dict, path: list, model: type) -> str:
     if kind == "value_error":  # a domain validator's own sentence
         return err["msg"].removeprefix("Value error, ")
     given = err.get("input")
-    shown = repr(given) if not isinstance(given, (dict, list)) else type(given).__name__
-    return f"{err['msg']} (got {shown})"
+    given_text = shown(given) if not isinstance(given, (dict, list)) else type(given).__name__
+    return f"{err['msg']} (got {given_text})"
 
 
 def _data_path(data: Any, loc: tuple) -> list:
@@ -177,10 +177,10 @@ def _check_combinations(recipe: Recipe, domain: Domain) -> None:
             raise recipe.error(f"unknown axis {key!r}{did_you_mean(key, domain.axes)}; "
                                f"known axes: {', '.join(domain.axes)}", key_path)
         if not isinstance(value, (str, int, float, bool)):
-            raise recipe.error(f"axis values are plain names or numbers, got {value!r}", path)
+            raise recipe.error(f"axis values are plain names or numbers, got {shown(value)}", path)
         known = valid[key]
         if known is not None and value not in known:
-            raise recipe.error(f"unknown {key} {value!r}{did_you_mean(str(value), map(str, known))}; "
+            raise recipe.error(f"unknown {key} {shown(value)}{did_you_mean(str(value), map(str, known))}; "
                                f"known: {', '.join(map(str, known)) or '(none)'}", path)
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import importlib
 import logging
+import math
 import os
 import sys
 import time
@@ -17,6 +18,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+from matrix.errors import MatrixError
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
 from matrix.store import LOG, Store, result_token
 
@@ -86,7 +88,24 @@ def _call_handler(store: Store, spec: dict, deps: dict, workdir: Path) -> tuple[
         except NotApplicable as na:
             log.info("not applicable: %s", na)
             return NOT_APPLICABLE, str(na), {}
-    return OK, "", dict(value or {})
+    value = dict(value or {})
+    where = non_finite(value)
+    if where:
+        raise MatrixError(f"the job's result holds a number that is not finite ({where}): "
+                          "a NaN or infinite result is never reported as ok; see its log")
+    return OK, "", value
+
+
+def non_finite(value: Any, path: str = "") -> str | None:
+    """'key.path = nan' of the first NaN or infinite float in a result, or None."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"{path or 'value'} = {value}"
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, (list, tuple)) else ()
+    for key, item in items:
+        found = non_finite(item, f"{path}.{key}" if path else str(key))
+        if found:
+            return found
+    return None
 
 
 def _dep_results(store: Store, spec: dict) -> dict[str, DepResult | tuple[DepResult, ...]]:
@@ -109,10 +128,21 @@ def _not_applicable_dep(deps: dict) -> DepResult | None:
     return None
 
 
+def failure_message(error: Exception) -> str:
+    """One line a user can act on: an error the domain raised on purpose (MatrixError) is its own
+    message; anything else is a bug, shown with its type (the traceback is in the failure record)."""
+    text = str(error).strip()
+    if not isinstance(error, MatrixError) or not text:
+        text = f"{type(error).__name__}: {text}" if text else type(error).__name__
+    lines = text.splitlines()
+    return lines[0][:300]
+
+
 def _fail(store: Store, spec: dict, workdir: Path, error: Exception, started: float) -> dict:
-    message = f"{type(error).__name__}: {error}".splitlines()[0][:300]
+    message = failure_message(error)
     log_tail = _tail(workdir / LOG)
-    store.record_failure(spec["key"], {"error": message, "traceback": traceback.format_exc(),
+    store.record_failure(spec["key"], {"error": message, "expected": isinstance(error, MatrixError),
+                                       "traceback": traceback.format_exc(),
                                        "log_tail": log_tail, "spec": spec, "workdir": str(workdir)})
     return {"status": FAILED, "reason": message, "duration_s": time.time() - started}
 

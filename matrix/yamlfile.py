@@ -23,11 +23,11 @@ def load_yaml(text: str, file: str = "<recipe>") -> tuple[Any, Lines]:
         lines: Lines = {}
         data = _build(loader, node, (), lines, file) if node is not None else None
     except yaml.MarkedYAMLError as error:
-        mark = error.problem_mark or error.context_mark
-        line = mark.line + 1 if mark else None
-        raise RecipeError(f"not valid YAML: {error.problem or error}", file=file, line=line) from None
+        raise _syntax_error(error, file) from None
+    except yaml.reader.ReaderError as error:
+        raise _character_error(error, text, file) from None
     except yaml.YAMLError as error:
-        raise RecipeError(f"not valid YAML: {error}", file=file) from None
+        raise RecipeError(f"not valid YAML: {' '.join(str(error).split())}", file=file) from None
     except RecursionError:
         raise RecipeError("not valid YAML here: an alias refers to itself", file=file) from None
     finally:
@@ -68,3 +68,35 @@ def _build_mapping(loader, node, path, lines, file) -> dict:
         lines[path + (key,)] = key_node.start_mark.line + 1
         result[key] = _build(loader, value_node, path + (key,), lines, file)
     return result
+
+
+# What an unclosed construct is called, by PyYAML's context: the error points where it was opened
+# (PyYAML finds the problem where the next construct starts, often a line later).
+_OPENED = {"flow mapping": "this { mapping } is not closed", "flow sequence": "this [ list ] is not closed",
+           "quoted scalar": "this quoted string is not closed", "simple key": "this key has no ':' after it"}
+
+
+def _syntax_error(error: yaml.MarkedYAMLError, file: str) -> RecipeError:
+    """One line: file:line:column where the problem is (or where the construct it concerns began)."""
+    problem, mark, context = error.problem or str(error), error.problem_mark, error.context or ""
+    opened = next((text for key, text in _OPENED.items() if key in context), None)
+    if opened and error.context_mark is not None:
+        where = error.context_mark
+        detail = f"{problem} at line {mark.line + 1}, column {mark.column + 1}" if mark else problem
+        return RecipeError(f"not valid YAML: {opened} ({detail})", file=file, line=where.line + 1,
+                           column=where.column + 1)
+    mark = mark or error.context_mark
+    if problem.startswith("expected <block end>"):
+        problem = f"this line is indented differently from the lines around it ({problem})"
+    return RecipeError(f"not valid YAML: {' '.join(problem.split())}", file=file,
+                       line=mark.line + 1 if mark else None, column=mark.column + 1 if mark else None)
+
+
+def _character_error(error: yaml.reader.ReaderError, text: str, file: str) -> RecipeError:
+    """A control character (or an unpaired surrogate): where it is, and which one."""
+    before = text[:error.position]
+    line, column = before.count("\n") + 1, error.position - (before.rfind("\n") + 1) + 1
+    code = error.character if isinstance(error.character, int) else ord(str(error.character)[:1] or "\0")
+    return RecipeError(f"not valid YAML: character U+{code:04X} (a control character or a lone surrogate) is "
+                       "not allowed; remove it (inside double quotes, escapes such as \\t or \\x07 write one)",
+                       file=file, line=line, column=column)

@@ -132,11 +132,17 @@ class Planner:
         return {"circuit": circuit}, ({"circuit_csv": input_file(str(csv))} if csv else {})
 
     def path(self, value: str, where: list) -> Path:
-        path = Path(value).expanduser()
-        path = path if path.is_absolute() else self.folder / path
-        if not path.exists():
-            raise self.recipe.error(f"{value} does not exist (looked for {path}; relative paths are "
-                                    "relative to the recipe's folder)", where)
+        from matrix.fingerprint import shown_path
+        try:
+            path = Path(value).expanduser()
+            path = path if path.is_absolute() else self.folder / path
+            exists = path.exists()
+        except (OSError, ValueError, RuntimeError) as error:   # too long, a NUL byte, an unknown ~user
+            raise self.recipe.error(f"{shown_path(Path(value))} cannot be a path: "
+                                    f"{getattr(error, 'strerror', None) or error}", where) from None
+        if not exists:
+            raise self.recipe.error(f"{shown_path(Path(value))} does not exist (looked for {shown_path(path)}; relative "
+                                    "paths are relative to the recipe's folder)", where)
         return path
 
     # models and strategies ------------------------------------------------------------------------
@@ -173,6 +179,9 @@ class Planner:
         options = dict(self.config.strategies.get(name, {}))
         base = options.pop("use", name)
         where = ["strategies", name]
+        if not isinstance(base, str):
+            kind = {list: "a list", dict: "a mapping", type(None): "nothing"}.get(type(base), type(base).__name__)
+            raise self.recipe.error(f"`use` names one strategy (got {kind}); e.g. use: local_prune", where + ["use"])
         if base not in STRATEGIES:
             raise self.recipe.error(f"unknown strategy {base!r}{did_you_mean(base, STRATEGIES.names())}; "
                                     f"known: {', '.join(sorted(STRATEGIES.names()))}", where + ["use"])

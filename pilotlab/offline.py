@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from pilotlab.data.frames import FrameSet, LabelRanges
+from pilotlab.errors import PilotlabError
 from pilotlab.hardware import HardwareProfile
 from pilotlab.predictor import Predictor, load_predictor, resolve_profile
 from pilotlab.strategies.artifact import artifact_size_mb
@@ -41,6 +42,7 @@ class TimingSettings:
 def evaluate_offline(artifact_dir: Path, hardware: HardwareProfile | dict | str, test: FrameSet,
                      settings: TimingSettings = TimingSettings()) -> dict:
     """Every offline metric of the artifact on `test` (see the module docstring)."""
+    test.check_finite("test data")
     profile = resolve_profile(hardware)
     memory = PeakMemory()
     predictor = load_predictor(artifact_dir, profile)
@@ -64,6 +66,11 @@ def mse_metrics(predictor: Predictor, test: FrameSet, frames: int, batch_size: i
     predictions = np.concatenate([predictor.predict(np.ascontiguousarray(inputs.numpy()))
                                   for inputs, _ in test.batches(batch_size, frames=frames)])
     labels = np.asarray(test.labels, np.float32)
+    bad = np.flatnonzero(~np.isfinite(predictions).all(axis=1))
+    if len(bad):
+        raise PilotlabError(f"the model predicts NaN or infinity for {len(bad)} of {len(test)} test frames (first: "
+                            f"frame {int(bad[0])}), so its MSE is not a number: the optimized model is broken "
+                            "(an overflow in reduced precision?); check its strategy's options")
     normalised = (predictions - ranges.normalise(labels)) ** 2
     physical = (ranges.denormalise(predictions) - labels) ** 2
     return {"mse": float(normalised.mean()), "mse_v": float(normalised[:, 0].mean()),

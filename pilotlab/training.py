@@ -8,6 +8,7 @@ callbacks, so the engine (or `FitProgress`, a rich bar) can show it.
 from __future__ import annotations
 
 import copy
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
@@ -19,6 +20,7 @@ from torch import nn
 
 from pilotlab.data.augment import AugmentConfig, augment_batch, epoch_order
 from pilotlab.data.frames import FrameSet, LabelRanges
+from pilotlab.errors import PilotlabError
 
 
 @dataclass(frozen=True)
@@ -85,6 +87,9 @@ class _Epochs:
         batches = max(1, -(-len(order) // size))
         for b, start in enumerate(range(0, len(order), size)):
             losses.append(self._step(order[start:start + size]))
+            if not math.isfinite(losses[-1]):
+                raise PilotlabError(f"training diverged: the loss is {losses[-1]} at epoch {epoch}, batch {b + 1} "
+                                    f"of {batches}; lower the learning rate (lr {self.config.lr:g}) and run again")
             if on_batch:
                 on_batch(epoch, b + 1, batches, losses[-1])
         return float(np.mean(losses))
@@ -123,6 +128,9 @@ def fit(model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfi
     """Train `model` in place; returns the history. With `val`, the weights of the epoch with the
     lowest validation loss are restored at the end (that row has "best": True), and with `patience`
     training stops once that many epochs in a row did not improve on it."""
+    train.check_finite("training data")
+    if val is not None:
+        val.check_finite("validation data")
     torch.manual_seed(config.seed)
     epochs, best, history = _Epochs(model, train, ranges, config), _Best(), []
     w_limit = max(abs(ranges.w[0]), abs(ranges.w[1]))
@@ -133,6 +141,9 @@ def fit(model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfi
         row = {"epoch": epoch, "train_loss": epochs.run(epoch, order, on_batch)}
         if val is not None and len(val):
             scores = evaluate(model, val, ranges, frames=config.frames)
+            if not math.isfinite(scores["mse"]):
+                raise PilotlabError(f"training diverged: the validation loss is {scores['mse']} after epoch {epoch}; "
+                                    f"lower the learning rate (lr {config.lr:g}) and run again")
             row.update(val_loss=scores["mse"], val_mse_v=scores["mse_v"], val_mse_w=scores["mse_w"])
             best.update(model, row)
         row["seconds"] = round(time.perf_counter() - started, 3)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pilotlab.circuits.geometry import SMOOTHING_M, SPACING_M, centreline, signed_area
+from pilotlab.circuits.geometry import SMOOTHING_M, SPACING_M, centreline, check_loop, signed_area
 from pilotlab.errors import PilotlabError
 
 DIRECTIONS = ("cw", "ccw")
@@ -68,7 +68,11 @@ class Circuit:
     def from_points(cls, name: str, raw: np.ndarray, *, road_width: float, timeout_s: float | None = None,
                     source: str = "", spacing: float = SPACING_M, smoothing: float = SMOOTHING_M) -> Circuit:
         """A clockwise circuit from a recorded lap of x, y points (closed, resampled, smoothed)."""
-        points = centreline(raw, spacing, smoothing)
+        try:
+            points = centreline(raw, spacing, smoothing)
+            check_loop(points, road_width)
+        except PilotlabError as error:
+            raise PilotlabError(f"circuit {name!r} ({source or 'points'}): {error}") from None
         if signed_area(points) > 0:
             points = np.roll(points[::-1], 1, axis=0)
         length = float(np.linalg.norm(np.roll(points, -1, axis=0) - points, axis=1).sum())

@@ -15,6 +15,9 @@ from pilotlab.errors import PilotlabError
 SPACING_M = 0.25        # distance between resampled centreline points
 SMOOTHING_M = 1.5       # Gaussian sigma along the arc
 CLOSE_TOLERANCE_M = 2.0  # a recorded lap that passes this close to its start again is cut there
+MAX_LENGTH_M = 100_000.0  # longer than any race track: a longer lap is a unit error (and 4e5 points)
+MAX_OPEN_GAP = 0.1        # a lap that stops short by more than this share of its length is no lap
+MIN_OPEN_GAP_M = 10.0     # ... and by more than this
 
 
 def drop_repeats(points: np.ndarray, min_step: float = 1e-6) -> np.ndarray:
@@ -84,10 +87,58 @@ def centreline(points: np.ndarray, spacing: float = SPACING_M, smoothing: float 
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 2 or len(points) < 3:
         raise PilotlabError(f"a centreline needs at least 3 x, y points, got an array of shape {points.shape}")
+    if not np.all(np.isfinite(points)):
+        raise PilotlabError(f"point {int(np.flatnonzero(~np.isfinite(points).all(axis=1))[0]) + 1} of the "
+                            "centreline is not a finite number")
     lap = close_loop(points)
+    _check_lap(lap)
     if polyline_length(lap, closed=True) < 8 * spacing:
         raise PilotlabError(f"the centreline is only {polyline_length(lap, closed=True):.2f} m long; "
                             "a circuit needs a closed lap of at least a few metres")
     even = resample_closed(lap, spacing)
     smooth = smooth_closed(even, smoothing / spacing)
     return resample_closed(smooth, spacing)
+
+
+def _check_lap(lap: np.ndarray) -> None:
+    length = polyline_length(lap, closed=True)
+    if not length <= MAX_LENGTH_M:
+        raise PilotlabError(f"the centreline is {length:.3g} m long, more than {MAX_LENGTH_M:g} m; "
+                            "are the coordinates in metres?")
+    gap = float(np.linalg.norm(lap[-1] - lap[0]))
+    if gap > MIN_OPEN_GAP_M and gap > MAX_OPEN_GAP * length:
+        raise PilotlabError(f"the centreline is not a lap: it ends {gap:.1f} m from its start "
+                            f"({100 * gap / length:.0f} % of its length); give the points of one whole lap")
+
+
+def check_loop(points: np.ndarray, road_width: float) -> None:
+    """A closed centreline a car can drive: it encloses an area and never crosses itself."""
+    crossing = self_intersection(points[::4] if len(points) > 64 else points)
+    if crossing is not None:
+        raise PilotlabError(f"the centreline crosses itself near x={crossing[0]:.1f}, y={crossing[1]:.1f} m; "
+                            "a circuit is one loop without crossings")
+    length = polyline_length(points, closed=True)
+    if abs(signed_area(points)) < 0.25 * length * road_width:
+        raise PilotlabError("the centreline encloses almost no area (its points lie on one line, or the "
+                            "lap runs back along itself); give the points of a closed lap")
+
+
+def self_intersection(points: np.ndarray) -> np.ndarray | None:
+    """A point where two non-adjacent segments of the closed polyline cross, or None."""
+    start, end = points, np.roll(points, -1, axis=0)
+    count = len(points)
+    for i in range(count):
+        j = np.arange(i + 2, count if i else count - 1)   # not the segment itself nor its neighbours
+        if len(j) == 0:
+            continue
+        p, r = start[i], end[i] - start[i]
+        q, s = start[j], end[j] - start[j]
+        denominator = r[0] * s[:, 1] - r[1] * s[:, 0]
+        qp = q - p
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (qp[:, 0] * s[:, 1] - qp[:, 1] * s[:, 0]) / denominator
+            u = (qp[:, 0] * r[1] - qp[:, 1] * r[0]) / denominator
+        hit = np.flatnonzero((denominator != 0) & (t >= 0) & (t <= 1) & (u >= 0) & (u <= 1))
+        if len(hit):
+            return p + t[hit[0]] * r
+    return None

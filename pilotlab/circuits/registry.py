@@ -28,6 +28,7 @@ from pilotlab.circuits.geometry import SMOOTHING_M
 from pilotlab.errors import PilotlabError
 
 DEFAULT_ROAD_WIDTH_M = 6.0
+MAX_COORDINATE_M = 1e6          # 1000 km: a circuit CSV in metres is far inside; 1e12 is a unit error
 USER_DIR_ENV = "PILOTLAB_CIRCUITS"
 DEFAULT_USER_DIR = Path("circuits")
 
@@ -56,22 +57,36 @@ def read_points_csv(path: Path) -> np.ndarray:
     """The x, y points of a CSV file (see the module docstring for the format)."""
     path = Path(path)
     try:
-        text = path.read_text()
+        data = path.read_bytes()
     except OSError as error:
         raise PilotlabError(f"{path}: cannot read circuit CSV ({error.strerror})") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        line = data[:error.start].count(b"\n") + 1
+        raise PilotlabError(f"{path}:{line}: not a text file (byte {data[error.start]:#04x} is not UTF-8); "
+                            "a circuit CSV has one 'x,y' line per point") from None
     rows = []
     for number, line in enumerate(text.splitlines(), start=1):
         fields = [f for f in re.split(r"[,\s;]+", line.split("#")[0].strip()) if f]
         if not fields:
             continue
         try:
-            rows.append((float(fields[0]), float(fields[1])))
+            rows.append(_point(fields, path, number))
         except (ValueError, IndexError):
             if rows:  # only a first line may be a header
-                raise PilotlabError(f"{path}:{number}: expected 'x,y' in metres, got {line.strip()!r}") from None
+                raise PilotlabError(f"{path}:{number}: expected 'x,y' in metres, got {line.strip()[:80]!r}") from None
     if len(rows) < 3:
         raise PilotlabError(f"{path}: a circuit CSV needs at least 3 'x,y' lines, found {len(rows)}")
     return np.array(rows, dtype=np.float64)
+
+
+def _point(fields: list[str], path: Path, number: int) -> tuple[float, float]:
+    x, y = float(fields[0]), float(fields[1])
+    if not (abs(x) <= MAX_COORDINATE_M and abs(y) <= MAX_COORDINATE_M):   # also false for NaN
+        raise PilotlabError(f"{path}:{number}: the point ({fields[0][:20]}, {fields[1][:20]}) is not a finite "
+                            f"coordinate within {MAX_COORDINATE_M:g} m of the origin; coordinates are metres")
+    return x, y
 
 
 def user_dirs() -> list[Path]:

@@ -44,9 +44,14 @@ def spec_from_args(model: type[pydantic.BaseModel], args: argparse.Namespace, **
         first = error.errors(include_url=False)[0]
         field = str(first["loc"][0]) if first["loc"] else ""
         flag = getattr(args, f"_flag_{field}", None) or (option_name(field) if field else "options")
-        where = ".".join(map(str, first["loc"][1:]))
+        where = ".".join(str(part) for part in first["loc"][1:] if not _is_union_tag(part))
         raise PilotlabError(f"{flag}{' ' + where if where else ''}: {first['msg'].removeprefix('Value error, ')}"
                             f" (got {first.get('input')!r:.60})") from None
+
+
+def _is_union_tag(part) -> bool:
+    """pydantic names the arm of a union it tried ("float", "literal['random']"): not a key."""
+    return isinstance(part, str) and (part in ("float", "int", "str", "bool") or "[" in part)
 
 
 def help_of(info) -> str:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 from pathlib import Path
 
 from pilotlab.cli._options import add_spec_options, spec_from_args
@@ -81,18 +82,26 @@ def run(args: argparse.Namespace) -> int:
     from pilotlab.predictor import load_predictor
     from pilotlab.report import pick_metrics
 
+    from pilotlab.circuits import get_circuit
     check_arguments(args)
     spec = spec_from_args(OnlineSpec, args, circuit=args.circuit, **brain_params(args.brain))
+    get_circuit(spec.circuit, spec.direction)   # an unknown or broken circuit: before the progress bar
     profile = make_profile(args.hardware)
     check_available(profile)
     brain = (NetworkBrain(load_predictor(args.artifact, profile)) if args.artifact is not None
              else make_brain(spec))
     columns = (TextColumn("[bold]{task.description}"), BarColumn(),
                TextColumn("{task.completed:.0f}/{task.total:.0f} m"), TimeElapsedColumn())
-    with Progress(*columns) as progress:
-        task = progress.add_task("starting", total=1.0)
-        result = evaluate_online(brain, spec, args.out, lambda done, total, what: progress.update(
-            task, completed=done, total=total, description=what))
+    created = not args.out.exists()
+    try:
+        with Progress(*columns) as progress:
+            task = progress.add_task("starting", total=1.0)
+            result = evaluate_online(brain, spec, args.out, lambda done, total, what: progress.update(
+                task, completed=done, total=total, description=what))
+    except BaseException:
+        if created:   # a failed or interrupted drive leaves no half-written --out behind
+            shutil.rmtree(args.out, ignore_errors=True)
+        raise
     result = {**result, "hardware": profile.as_dict()}
     (args.out / "result.json").write_text(json.dumps(result, indent=1))
     console = Console()

@@ -51,11 +51,13 @@ def run(args: argparse.Namespace) -> int:
 
     from pilotlab.circuits import get_circuit
     from pilotlab.sim.record import record
+    from pilotlab.sim.record import check_rates
     spec = spec_from_args(RecordSpec, args, circuit=args.circuit, **camera_of(args),
                           **({"format": "ros1"} if args.out.suffix == ".bag" and not hasattr(args, "format") else {}))
+    check_rates(spec)   # before the progress bar: an error is then the only line printed
     columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:.0f} m"),
                TextColumn("{task.fields[frames]} frames"), TimeElapsedColumn(), TimeRemainingColumn())
-    total = get_circuit(args.circuit).length * spec.laps
+    total = get_circuit(spec.circuit, spec.direction).length * spec.laps
     with Progress(*columns) as progress:
         task = progress.add_task(f"recording {spec.circuit} {spec.direction}", total=total, frames=0)
         summary = record(spec, args.out, lambda done, total, frames: progress.update(

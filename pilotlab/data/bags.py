@@ -19,6 +19,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from pilotlab.data import sqlite_images
+from pilotlab.data.damage import Damage, command_problem
 from pilotlab.data.folder import is_dataset_folder, read_folder
 from pilotlab.data.frames import FrameSet
 from pilotlab.data.images import IMAGE_TYPES, encoding_of, frame_from_message, image_size
@@ -84,7 +85,8 @@ def open_bag(path: Path | str) -> Iterator[AnyReader]:
 
 def _describe(error: Exception) -> str:
     text = " ".join(str(a) for a in error.args) if error.args else type(error).__name__
-    return text.strip() or type(error).__name__
+    text = " ".join(text.split())             # one line: some readers quote whole message definitions
+    return (text[:200] + "...") if len(text) > 200 else text or type(error).__name__
 
 
 def topic_listing(reader: AnyReader) -> str:
@@ -112,30 +114,47 @@ def find_topic(reader: AnyReader, path: Path, topic: str | None, key: str,
     return name, info.msgtype, info.connections
 
 
-def messages(reader: AnyReader, path: Path, connections: list, start: int | None = None
-             ) -> Iterator[tuple[int, object]]:
-    """(time stamp ns, message) of the given connections, in time order."""
+def messages(reader: AnyReader, path: Path, connections: list, start: int | None = None,
+             damage: Damage | None = None) -> Iterator[tuple[int, object]]:
+    """(time stamp ns, message) of the given connections, in time order. With `damage`, a message
+    that cannot be deserialized is counted there and left out; a bag that cannot be read on is an error."""
     stream = reader.messages(connections, start=start)
     while True:
         try:
             connection, stamp, raw = next(stream)
-            msg = reader.deserialize(raw, connection.msgtype)
         except StopIteration:
             return
-        except Exception as error:  # a damaged chunk, a bad compression block, a short message
+        except Exception as error:  # a damaged chunk, a bad compression block
             raise corrupt(path, _describe(error)) from None
+        try:
+            msg = reader.deserialize(raw, connection.msgtype)
+        except Exception as error:  # a short or garbled message
+            if damage is None:
+                raise corrupt(path, _describe(error)) from None
+            damage.add(stamp, BagError(f"a message cannot be deserialized ({_describe(error)})"))
+            continue
         yield stamp, msg
 
 
-def read_commands(reader: AnyReader, path: Path, topic: str) -> tuple[np.ndarray, np.ndarray]:
-    """(time stamps int64 [M], physical (v, w) float32 [M, 2]) of the command topic."""
+def read_commands(reader: AnyReader, path: Path, topic: str) -> tuple[np.ndarray, np.ndarray, Damage]:
+    """(time stamps int64 [M], physical (v, w) float32 [M, 2], damage) of the command topic; a command
+    that is damaged (not deserializable, not a finite number of sane size) is left out and counted."""
     name, msgtype, connections = find_topic(reader, path, topic, "command_topic", COMMAND_TYPES)
+    damage = Damage(path, name)
     stamps, labels = [], []
-    for stamp, msg in messages(reader, path, connections):
+    for stamp, msg in messages(reader, path, connections, damage=damage):
         twist = msg.twist if msgtype.endswith("TwistStamped") else msg
+        v, w = float(twist.linear.x), float(twist.angular.z)
+        problem = command_problem(v, w)
+        if problem:
+            damage.add(stamp, BagError(f"a command is damaged ({problem})"))
+            continue
         stamps.append(stamp)
-        labels.append((twist.linear.x, twist.angular.z))
-    return np.asarray(stamps, np.int64), np.asarray(labels, np.float32).reshape(-1, 2)
+        labels.append((v, w))
+    seen = len(stamps) + len(damage.stamps)
+    damage.missing = max(0, sum(c.msgcount for c in connections) - seen)
+    damage.check(max(seen, seen + damage.missing))
+    return np.asarray(stamps, np.int64), np.asarray(labels, np.float32).reshape(-1, 2), damage
 
 
 def read_bag(path: Path | str, preprocess: PreprocessConfig, topics: Topics = Topics(), *,
@@ -149,27 +168,35 @@ def read_bag(path: Path | str, preprocess: PreprocessConfig, topics: Topics = To
     """
     path = Path(path)
     with open_bag(path) as reader:
-        cmd_stamps, commands = read_commands(reader, path, topics.command)
+        cmd_stamps, commands, command_damage = read_commands(reader, path, topics.command)
         order = np.argsort(cmd_stamps, kind="stable")
         cmd_stamps, commands = cmd_stamps[order], commands[order]
         name, msgtype, connections = find_topic(reader, path, topics.image, "image_topic",
                                                 IMAGE_TYPES, DEFAULT_IMAGE_TOPICS)
         total = sum(c.msgcount for c in connections)
         where, start = f"{path}, topic {name}", int(cmd_stamps[0])
+        damage = Damage(path, name)
+        before = sum(1 for _ in reader.messages(connections, stop=start))    # unlabelled: dropped
         database = sqlite_images.applies(path, reader, msgtype)
         threads = min(2, len(os.sched_getaffinity(0))) if workers is None else max(1, workers)
-        decoded = (_read_sqlite(database, name, where, start, preprocess, threads, progress) if database else
-                   _Decoder(preprocess, msgtype, where, total, workers or 0, progress).run(
-                       messages(reader, path, connections, start=start)))
+        decoded = (_read_sqlite(database, name, where, start, preprocess, threads, progress, damage) if database else
+                   _Decoder(preprocess, msgtype, where, total - before, workers or 0, progress, damage).run(
+                       messages(reader, path, connections, start=start, damage=damage)))
     frames, stamps, encoding, size = decoded
+    seen = len(stamps) + len(damage.stamps)
+    damage.missing = max(0, total - before - seen)
+    damage.check(max(total - before, seen))
     if not len(stamps):
         raise BagError(f"{path}: no image on {name!r} at or after the first command on {topics.command!r}; "
                        "the recording has no labelled frames, record it again")
     index = np.searchsorted(cmd_stamps, stamps, side="right") - 1
     meta = {"source": str(path), "format": bag_format(path), "image_topic": name, "image_type": msgtype,
             "encoding": encoding, "image_size": size, "command_topic": topics.command,
-            "frames": len(stamps), "dropped": total - len(stamps), "start_ns": int(stamps[0]),
+            "frames": len(stamps), "dropped": before, "start_ns": int(stamps[0]),
             "end_ns": int(stamps[-1]), "preprocess": preprocess.as_dict()}
+    damaged = [d.summary() for d in (damage, command_damage) if d.count]
+    if damaged:
+        meta["damaged"] = damaged
     return FrameSet(frames, commands[index], np.zeros(len(stamps), np.int32), meta)
 
 
@@ -177,52 +204,78 @@ Decoded = tuple[np.ndarray, np.ndarray, str, list[int]]   # frames, time stamps,
 
 
 def _read_sqlite(database: Path, topic: str, where: str, start: int, config: PreprocessConfig,
-                 threads: int, progress: Progress | None) -> Decoded:
+                 threads: int, progress: Progress | None, damage: Damage) -> Decoded:
+    bad: dict[int, Exception] = {}
     try:
-        frames, stamps, first = sqlite_images.read_images(database, topic, where, start, config, threads, progress)
+        frames, stamps, first = sqlite_images.read_images(database, topic, where, start, config, threads, progress,
+                                                          on_damage=bad.__setitem__)
     except apsw.Error as error:
         raise corrupt(database, _describe(error)) from None
+    for i in sorted(bad):
+        damage.add(stamps[i], bad[i])
+    keep = np.setdiff1d(np.arange(len(stamps)), list(bad))
+    frames, stamps = (frames[keep], stamps[keep]) if bad else (frames, stamps)
     return frames, stamps, first.encoding if first else "", [first.height, first.width] if first else []
 
 
 class _Decoder:
-    """Preprocess image messages into one preallocated array, optionally on worker threads."""
+    """Preprocess image messages into one preallocated array, optionally on worker threads. A
+    message that cannot be decoded is counted in `damage` and left out."""
 
     def __init__(self, config: PreprocessConfig, msgtype: str, where: str, capacity: int,
-                 workers: int, progress: Progress | None):
+                 workers: int, progress: Progress | None, damage: Damage):
         self.config, self.msgtype, self.where, self.workers = config, msgtype, where, workers
-        self.frames = np.empty((capacity, config.height, config.width, 3), np.uint8)
+        self.frames = np.empty((max(capacity, 1), config.height, config.width, 3), np.uint8)
         self.progress = progress or (lambda done, total: None)
+        self.damage, self.bad, self.first = damage, {}, (None, None)
 
-    def _decode(self, chunk: list[tuple[int, object]]) -> None:
-        for i, msg in chunk:
-            frame_from_message(msg, self.msgtype, self.config, self.where, out=self.frames[i])
+    def _decode(self, chunk: list[tuple[int, int, object]]) -> None:
+        for i, stamp, msg in chunk:
+            try:
+                frame_from_message(msg, self.msgtype, self.config, self.where, out=self.frames[i])
+            except Exception as error:   # a damaged message: counted, left out
+                self.bad[i] = (stamp, error)
+                continue
+            if self.first[0] is None or i < self.first[0]:
+                self.first = (i, msg)
 
     def run(self, stream: Iterator[tuple[int, object]]) -> Decoded:
-        stamps, chunk, pending, first = [], [], [], None
+        stamps, chunk, pending = [], [], []
         pool = ThreadPoolExecutor(self.workers) if self.workers else None
         try:
             for stamp, msg in stream:
-                if len(stamps) == len(self.frames):
-                    break  # more messages than the index announced (never seen; keeps writes in bounds)
-                first = first if first is not None else msg
-                chunk.append((len(stamps), msg))
+                if len(stamps) == len(self.frames):   # more messages than the index announced
+                    self._finish(pending)
+                    self.frames = np.concatenate([self.frames, np.empty_like(self.frames)])
+                chunk.append((len(stamps), stamp, msg))
                 stamps.append(stamp)
                 if len(chunk) == CHUNK:
                     self._submit(pool, chunk, pending)
                     chunk = []
                     self.progress(len(stamps), len(self.frames))
             self._submit(pool, chunk, pending)
-            for future in pending:
-                future.result()
+            self._finish(pending)
         finally:
             if pool:
                 pool.shutdown(cancel_futures=True)
         self.progress(len(stamps), len(stamps))
+        return self._result(np.asarray(stamps, np.int64))
+
+    def _result(self, stamps: np.ndarray) -> Decoded:
+        for i in sorted(self.bad):
+            self.damage.add(*self.bad[i])
+        keep = np.setdiff1d(np.arange(len(stamps)), list(self.bad))
+        frames, stamps = self.frames[keep] if self.bad else self.frames[:len(stamps)], stamps[keep]
+        first = self.first[1]
         if first is None:
-            return self.frames[:0], np.zeros(0, np.int64), "", []
+            return frames[:0], stamps[:0], "", []
         size = list(image_size(first, self.msgtype, self.where))
-        return self.frames[:len(stamps)], np.asarray(stamps, np.int64), encoding_of(first, self.msgtype), size
+        return frames, stamps, encoding_of(first, self.msgtype), size
+
+    @staticmethod
+    def _finish(pending: list[Future]) -> None:
+        while pending:
+            pending.pop(0).result()
 
     def _submit(self, pool: ThreadPoolExecutor | None, chunk: list, pending: list[Future]) -> None:
         if pool is None:

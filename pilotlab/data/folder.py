@@ -7,6 +7,7 @@ frames and labels.
 from __future__ import annotations
 
 import csv
+import io
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -16,11 +17,13 @@ import cv2
 import numpy as np
 
 from pilotlab.data.bagwrite import BagWriter
+from pilotlab.data.damage import MAX_COMMAND
 from pilotlab.data.frames import FrameSet
 from pilotlab.data.preprocess import PreprocessConfig, preprocess
 from pilotlab.errors import BagError
 
 CSV_NAME = "data.csv"
+MAX_SECONDS = 2.0 ** 32        # ROS time stamps are unsigned 32-bit seconds
 DEFAULT_RATE_HZ = 20.0         # frame rate assumed when data.csv has no timestamp column
 
 
@@ -37,34 +40,64 @@ def is_dataset_folder(path: Path) -> bool:
 
 
 def _image_path(folder: Path, name: str, row: int) -> Path:
-    path = folder / name
-    if not path.suffix and not path.exists():
-        path = path.with_suffix(".png")
-    if not path.is_file():
-        raise BagError(f"{folder / CSV_NAME}: row {row} names image {name!r}, which is not in {folder}; "
+    try:
+        path = folder / name
+        if not path.suffix and not path.exists():
+            path = path.with_suffix(".png")
+        present = path.is_file()
+    except (OSError, ValueError):   # too long a name, a NUL byte
+        present = False
+    if not present:
+        raise BagError(f"{folder / CSV_NAME}: row {row} names image {name[:80]!r}, which is not in {folder}; "
                        "add the image or remove the row")
     return path
 
 
 def _float(value: str, column: str, row: int, csv_path: Path) -> float:
     try:
-        return float(value)
+        number = float(value)
     except (TypeError, ValueError):
-        raise BagError(f"{csv_path}: row {row}, column {column!r} is {value!r}, not a number; fix the row") from None
+        raise BagError(f"{csv_path}: row {row}, column {column!r} is {str(value)[:40]!r}, not a number; "
+                       "fix the row") from None
+    limit = MAX_SECONDS if column == "timestamp" else MAX_COMMAND
+    if not (abs(number) <= limit and (column != "timestamp" or number >= 0)):   # also false for NaN
+        what = "seconds in [0, 2^32)" if column == "timestamp" else f"a finite number within ±{limit:g}"
+        raise BagError(f"{csv_path}: row {row}, column {column!r} is {str(value)[:40]!r}; it must be {what}. "
+                       "Fix or remove the row (rows with missing labels are not dropped silently)")
+    return number
+
+
+def _table(csv_path: Path) -> list[dict]:
+    """The rows of data.csv, as text: a file that is not UTF-8 text or not CSV is an error naming its line."""
+    data = csv_path.read_bytes()
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        line = data[:error.start].count(b"\n") + 1
+        raise BagError(f"{csv_path}: line {line} is not UTF-8 text (byte {data[error.start]:#04x}); "
+                       f"{CSV_NAME} is a CSV file with columns image_name, v, w, timestamp") from None
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    try:
+        return list(reader)
+    except csv.Error as error:
+        raise BagError(f"{csv_path}: line {reader.line_num} is not CSV ({error}); "
+                       f"{CSV_NAME} has columns image_name, v, w, timestamp") from None
 
 
 def read_rows(folder: Path | str, rate_hz: float = DEFAULT_RATE_HZ) -> list[FolderRow]:
-    """The rows of a dataset folder, checked: images present, numbers numeric, time increasing."""
+    """The rows of a dataset folder, checked: images present, labels finite numbers, time increasing.
+    A row whose v or w is not a finite number (NaN, inf, empty) is an error naming the row: a DLS
+    export with missing labels is broken, and dropping its rows silently would hide that."""
     folder = Path(folder)
     csv_path = folder / CSV_NAME
     if not csv_path.is_file():
         raise BagError(f"{folder}: not a dataset folder (no {CSV_NAME} with columns image_name, v, w, timestamp)")
-    with csv_path.open(newline="") as handle:
-        table = list(csv.DictReader(handle))
+    table = _table(csv_path)
     columns = set(table[0]) if table else set()
     if not table or not {"v", "w"} <= columns:
+        found = ", ".join(sorted(str(c)[:40] for c in columns if c is not None))[:200]
         raise BagError(f"{csv_path}: needs a header with columns v and w (and image_name, timestamp) "
-                       f"and at least one row; found columns: {', '.join(sorted(columns)) or 'none'}")
+                       f"and at least one row; found columns: {found or 'none'}")
     rows = []
     for i, entry in enumerate(table, start=1):
         name = entry.get("image_name") or f"{i - 1}.png"

@@ -66,6 +66,17 @@ class FrameSet:
     def __len__(self) -> int:
         return len(self.labels)
 
+    def check_finite(self, what: str) -> None:
+        """A PilotlabError when a label is NaN or infinite (readers refuse such labels: this guards
+        FrameSets built elsewhere, whose NaN would train to a NaN loss and an MSE of NaN)."""
+        bad = np.flatnonzero(~np.isfinite(np.asarray(self.labels)).all(axis=1))
+        if len(bad):
+            from pilotlab.errors import PilotlabError
+            i = int(bad[0])
+            raise PilotlabError(f"{what}: {len(bad)} of {len(self)} labels are not finite numbers (first: frame {i} "
+                                f"of recording {int(self.recording[i])}, v, w = {tuple(map(float, self.labels[i]))}); "
+                                "fix or remove those frames in the source recording")
+
     def save(self, folder: Path) -> None:
         folder = Path(folder)
         folder.mkdir(parents=True, exist_ok=True)

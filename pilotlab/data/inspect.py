@@ -30,9 +30,11 @@ def inspect_bag(path: Path, command_topic: str = COMMAND_TOPIC) -> dict[str, Any
         images = {t["name"]: _first_image(reader, path, t["name"]) for t in topics if t["type"] in IMAGE_TYPES}
         commands = None
         if reader.topics.get(command_topic) and reader.topics[command_topic].msgtype in COMMAND_TYPES:
-            _, labels = read_commands(reader, path, command_topic)
+            _, labels, damage = read_commands(reader, path, command_topic)
             commands = {"topic": command_topic, "count": len(labels),
                         "v": _range(labels[:, 0]), "w": _range(labels[:, 1])}
+            if damage.count:
+                commands["damaged"] = damage.summary()
         return {"path": str(path), "format": bag_format(path), "messages": reader.message_count,
                 "start_ns": reader.start_time, "end_ns": reader.end_time, "duration_s": round(seconds, 3),
                 "topics": topics, "images": images, "command_topic": command_topic, "commands": commands}

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import apsw
+import cv2
 import numpy as np
 
 from pilotlab.data.images import CHANNELS, IMAGE, raw_pixels
@@ -102,13 +103,19 @@ class SqliteImages:
         return list(self.connection.execute(query, (*self.topic_ids, start)))
 
     def decode(self, rows: list[tuple[int, int]], positions: np.ndarray, config: PreprocessConfig,
-               out: np.ndarray, done: Callable[[], None]) -> None:
-        """Preprocess the image of rows[i] into out[i] for each i in `positions`."""
+               out: np.ndarray, done: Callable[[], None],
+               on_damage: Callable[[int, Exception], None] | None = None) -> None:
+        """Preprocess the image of rows[i] into out[i] for each i in `positions`; with `on_damage`,
+        a message that cannot be decoded is reported there (position, error) instead of raised."""
         buffer = np.empty(0, np.uint8)
         for i in positions:
             blob = self.connection.blob_open("main", "messages", "data", rows[i][0], False)
             try:
                 buffer = self._decode(blob, config, buffer, out[i])
+            except (BagError, ValueError, cv2.error) as error:
+                if on_damage is None:
+                    raise
+                on_damage(int(i), error)
             finally:
                 blob.close()
             done()
@@ -116,7 +123,6 @@ class SqliteImages:
 
     def _decode(self, blob, config: PreprocessConfig, buffer: np.ndarray, out: np.ndarray) -> np.ndarray:
         header = self._header(blob)
-        self.first_header = self.first_header or header
         channels = CHANNELS.get(header.encoding)
         if channels is None or blob.length() < header.data_offset + header.height * header.step:
             return self._whole(blob, config, out)       # let the general decoder explain the problem
@@ -129,6 +135,7 @@ class SqliteImages:
         kept = buffer[:count].reshape(-1, header.step)[:, :header.width * channels]
         finish(kept.reshape(len(kept), header.width, channels) if channels == 3 else kept,
                config, header.encoding, out)
+        self.first_header = self.first_header or header
         return buffer
 
     def _header(self, blob) -> ImageHeader:
@@ -162,7 +169,8 @@ class SqliteImages:
 
 
 def read_images(database: Path, topic: str, where: str, start: int, config: PreprocessConfig,
-                threads: int = 1, progress: Callable[[int, int], None] | None = None
+                threads: int = 1, progress: Callable[[int, int], None] | None = None,
+                on_damage: Callable[[int, Exception], None] | None = None
                 ) -> tuple[np.ndarray, np.ndarray, ImageHeader | None]:
     """(frames, time stamps, first image's header) of the images at or after `start`. With several
     threads, each decodes a contiguous part on its own connection; apsw and OpenCV release the GIL."""
@@ -181,11 +189,12 @@ def read_images(database: Path, topic: str, where: str, start: int, config: Prep
     readers = [first] + [SqliteImages(database, topic, where) for _ in parts[1:]]
     try:
         with ThreadPoolExecutor(len(parts)) as pool:
-            for future in [pool.submit(r.decode, rows, part, config, frames, done) for r, part in zip(readers, parts)]:
+            for future in [pool.submit(r.decode, rows, part, config, frames, done, on_damage) for r, part in zip(readers, parts)]:
                 future.result()
     finally:
         for reader in readers:
             reader.close()
     if progress:
         progress(len(rows), len(rows))
-    return frames, np.array([stamp for _, stamp in rows], np.int64), first.first_header
+    header = next((r.first_header for r in readers if r.first_header), None)
+    return frames, np.array([stamp for _, stamp in rows], np.int64), header

@@ -12,7 +12,8 @@ params: pilotlab.specs.frames.FramesSpec (topics, the preprocessing crop and siz
 
 artifacts: a FrameSet (frames.npy uint8 [N, 66, 200, 3] RGB, labels.npy float32 [N, 2] physical v, w,
 recording.npy, meta.json), loaded by `FrameSet.load(dep.artifacts)`.
-result: frames, dropped (images before the first command), source, format (ros1 | ros2-sqlite3 |
+result: frames, dropped (images before the first command), damaged (per topic: count, times_s,
+reason of the messages left out as damaged; absent when none), source, format (ros1 | ros2-sqlite3 |
 ros2-mcap | folder), image_topic, command_topic, encoding, image_size [h, w], duration_s,
 v_range, w_range, preprocess (settings), decode_fps, label.
 """
@@ -60,7 +61,7 @@ def job_topics(ctx: JobContext) -> Topics:
 
 def summary(frameset, seconds: float) -> dict[str, Any]:
     labels, meta = np.asarray(frameset.labels), frameset.meta
-    keys = ("frames", "dropped", "source", "format", "image_topic", "command_topic", "encoding",
+    keys = ("frames", "dropped", "damaged", "source", "format", "image_topic", "command_topic", "encoding",
             "image_size", "preprocess")
     return {**{k: meta[k] for k in keys if k in meta},
             "duration_s": round((meta["end_ns"] - meta["start_ns"]) / 1e9, 3),
@@ -84,4 +85,7 @@ def run_frames(ctx: JobContext) -> dict[str, Any]:
     frameset.save(ctx.out)
     result = {**summary(frameset, seconds), "label": label}
     ctx.log.info("%d frames from %s (%.0f frames/s)", result["frames"], path, result["decode_fps"])
+    for damage in result.get("damaged", []):   # left out: under pilotlab.data.damage.MAX_SHARE of the topic
+        ctx.log.warning("%s: %d damaged message(s) left out on %s (at %s s: %s)", path, damage["count"],
+                        damage["topic"], damage["times_s"], damage["reason"])
     return result

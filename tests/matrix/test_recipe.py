@@ -44,7 +44,22 @@ def test_a_good_recipe_loads_typed(tmp_path):
 
 def test_bad_yaml_names_file_and_line(tmp_path):
     message = error_of(tmp_path, GOOD.replace("power: [2, 3]", "power: [2, 3"))
-    assert message.startswith(f"{tmp_path / 'recipe.yaml'}:8: not valid YAML")
+    assert message == (f"{tmp_path / 'recipe.yaml'}:7:10: not valid YAML: this [ list ] is not closed "
+                       "(expected ',' or ']', but got '<stream end>' at line 8, column 1)")
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("{value: 3}", "{value: 3"), ":4:6: not valid YAML: this { mapping } is not closed (expected ',' or '}', "
+                                  "but got ':' at line 5, column 7)"),
+    (("  b: {value: 3}", "  b: {value: 3}\n    c: 1"), ":5:5: not valid YAML: this line is indented differently from the lines around it"),
+    (("name: toy", "name: \"toy"), ":1:7: not valid YAML: this quoted string is not closed"),
+    (("name: toy", "name: t\x07oy"), ":1:8: not valid YAML: character U+0007 (a control character or a lone "
+                                     "surrogate) is not allowed; remove it"),
+    (("name: toy", "name: toy\x00"), ":1:10: not valid YAML: character U+0000"),
+    (("matrix:", "matrix\n"), ":5:1: not valid YAML: this key has no ':' after it (could not find expected ':' at line 7"),
+])
+def test_yaml_syntax_errors_point_at_line_and_column(tmp_path, edit, message):
+    assert error_of(tmp_path, GOOD.replace(*edit)).startswith(f"{tmp_path / 'recipe.yaml'}{message}")
 
 
 def test_wrong_type_names_key_path_and_line(tmp_path):

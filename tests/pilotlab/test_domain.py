@@ -1,10 +1,12 @@
 """The driving domain's planner: recipes -> jobs shared wherever inputs are equal; recipe errors."""
+import time
 from collections import Counter
 from pathlib import Path
 
 import pytest
 
 from matrix import RecipeError, engine
+from matrix.errors import MatrixError
 from matrix.recipe import load_recipe
 from pilotlab.domain import DOMAIN
 
@@ -97,6 +99,10 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
      ":6: models.small: model 'pilotnet': unknown option(s) dropuot (did you mean 'dropout'?)"),
     (("train: {record: {circuits: [simple_circuit],", "train: {bags: [missing.bag], record: {circuits: [simple_circuit],"),
      ":3: datasets.train.bags: missing.bag does not exist"),
+    (("{use: local_prune, conv: 0.5}", "{use: [local_prune, baseline]}"),
+     ":10: strategies.prune_more.use: `use` names one strategy (got a list); e.g. use: local_prune"),
+    (("{use: local_prune, conv: 0.5}", "{use: {}}"),
+     ":10: strategies.prune_more.use: `use` names one strategy (got a mapping); e.g. use: local_prune"),
     (("laps: 0.2}}", "laps: 0.2, camera: {width: 8}}}"),
      ":3: datasets.train.record.camera.width: Input should be greater than or equal to 16 (got 8)"),
 ])
@@ -105,6 +111,22 @@ def test_recipe_errors_name_the_line_and_key(tmp_path, edit, message):
         engine.plan_jobs(recipe_at(tmp_path, RECIPE.replace(*edit)), DOMAIN)
     assert message in str(caught.value)
     assert "\n" not in str(caught.value)
+
+
+@pytest.mark.parametrize("path, message", [
+    ("a" * 5000, "datasets.train.bags: aaaaa"),
+    ("/proc/self/mem", "input /proc/self/mem is a system file (below /proc), not data"),
+    ("/", "input folder / holds /dev/"),
+    ("~no_such_user_here/run.bag", "cannot be a path: Could not determine home directory"),
+])
+def test_an_input_that_is_not_data_is_one_line_at_once(tmp_path, path, message):
+    text = RECIPE.replace("train: {record: {circuits: [simple_circuit],", f"train: {{bags: ['{path}'], record: {{circuits: [simple_circuit],")
+    started = time.monotonic()
+    with pytest.raises(MatrixError) as caught:
+        engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
+    assert message in str(caught.value)
+    assert "\n" not in str(caught.value) and len(str(caught.value)) < 400
+    assert time.monotonic() - started < 5
 
 
 def test_shipped_recipes_plan(tmp_path):

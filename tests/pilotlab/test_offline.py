@@ -45,3 +45,25 @@ def test_latency_stops_when_the_median_is_stable():
     result = measure_latency(lambda batch: None, np.zeros(1, np.float32),
                              TimingSettings(warmup_seconds=0, min_runs=100, block=50, max_seconds=10))
     assert 100 <= result["latency_runs"] < 20_000
+
+
+def test_a_model_that_predicts_nan_has_no_mse(trained, test_frames, tmp_path):
+    from pilotlab.errors import PilotlabError
+    from pilotlab.models.registry import save_checkpoint
+    model, checkpoint = load_checkpoint(trained / "model.pt")
+    with torch.no_grad():
+        next(model.parameters()).fill_(float("nan"))
+    save_checkpoint(tmp_path / "model.pt", model, checkpoint["arch"], model.config, labels=checkpoint["labels"],
+                    preprocess=checkpoint["preprocess"])
+    folder = tmp_path / "broken"
+    apply_strategy("baseline", {}, StrategySource(tmp_path / "model.pt", folder))
+    with pytest.raises(PilotlabError, match=r"the model predicts NaN or infinity for 24 of 24 test frames"):
+        evaluate_offline(folder, "cpu1", FrameSet.load(test_frames), QUICK)
+
+
+def test_non_finite_test_labels_are_refused(baseline, test_frames):
+    from pilotlab.errors import PilotlabError
+    test = FrameSet.load(test_frames, mmap=False)
+    test.labels[3, 0] = np.nan
+    with pytest.raises(PilotlabError, match=r"test data: 1 of 24 labels are not finite"):
+        evaluate_offline(baseline, "cpu1", test, QUICK)

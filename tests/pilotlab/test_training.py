@@ -81,3 +81,20 @@ def test_stacked_frames_model_trains_and_callbacks_report_progress():
             on_epoch=on_epoch, on_batch=on_batch)
     assert [b[:3] for b in batches] == [(e, b, 3) for e in (1, 2) for b in (1, 2, 3)]
     assert [r["epoch"] for r in epochs] == [1, 2] and all(np.isfinite(r["val_loss"]) for r in epochs)
+
+
+def test_a_diverging_training_is_an_error_not_a_nan_loss():
+    from pilotlab.errors import PilotlabError
+    data = stripe_frameset(recordings=2, per_recording=16)
+    train, val = split(data, 0.5)
+    torch.manual_seed(0)
+    with pytest.raises(PilotlabError, match=r"training diverged: the (validation )?loss is (nan|inf) .*lower the learning rate \(lr 1e\+12\)"):
+        fit(build_model("pilotnet"), train, LabelRanges.covering(data.labels), FitConfig(epochs=3, batch_size=8, lr=1e12), val=val)
+
+
+def test_non_finite_labels_are_refused_before_training():
+    from pilotlab.errors import PilotlabError
+    data = stripe_frameset(recordings=2, per_recording=16)
+    data.labels[5, 1] = np.inf
+    with pytest.raises(PilotlabError, match=r"training data: 1 of 32 labels are not finite numbers \(first: frame 5 of recording 0"):
+        fit(build_model("pilotnet"), data, LabelRanges((0, 1), (-1, 1)), FitConfig(epochs=1, batch_size=8))

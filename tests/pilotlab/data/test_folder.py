@@ -74,3 +74,38 @@ def test_a_failed_conversion_leaves_no_partial_bag(tmp_path):
     with pytest.raises(BagError, match="1.png: not a readable image"):
         folder_to_bag(folder, tmp_path / "out.bag")
     assert not (tmp_path / "out.bag").exists()
+
+
+def rows_with(cell: str, column: int, row: int = 2, n: int = 4) -> list[str]:
+    lines = ["image_name,v,w,timestamp"] + [f"{i}.png,{5 + i * 0.5},{0.1 * i - 0.2},{1650000000 + i * 0.05:.3f}"
+                                            for i in range(n)]
+    fields = lines[row].split(",")
+    fields[column] = cell
+    lines[row] = ",".join(fields)
+    return lines
+
+
+@pytest.mark.parametrize("cell, column, message", [
+    ("nan", 1, r"data.csv: row 2, column 'v' is 'nan'; it must be a finite number within ±1000. Fix or remove the row"),
+    ("inf", 2, r"data.csv: row 2, column 'w' is 'inf'; it must be a finite number"),
+    ("1e300", 3, r"data.csv: row 2, column 'timestamp' is '1e300'; it must be seconds in \[0, 2\^32\)"),
+    ("nan", 3, r"data.csv: row 2, column 'timestamp' is 'nan'; it must be seconds"),
+    ("-5", 3, r"data.csv: row 2, column 'timestamp' is '-5'; it must be seconds"),
+    ("x" * 5000, 0, r"data.csv: row 2 names image 'xxxx"),
+])
+def test_labels_and_times_must_be_finite(tmp_path, cell, column, message):
+    folder = make_folder(tmp_path / "dls", images(4), rows=rows_with(cell, column))
+    with pytest.raises(BagError, match=message) as caught:
+        read_frames(folder, CONFIG)
+    assert len(str(caught.value)) < 400
+
+
+@pytest.mark.parametrize("content, message", [
+    (b"image_name,v,w\n0.png,1,0\n" + bytes(range(128, 256)), r"data.csv: line 3 is not UTF-8 text \(byte 0x80\)"),
+    (b"\xff\xfe" + __import__("random").Random(1).randbytes(3000), r"data.csv: line 1 is not UTF-8 text \(byte 0xff\)"),
+])
+def test_a_data_csv_that_is_not_text_says_where(tmp_path, content, message):
+    folder = make_folder(tmp_path / "dls", images(1))
+    (folder / "data.csv").write_bytes(content)
+    with pytest.raises(BagError, match=message):
+        read_frames(folder, CONFIG)

@@ -27,7 +27,7 @@ def test_ros1_and_ros2_recordings_give_the_same_frames_and_labels(tmp_path):
     np.testing.assert_array_equal(ros1.frames, ros2.frames)
     np.testing.assert_array_equal(ros1.labels, ros2.labels)
     with open_bag(bag1) as reader:                       # each frame has the expert's command of its stamp
-        stamps, commands = read_commands(reader, bag1, "/F1ROS/cmd_vel")
+        stamps, commands, _ = read_commands(reader, bag1, "/F1ROS/cmd_vel")
     np.testing.assert_array_equal(ros1.labels, commands[np.isin(stamps, stamps[::2])])
 
 

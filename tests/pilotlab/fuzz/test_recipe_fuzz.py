@@ -1,0 +1,37 @@
+"""Mutated recipes through the real `plan` path: every one is planned or refused with a one-line
+error; none gives a traceback, hangs (10 s) or crashes. A few go through the command line too."""
+import subprocess
+import sys
+
+import pytest
+
+from tests.pilotlab.fuzz.harness import fuzz, write_mutations
+from tests.pilotlab.fuzz.recipes import ROOT
+
+
+def check(outcomes, count: int) -> None:
+    print(outcomes.summary())
+    assert not outcomes.tracebacks, f"{len(outcomes.tracebacks)} recipes not refused cleanly; the first:\n" \
+                                    f"{outcomes.tracebacks[0]}"
+    assert sum(outcomes.counts.values()) == count
+    assert outcomes.counts["planned"] > 0 and outcomes.counts["refused"] > 0   # the mutations do both
+
+
+def test_a_few_hundred_mutated_recipes_plan_or_are_refused(tmp_path):
+    check(fuzz(tmp_path, 300, seed=20), 300)
+
+
+@pytest.mark.slow
+def test_thousands_of_mutated_recipes_plan_or_are_refused(tmp_path):
+    check(fuzz(tmp_path, 2500, seed=2026), 2500)
+
+
+def test_mutated_recipes_through_the_command_line(tmp_path):
+    for path in write_mutations(tmp_path, 4, seed=5):
+        run = subprocess.run([sys.executable, "-m", "pilotlab", "plan", str(path), "--store", str(tmp_path / "store")],
+                             capture_output=True, text=True, cwd=tmp_path, timeout=30,
+                             env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)})
+        assert "Traceback" not in run.stderr, run.stderr
+        assert run.returncode in (0, 2), run.stderr
+        if run.returncode == 2:
+            assert run.stderr.startswith("pilotlab: error: ") and run.stderr.count("\n") == 1, run.stderr
