@@ -23,6 +23,7 @@ import fcntl
 import hashlib
 import json
 import os
+import re
 import shutil
 import tempfile
 import time
@@ -137,7 +138,12 @@ class Store:
                     yield folder.name
 
     def find(self, prefix: str) -> str:
-        """The one stored key starting with `prefix` (as git does for commits)."""
+        """The one stored key starting with `prefix` (as git does for commits): hex digits only, so a
+        prefix is never a path or a glob pattern."""
+        if not re.fullmatch(r"[0-9a-fA-F]*", prefix) or len(prefix) > 64:
+            raise StoreError(f"{prefix[:80]!r} is not a job key: give the key's first hex digits (0-9, a-f), "
+                             "as `plan RECIPE` lists them")
+        prefix = prefix.lower()
         if len(prefix) < 4:
             raise StoreError(f"key prefix {prefix!r} is too short; give at least 4 characters")
         shard = self.root / "jobs" / prefix[:2]

@@ -58,5 +58,10 @@ def test_the_readme_turns_a_camera_image_into_the_input_as_pilotlab_does(trained
 def test_export_errors_say_what_to_do(store, tmp_path, capsys):
     assert main(["export", "ffff", "--out", str(tmp_path / "x"), "--store", str(store)]) == 2
     assert "no job 'ffff'" in capsys.readouterr().err
+    for key in ("[a-f]*", "/etc/passwd", "../../x", "ab1*"):
+        assert main(["export", key, "--out", str(tmp_path / "x"), "--store", str(store)]) == 2
+        err = capsys.readouterr().err
+        assert "is not a job key" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x").exists()
     with pytest.raises(PilotlabError, match="not a pilotlab artifact"):
         export_artifact(tmp_path, {}, tmp_path / "y")
