@@ -50,7 +50,9 @@ def job_status(job: Job, store: Store, previous: Mapping[str, dict],
     if before is None:
         return JobStatus(job, NEW, ("new",))
     reasons = own_changes(job, before) + dependency_changes(job, before)
-    return JobStatus(job, STALE, tuple(reasons) or ("output missing or corrupt",))
+    if not reasons:   # planned as it is by the last run, which ended (or was killed) before it ran
+        return JobStatus(job, NEW, ("new",))
+    return JobStatus(job, STALE, tuple(reasons))
 
 
 def results_to_replace(statuses: list[JobStatus]) -> dict[str, str]:

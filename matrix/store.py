@@ -176,7 +176,7 @@ class Store:
         final = self.job_dir(key)
         final.parent.mkdir(parents=True, exist_ok=True)
         if final.exists():
-            shutil.rmtree(self._trash(final))
+            shutil.rmtree(self._trash(final), ignore_errors=True)
         os.replace(workdir, final)
         self.failed_path(key).unlink(missing_ok=True)
 
@@ -189,7 +189,7 @@ class Store:
     def remove(self, key: str) -> None:
         final = self.job_dir(key)
         if final.exists():
-            shutil.rmtree(self._trash(final))
+            shutil.rmtree(self._trash(final), ignore_errors=True)
         self.failed_path(key).unlink(missing_ok=True)
 
     def _trash(self, folder: Path) -> Path:

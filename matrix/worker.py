@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from matrix.errors import MatrixError
+from matrix.hostlock import host_slot
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
 from matrix.store import INTACT, LOG, Store, result_token
 
@@ -52,7 +53,8 @@ def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = (), r
         done = store.result(key)
         if done is not None and store.outputs_intact(key, done) and result_token(done) != replaces:
             return {"status": DONE_ELSEWHERE, "reason": done.get("reason", ""), "duration_s": 0.0}
-        return _run_locked(store, spec)
+        with host_slot(exclusive=KINDS.get(spec["kind"]).exclusive):   # timings: the host to itself
+            return _run_locked(store, spec)
 
 
 def _run_locked(store: Store, spec: dict) -> dict:
