@@ -82,6 +82,8 @@ def test_readme_has_the_study_shaped_tables_summary_and_plots(study_report):
     for name in ("pareto", "ratios", "closed_loop", "training"):
         assert f"](plots/{name}.png)" in readme
     assert "- **Host**: AMD EPYC 7B13, 2 cores; GPU: none" in readme
+    summary = [line for line in readme.splitlines() if line.startswith("- **")][:5]
+    assert [line.split("**")[1] for line in summary] == ["Date", "Host", "Versions", "Cells", "Baseline"], summary
     assert "pilotlab 0.1.0, torch 2.13.0, onnxruntime 1.22.0" in readme
     assert "```yaml\nname: study-2022\n" in readme
     assert "![trajectory of local_prune](trajectories/pilotnet_local_prune_cpu1_montreal_cw.png)" in readme
@@ -96,6 +98,8 @@ def test_html_is_self_contained(study_report):
     assert "Content-Security-Policy" in page and "default-src 'none'" in page
     assert not re.search(r"""(src|href)=["']?(https?:)?//""", page)                # nothing from the network
     assert page.count("<img src=\"data:image/png;base64,") == 4 + 8
+    links = re.findall(r'<a href="(trajectories/[^"]+\.png)" target="_blank"[^>]*><img src="data:', page)
+    assert len(links) == 8 and all((paths.folder / link).is_file() for link in links)   # thumbnails open full size
     assert page.count("<table class=\"sortable") == 2 + 2 + 1
     assert "not applicable: static quantization kernels need 1 thread here" in page
 
