@@ -45,3 +45,19 @@ def test_two_writers_of_one_report_both_succeed_and_leave_one_whole_report(tmp_p
     assert [p.name for p in folder.parent.iterdir() if p.name.startswith(".quickstart.") and
             not p.name.endswith(".lock")] == []
     assert "not run yet" in (folder / "README.md").read_text() or "failed" in (folder / "README.md").read_text()
+
+
+def test_a_run_writes_where_git_ignores_and_showcases_live_elsewhere():
+    """Running the quickstart in a clone must not turn it dirty: reports/ is ignored, the committed
+    showcase reports live in docs/reports/, which no recipe writes."""
+    import shutil
+
+    import pytest
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    from pilotlab.report.recipe import report_folder
+    folder = report_folder(load_recipe(QUICKSTART, DOMAIN))
+    assert folder == Path("reports") / "quickstart"
+    ignored = subprocess.run(["git", "check-ignore", "-q", str(folder / "README.md")], cwd=ROOT)
+    assert ignored.returncode == 0
+    assert (ROOT / "docs" / "reports" / "quickstart" / "README.md").is_file()
