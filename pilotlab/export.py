@@ -109,7 +109,9 @@ def export_job(store: Store, key_prefix: str, out_dir: Path) -> Path:
         raise PilotlabError(f"job {key[:12]} has no result (it failed or has not run; "
                             "`pilotlab plan RECIPE` shows each job's state and key)")
     if spec.get("kind") != "optimize":
-        raise PilotlabError(f"job {key[:12]} is a {spec.get('kind')!r} job ({spec.get('name', '')}); "
+        kind = str(spec.get("kind"))
+        raise PilotlabError(f"job {key[:12]} is {'an' if kind[:1] in 'aeiou' else 'a'} {kind!r} job "
+                            f"({spec.get('name', '')}); "
                             "export the key of an optimize job (`pilotlab plan RECIPE` lists them)")
     if stored.get("status") != "ok":
         raise PilotlabError(f"job {key[:12]} ({spec.get('name', '')}) produced no artifact: "

@@ -63,5 +63,11 @@ def test_export_errors_say_what_to_do(store, tmp_path, capsys):
         err = capsys.readouterr().err
         assert "is not a job key" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()
+    other = Store(tmp_path / "other")
+    key = "cd34" + "0" * 60
+    other.commit(key, other.new_workdir(key), {"key": key, "kind": "offline", "name": "offline x"},
+                 {"status": "ok", "reason": "", "value": {}})
+    assert main(["export", key[:6], "--out", str(tmp_path / "x"), "--store", str(other.root)]) == 2
+    assert "is an 'offline' job" in capsys.readouterr().err
     with pytest.raises(PilotlabError, match="not a pilotlab artifact"):
         export_artifact(tmp_path, {}, tmp_path / "y")
