@@ -6,6 +6,7 @@ names) to MAX_VALUES, so a few nested aliases ("billion laughs") are an error, n
 """
 from __future__ import annotations
 
+import difflib
 from pathlib import Path
 from typing import Any
 
@@ -47,10 +48,30 @@ def load_yaml(text: str, file: str = "<recipe>") -> tuple[Any, Lines]:
 def read_yaml(path: Path) -> tuple[Any, Lines, str]:
     try:
         text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise RecipeError(f"no such file{_nearby(Path(path))}", file=str(path)) from None
     except (OSError, UnicodeDecodeError) as error:
-        raise RecipeError(f"cannot read the recipe: {error}", file=str(path)) from None
+        raise RecipeError(f"cannot read the recipe: {str(error)[:300]}", file=str(path)[:300]) from None
     data, lines = load_yaml(text, str(path))
     return data, lines, text
+
+
+def _nearby(path: Path) -> str:
+    """'; did you mean recipes/x.yaml?' for YAML files near `path` with a close name (or a list)."""
+    folders = dict.fromkeys(f for f in (path.parent, path.parent / "recipes", Path("recipes")) if f.is_dir())
+    try:
+        found = [p for folder in folders for p in sorted(folder.iterdir()) if p.suffix in (".yaml", ".yml")]
+    except OSError:
+        return ""
+    by_name = {}
+    for candidate in found:
+        by_name.setdefault(candidate.name, candidate)
+    close = difflib.get_close_matches(path.name, list(by_name), n=3, cutoff=0.6)
+    if close:
+        return "; did you mean " + " or ".join(str(by_name[name]) for name in close) + "?"
+    if by_name:
+        return "; recipes nearby: " + ", ".join(str(p) for p in list(by_name.values())[:5])
+    return ""
 
 
 def _check_expansion(root: yaml.Node | None, file: str) -> None:

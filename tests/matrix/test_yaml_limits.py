@@ -47,3 +47,21 @@ def test_a_huge_document_is_refused_before_parsing():
     with pytest.raises(RecipeError, match="too large for a recipe"):
         load_yaml("x: " + "a" * (5 * 2**20))
     assert time.monotonic() - started < 2.0
+
+
+def test_a_missing_recipe_suggests_the_ones_nearby(tmp_path, monkeypatch):
+    from matrix.yamlfile import read_yaml
+    (tmp_path / "recipes").mkdir()
+    for name in ("quickstart.yaml", "study2022.yaml"):
+        (tmp_path / "recipes" / name).write_text("name: x\n")
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(RecipeError, match=r"no such file; did you mean recipes/quickstart.yaml\?"):
+        read_yaml("quickstrat.yaml")
+    with pytest.raises(RecipeError, match=r"did you mean recipes/study2022.yaml\?"):
+        read_yaml("recipes/studdy2022.yaml")
+    with pytest.raises(RecipeError, match="recipes nearby: recipes/quickstart.yaml, recipes/study2022.yaml"):
+        read_yaml("zzz.yaml")
+    (tmp_path / "empty").mkdir()
+    monkeypatch.chdir(tmp_path / "empty")
+    with pytest.raises(RecipeError, match=r"no such file$"):
+        read_yaml(str(tmp_path / "nowhere" / "x.yaml"))
