@@ -1,6 +1,4 @@
 """A checkpoint is plain data: one that would run code when unpickled is refused, never loaded."""
-import pickle
-
 import pytest
 import torch
 
@@ -66,4 +64,10 @@ def test_drive_refuses_an_artifact_whose_checkpoint_holds_a_payload(tmp_path, ca
     err = capsys.readouterr().err
     assert "refused" in err and len(err.strip().splitlines()) == 1
     assert not marker.exists()
-    assert pickle.dumps  # the payload class is importable (so weights_only=False would have run it)
+
+
+def test_the_payload_does_run_when_unpickled_without_weights_only(tmp_path):
+    """The test's payload is real: a plain torch.load (weights_only=False) runs it."""
+    marker = tmp_path / "ran"
+    torch.load(hostile_checkpoint(tmp_path / "model.pt", marker), weights_only=False)
+    assert marker.exists()
