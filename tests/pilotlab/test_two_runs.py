@@ -53,3 +53,16 @@ def test_two_runs_of_one_recipe_in_one_folder(tmp_path):
     for key, (start, end) in timing:
         for other, (_, (o_start, o_end)) in spans.items():
             assert other == key or o_end <= start or o_start >= end, (key[:8], other[:8])
+
+    # a stored model replaced by a file of the same size: stale "output changed", rebuilt, never loaded
+    train = next(key for key, (kind, _) in spans.items() if kind == "train")
+    model = store.artifacts(train) / "model.pt"
+    model.write_bytes(bytes(model.stat().st_size))
+    plan = subprocess.run([sys.executable, "-m", "pilotlab", "plan", "tiny.yaml", "--store", "store", "--json"],
+                          cwd=tmp_path, capture_output=True, text=True, env=env, timeout=300)
+    states = {row["key"]: (row["status"], row["reason"]) for row in __import__("json").loads(plan.stdout)}
+    assert states[train] == ("stale", "output changed")
+    rerun = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, env=env, timeout=900)
+    assert rerun.returncode == 0 and re.search(r"^✓ train pilotnet [\d.]+s$", rerun.stdout + rerun.stderr, re.M), \
+        rerun.stdout + rerun.stderr
+    assert model.read_bytes() != bytes(model.stat().st_size)
