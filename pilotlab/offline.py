@@ -38,9 +38,16 @@ class TimingSettings:
     mse_batch: int = 64
 
 
+LATENCY_SAMPLES = "latency_ms.npy"
+
+
 def evaluate_offline(artifact_dir: Path, hardware: HardwareProfile | dict | str, test: FrameSet,
-                     settings: TimingSettings = TimingSettings()) -> dict:
-    """Every offline metric of the artifact on `test` (see the module docstring)."""
+                     settings: TimingSettings = TimingSettings(), out: Path | None = None) -> dict:
+    """Every offline metric of the artifact on `test` (see the module docstring).
+
+    With `out`, the batch-1 latency samples (float64 ms, one per timed call, in measurement order)
+    are saved there as `latency_ms.npy`, named by the result's `latency_samples`, so a closed-loop
+    lap can replay the latency this job measured."""
     profile = resolve_profile(hardware)
     memory = PeakMemory()
     predictor = load_predictor(artifact_dir, profile)
@@ -49,7 +56,12 @@ def evaluate_offline(artifact_dir: Path, hardware: HardwareProfile | dict | str,
               "test_frames": len(test), **mse_metrics(predictor, test, frames, settings.mse_batch)}
     result.update(measure_throughput(predictor, sample_batch(test, settings.throughput_batch, frames), settings))
     result["peak_mem_mb"] = memory.peak_mb()
-    result.update(measure_latency(predictor.predict, sample_batch(test, 1, frames), settings))
+    latency = measure_latency(predictor.predict, sample_batch(test, 1, frames), settings)
+    samples = latency.pop("samples_ms")
+    result.update(latency)
+    if out is not None:
+        np.save(Path(out) / LATENCY_SAMPLES, samples)
+        result["latency_samples"] = LATENCY_SAMPLES
     return result
 
 
@@ -80,7 +92,8 @@ def warm_up(predict, batch: np.ndarray, runs: int, seconds: float) -> None:
 
 
 def measure_latency(predict, batch: np.ndarray, settings: TimingSettings = TimingSettings()) -> dict:
-    """Batch-1 latency: median, p90, p99 (ms) of individually timed calls."""
+    """Batch-1 latency: median, p90, p99 (ms) of individually timed calls, and the calls' times
+    (`samples_ms`, float64 ms in measurement order)."""
     warm_up(predict, batch, settings.warmup_runs, settings.warmup_seconds)
     clock = time.perf_counter_ns
     times: list[int] = []
@@ -96,9 +109,10 @@ def measure_latency(predict, batch: np.ndarray, settings: TimingSettings = Timin
         if len(times) >= settings.min_runs and (stable or time.perf_counter() > deadline):
             break
         previous = median
-    p50, p90, p99 = np.percentile(np.asarray(times) / 1e6, [50, 90, 99])
+    samples = np.asarray(times, np.float64) / 1e6
+    p50, p90, p99 = np.percentile(samples, [50, 90, 99])
     return {"latency_ms": float(p50), "latency_p90_ms": float(p90), "latency_p99_ms": float(p99),
-            "latency_runs": len(times)}
+            "latency_runs": len(times), "samples_ms": samples}
 
 
 def measure_throughput(predictor: Predictor, batch: np.ndarray, settings: TimingSettings = TimingSettings()) -> dict:

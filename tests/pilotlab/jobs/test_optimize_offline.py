@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import logging
 
+import numpy as np
 import pytest
 
 import pilotlab.jobs.offline  # noqa: F401  (registers the kind)
@@ -49,6 +50,9 @@ def test_optimize_then_offline(tmp_path, trained, frames, test_frames):
     assert {"mse", "mse_v", "mse_w", "latency_ms", "throughput_ips", "size_mb", "peak_mem_mb"} <= set(metrics)
     assert set(metrics) - {"strategy", "hardware", "host"} <= set(BY_NAME)
     assert metrics["host"] == host_fingerprint() and metrics["threads"] == 1 and json.dumps(metrics)
+    samples = np.load(offline.out / metrics["latency_samples"])
+    assert samples.dtype == np.float64 and samples.shape == (metrics["latency_runs"],)
+    assert np.median(samples) == pytest.approx(metrics["latency_ms"])
 
 
 def test_offline_refuses_to_time_for_another_host(tmp_path, trained, frames, test_frames):
