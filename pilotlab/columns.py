@@ -30,7 +30,6 @@ OFFLINE = (
     Column("latency_p90_ms", "ms", "batch-1 latency, 90th percentile", "lower"),
     Column("latency_p99_ms", "ms", "batch-1 latency, 99th percentile", "lower"),
     Column("latency_runs", "", "timed batch-1 runs behind the latency figures"),
-    Column("latency_samples", "", "file in the job's artifacts with every timed batch-1 call (float64 ms, in order)"),
     Column("throughput_ips", "images/s", "throughput at the larger batch", "higher"),
     Column("throughput_batch", "", "batch size of the throughput measurement"),
     Column("peak_mem_mb", "MB", "peak resident memory added by loading and running the artifact", "lower"),
