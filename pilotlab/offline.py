@@ -66,9 +66,10 @@ def evaluate_offline(artifact_dir: Path, hardware: HardwareProfile | dict | str,
                      settings: TimingSettings = TimingSettings(), out: Path | None = None) -> dict:
     """Every offline metric of the artifact on `test` (see the module docstring).
 
-    With `out`, the batch-1 latency samples (float64 ms, one per timed call, in measurement order)
-    are saved there as `latency_ms.npy`, named by the result's `latency_samples`, so a closed-loop
-    lap can replay the latency this job measured."""
+    With `out`, the batch-1 latency samples (float64 ms, one per timed call the latency is made of:
+    the clean calls, or every call when unstable; in measurement order) are saved there as
+    `latency_ms.npy`, named by the result's `latency_samples`, so a closed-loop lap can replay the
+    latency this job measured."""
     profile = resolve_profile(hardware)
     memory = PeakMemory()
     predictor = load_predictor(artifact_dir, profile)
