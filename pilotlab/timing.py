@@ -1,10 +1,10 @@
 """Timing that interference cannot silently inflate.
 
 Each call is timed with perf_counter_ns and, on Linux, paired with how long this process's threads
-waited for a CPU during it (the run-queue wait, `run_delay` in /proc/self/task/*/schedstat): time
-another process, or the hypervisor, held a core one of our threads was ready to run on. A call whose
-threads waited more than a sliver of its wall time is *disturbed*; the figure is the median of the
-clean calls. Calls run in blocks of at least `block_seconds`; around each block the process's CPU time
+waited for a CPU around it (the run-queue wait, `run_delay` in /proc/self/task/*/schedstat): time
+another process, or the hypervisor, held a core one of our threads was ready to run on. A call that
+such a wait overlapped (more than a sliver of its wall time) is *disturbed*, even when the waiting
+thread was a worker the call went on without; the figure is the median of the clean calls. Calls run in blocks of at least `block_seconds`; around each block the process's CPU time
 and the busy and steal time of our cores (/proc/stat) say how many cores other processes used, which
 the result reports (and, where per-thread waits cannot be read, decides whether the block is clean).
 
@@ -124,10 +124,10 @@ class Measurement:
         load = self.summary()
         others = "" if load["others_cores"] is None else (
             f"; other processes used {load['others_cores']:.2f} of {self.cores} cores"
-            + (f" (steal {load['steal_cores']:.2f})" if load["steal_cores"] else "")
+            + (f" (steal {load['steal_cores']:.2f})" if (load["steal_cores"] or 0) >= 0.005 else "")
             + f" beside the {self.needed_cores} this timing needs")
-        return (f"only {self.clean_calls} of {self.calls} calls ({100 * share:.0f} %) ran without waiting for a CPU "
-                f"in {seconds:.1f} s of measuring and re-measuring{others}")
+        return (f"only {self.clean_calls} of {self.calls} calls ({100 * share:.0f} %) ran with no thread of this "
+                f"process waiting for a CPU in {seconds:.1f} s of measuring and re-measuring{others}")
 
     def summary(self) -> dict:
         """How the figure was measured: blocks, calls set aside, this process's CPU time over wall time,
@@ -182,20 +182,41 @@ def timed_block(call: Callable[[], object], seconds: float, needed_cores: int, l
 
 def _timed_calls(call: Callable[[], object], waits: ThreadWaits, limits: Limits, seconds: float = 0.0,
                  count: int = 0) -> tuple[list[int], list[bool]]:
+    """Each call's wall time, and whether it is clean: no wait of our threads overlapped it."""
     clock = time.perf_counter_ns
-    times, clean = [], []
+    begins, ends, waited = [], [], []
     end = clock() + int(seconds * 1e9)
-    waited = waits.total()
+    total = waits.total()
     while True:
         begin = clock()
         call()
         finished = clock()
         now = waits.total()
-        times.append(finished - begin)
-        clean.append(now - waited <= limits.max_wait_ns + limits.max_wait_share * (finished - begin))
-        waited = now
-        if finished >= end and len(times) >= count:
-            return times, clean
+        begins.append(begin)
+        ends.append(finished)
+        waited.append(now - total)
+        total = now
+        if finished >= end and len(ends) >= count:
+            times = [e - b for b, e in zip(begins, ends)]
+            return times, clean_calls(np.asarray(begins), np.asarray(ends), np.asarray(waited), limits)
+
+
+def clean_calls(begins: np.ndarray, ends: np.ndarray, waited: np.ndarray, limits: Limits) -> list[bool]:
+    """Which calls no wait of our threads overlapped.
+
+    A thread's run-queue wait is counted only once the thread runs again, so a wait read after call j
+    (`waited[j]`, ns) may have begun before call j: up to `waited[j]` before the previous reading.
+    Every call that overlaps that span is marked, unless the wait is a sliver of its wall time (a woken
+    worker thread waits a few µs on an idle machine)."""
+    clean = np.ones(len(ends), bool)
+    previous = np.concatenate([begins[:1], ends[:-1]])
+    walls = ends - begins
+    for j in np.flatnonzero(waited > limits.max_wait_ns):
+        start = previous[j] - waited[j]
+        first = int(np.searchsorted(ends, start))           # the first call that ends after the wait began
+        span = slice(first, j + 1)
+        clean[span] &= waited[j] <= limits.max_wait_ns + limits.max_wait_share * walls[span]
+    return clean.tolist()
 
 
 def block_is_quiet(load: Load, needed_cores: int, cores: int, limits: Limits = Limits()) -> bool:
