@@ -38,7 +38,8 @@ OFFLINE = (
     Column("peak_mem_mb", "MB", "peak resident memory added by loading and running the artifact", "lower"),
     Column("threads", "", "CPU threads used"),
     Column("timing_blocks", "", "blocks of timed batch-1 calls behind the latency (each at least 0.2 s)"),
-    Column("timing_calls_discarded", "", "batch-1 calls set aside (their threads waited for a CPU) and re-measured"),
+    Column("timing_calls_discarded", "", "batch-1 calls a wait for a CPU overlapped: set aside and re-measured "
+                                         "(kept in an unstable figure)"),
     Column("timing_cpu_per_wall", "", "this process's CPU time over wall time while timing the latency"),
     Column("timing_other_cores", "", "cores used by other processes (and steal) while timing the latency"),
     Column("timing_steal_cores", "", "cores taken by the hypervisor (steal) while timing the latency"),

@@ -76,7 +76,7 @@ class Load:
 @dataclass
 class Block:
     times_ns: list[int]
-    clean: list[bool]                 # per call: its threads did not wait for a CPU
+    clean: list[bool]                 # per call: no wait of our threads for a CPU overlapped it
     reference_ns: list[int]
     reference_clean: list[bool]
     load: Load

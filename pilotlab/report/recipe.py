@@ -69,7 +69,8 @@ def _row(job, store: Store) -> dict[str, Any]:
 
 def row_from_result(result: dict[str, Any], artifacts: Path) -> dict[str, Any]:
     """The report fields of a finished job: status (and reason), its metrics, their spread over
-    repeated laps (online jobs), the timings that stayed disturbed (offline jobs), and the trajectory picture, a path under the job's `artifacts`."""
+    repeated laps (online jobs), the timings that stayed disturbed (offline jobs), and the
+    trajectory picture, a path under the job's `artifacts`."""
     if result["status"] != "ok":
         return {"status": result["status"], "reason": result.get("reason") or "?"}
     value = result.get("value", {})
