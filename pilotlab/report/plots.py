@@ -150,11 +150,12 @@ def _ratio_bar(ax, row: ReportRow, base: ReportRow | None, metric: str, position
                  "not_run": "not run yet"}.get(row.status, "not measured")
         ax.text(0.05, position, label, ha="left", va="center", fontsize=8, color="0.35", style="italic")
         return
+    if metric in TIMED and timing_issue([base, row], metric) is not None:    # no bar drawn from it
+        ax.text(0.05, position, "⚠ unstable timing", ha="left", va="center", fontsize=8, color="0.35", style="italic")
+        return
     colour = matplotlib.colormaps["Set2"](index % 8)
-    untrusted = metric in TIMED and timing_issue([base, row], metric) is not None
-    bar = ax.barh(position, base.get(metric) / row.get(metric), height, color=colour, edgecolor="black", lw=0.5,
-                  hatch="///" if untrusted else None, alpha=0.45 if untrusted else 1.0)
-    ax.bar_label(bar, fmt="%.2f× ⚠ unstable" if untrusted else "%.2f×", fontsize=8, padding=3)
+    bar = ax.barh(position, base.get(metric) / row.get(metric), height, color=colour, edgecolor="black", lw=0.5)
+    ax.bar_label(bar, fmt="%.2f×", fontsize=8, padding=3)
 
 
 def draw_ratios(data: ReportData) -> Figure | None:
@@ -232,7 +233,8 @@ PLOTS: dict[str, Callable[[ReportData], Figure | None]] = {
 CAPTIONS = {
     "pareto": "Latency vs MSE per hardware: the dashed line is the Pareto front, marker area is the model size, "
               "whiskers the latency's 10th–90th percentile; a hollow marker is an unstable timing.",
-    "ratios": "Size reduction and speed-up of each strategy against the baseline (n/a: not applicable).",
+    "ratios": "Size reduction and speed-up of each strategy against the baseline (no bar where a timing was "
+              "unstable or the strategy not applicable).",
     "closed_loop": "Closed-loop laps: average speed against position deviation; a cross marks a lost lap.",
     "training": "Training and validation loss per epoch for each model.",
 }
