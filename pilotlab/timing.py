@@ -120,13 +120,14 @@ class Measurement:
         if self.stable:
             return None
         seconds = sum(b.load.seconds for b in self.blocks)
-        share = self.clean_calls / max(1, self.calls)
+        share = 100 * self.clean_calls / max(1, self.calls)
+        share_text = "<1" if 0 < share < 1 else f"{share:.0f}"
         load = self.summary()
         others = "" if load["others_cores"] is None else (
             f"; other processes used {load['others_cores']:.2f} of {self.cores} cores"
             + (f" (steal {load['steal_cores']:.2f})" if (load["steal_cores"] or 0) >= 0.005 else "")
             + f" beside the {self.needed_cores} this timing needs")
-        return (f"only {self.clean_calls} of {self.calls} calls ({100 * share:.0f} %) ran with no thread of this "
+        return (f"only {self.clean_calls} of {self.calls} calls ({share_text} %) ran with no thread of this "
                 f"process waiting for a CPU in {seconds:.1f} s of measuring and re-measuring{others}")
 
     def summary(self) -> dict:
