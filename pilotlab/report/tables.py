@@ -249,8 +249,8 @@ def timing_method(rows: list[ReportRow]) -> str:
     batches = sorted({int(r.get("throughput_batch")) for r in timed if r.get("throughput_batch")})
     if batches:
         line += f", throughput the batch of {'/'.join(map(str, batches))} over the median time of its calls"
-    line += ", each with its 10th–90th percentile; calls during which this process's threads waited for a CPU " \
-            "were set aside and re-measured"
+    line += ", each with its 10th–90th percentile; calls that a wait of this process's threads for a CPU may " \
+            "have overlapped were set aside and re-measured"
     discarded = sum(int(r.get("timing_calls_discarded") or 0) for r in timed)
     others = [r.get("timing_other_cores") for r in timed if r.get("timing_other_cores") is not None]
     if others:
