@@ -6,7 +6,8 @@ another process, or the hypervisor, held a core one of our threads was ready to 
 such a wait overlapped (more than a sliver of its wall time) is *disturbed*, even when the waiting
 thread was a worker the call went on without; the figure is the median of the clean calls. Calls run in blocks of at least `block_seconds`; around each block the process's CPU time
 and the busy and steal time of our cores (/proc/stat) say how many cores other processes used, which
-the result reports (and, where per-thread waits cannot be read, decides whether the block is clean).
+the result reports; where per-thread waits cannot be read (no schedstat, not Linux), a block is clean
+when this process was on a CPU at least 90 % of its wall time and others left the cores it needs.
 
 Disturbed calls are re-measured, up to `attempts` times the time budget. A figure is *stable* when at
 least `min_calls` clean calls were had and they make at least `min_clean_share` of the calls (so a
@@ -42,6 +43,7 @@ class Limits:
     max_wait_ns: int = 20_000         # ... plus this much (a woken worker thread waits a few µs when quiet)
     min_clean_share: float = 0.25     # clean calls over all calls, for a stable figure
     max_other_cores: float = 0.3      # without per-thread waits: cores others may take beyond the free ones
+    min_cpu_per_wall: float = 0.9     # ... and this process's CPU time over wall time (0 where it waits on a GPU)
 
 
 @dataclass(frozen=True)
@@ -221,10 +223,11 @@ def clean_calls(begins: np.ndarray, ends: np.ndarray, waited: np.ndarray, limits
 
 
 def block_is_quiet(load: Load, needed_cores: int, cores: int, limits: Limits = Limits()) -> bool:
-    """Where per-thread waits cannot be read: other processes left the cores the timing needs."""
-    if load.others_cores is None:
-        return True
-    return load.others_cores <= max(0, cores - needed_cores) + limits.max_other_cores
+    """Where per-thread waits cannot be read: this process was on a CPU nearly all the block, and other
+    processes (where /proc/stat says) left the cores the timing needs."""
+    if load.cpu_per_wall < limits.min_cpu_per_wall:
+        return False
+    return load.others_cores is None or load.others_cores <= max(0, cores - needed_cores) + limits.max_other_cores
 
 
 class ThreadWaits:

@@ -50,10 +50,12 @@ def test_a_wait_marks_every_call_it_may_have_overlapped():
     assert all(long_calls)                                     # 2.5 ms is a sliver of a 1 s call
 
 
-def test_without_per_thread_waits_a_block_is_judged_by_the_cores_others_used():
+def test_without_per_thread_waits_a_block_is_judged_by_its_cpu_time_and_the_cores_others_used():
     assert timing.block_is_quiet(QUIET, needed_cores=2, cores=2)
     assert not timing.block_is_quiet(BUSY, needed_cores=2, cores=2)
     assert timing.block_is_quiet(Load(0.2, 1.0, 1.2, 0.0), needed_cores=1, cores=2)   # one core is free for them
+    assert not timing.block_is_quiet(Load(0.2, 0.6, None, None), needed_cores=1, cores=2)  # off the CPU 40 %
+    assert timing.block_is_quiet(Load(0.2, 0.6, None, None), 1, 2, Limits(min_cpu_per_wall=0.0))  # waits on a GPU
 
 
 def test_two_timings_are_compared_only_with_the_machine_in_the_same_state():
