@@ -4,9 +4,11 @@ Each call is timed with perf_counter_ns and, on Linux, paired with how long this
 waited for a CPU around it (the run-queue wait, `run_delay` in /proc/self/task/*/schedstat): time
 another process, or the hypervisor, held a core one of our threads was ready to run on. A call that
 such a wait overlapped (more than a sliver of its wall time) is *disturbed*, even when the waiting
-thread was a worker the call went on without; the figure is the median of the clean calls. Calls run in blocks of at least `block_seconds`; around each block the process's CPU time
-and the busy and steal time of our cores (/proc/stat) say how many cores other processes used, which
-the result reports; where per-thread waits cannot be read (no schedstat, not Linux), a block is clean
+thread was a worker the call went on without; the figure is the median of the clean calls.
+
+Calls run in blocks of at least `block_seconds`; around each block the process's CPU time and the
+busy and steal time of our cores (/proc/stat) say how many cores other processes used, which the
+result reports; where per-thread waits cannot be read (no schedstat, not Linux), a block is clean
 when this process was on a CPU at least 90 % of its wall time and others left the cores it needs.
 
 Disturbed calls are re-measured, up to `attempts` times the time budget. A figure is *stable* when at
