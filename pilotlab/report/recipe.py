@@ -24,7 +24,7 @@ from matrix.fingerprint import code_fingerprint
 from matrix.recipe import Recipe
 from matrix.store import Store, read_json, result_token
 from pilotlab.errors import PilotlabError
-from pilotlab.report.data import Claim, Host, ReportData, package_versions, pick_metrics, pick_spread
+from pilotlab.report.data import Claim, Host, ReportData, package_versions, pick_metrics, pick_spread, pick_unstable
 from pilotlab.report.studies import compare
 
 STAMP = ".stamp"
@@ -111,13 +111,16 @@ def _row(job, store: Store) -> dict[str, Any]:
 
 def row_from_result(result: dict[str, Any], artifacts: Path) -> dict[str, Any]:
     """The report fields of a finished job: status (and reason), its metrics, their spread over
-    repeated laps (online jobs), and the trajectory picture, a path under the job's `artifacts`."""
+    repeated laps (online jobs), the timings that stayed disturbed (offline jobs), and the
+    trajectory picture, a path under the job's `artifacts`."""
     if result["status"] != "ok":
         return {"status": result["status"], "reason": result.get("reason") or "?"}
     value = result.get("value", {})
     row = {"status": "ok", **pick_metrics(value)}
     if spread := pick_spread(value):
         row["spread"] = spread
+    if unstable := pick_unstable(value):
+        row["unstable"] = unstable
     if value.get("trajectory"):
         row["trajectory"] = str(artifacts / value["trajectory"])
     return row
