@@ -90,6 +90,7 @@ class NetworkBrain:
             raise PilotlabError(f"artifact {meta.strategy}: its artifact.json has no label ranges; "
                                 "rerun the optimize job on a checkpoint written by the train job")
         self.ranges = LabelRanges.from_dict(meta.labels)
+        self.label_ranges = self.ranges.as_dict()   # BehaviorMetrics' suddenness is on normalised outputs
         self.config = PreprocessConfig.from_params(meta.preprocess)
         self.frames = self._check_input(meta)
         interval = frame_interval_s or meta.preprocess.get("frame_interval_s") or DEFAULT_FRAME_INTERVAL_S

@@ -132,7 +132,8 @@ def drive(env: DrivingEnv, brain: Brain, settings: DriveSettings, *, start: floa
     clock = CLOCKS[settings.timing](env, settings)
     builder = TrajectoryBuilder(env.circuit.length, {
         "circuit": env.circuit.name, "direction": env.circuit.direction, "start_m": float(start),
-        "brain": brain.name, **{k: getattr(settings, k) for k in DriveSettings.model_fields}})
+        "brain": brain.name, "label_ranges": getattr(brain, "label_ranges", None),
+        **{k: getattr(settings, k) for k in DriveSettings.model_fields}})
     measured, previous, total = [], tuple(info["command"]), env.laps * env.circuit.length
     wall0 = clock.wall0 = clock.cycle_start = time.perf_counter()
     builder.sample(info, 0.0)

@@ -19,10 +19,12 @@ from typing import Any
 import numpy as np
 
 from pilotlab.circuits import Circuit
+from pilotlab.online.bm_metrics import BM_METRICS, bm_run_metrics
 from pilotlab.online.brains import Brain
 from pilotlab.online.drive import drive
 from pilotlab.online.media import CameraRecorder, plot_trajectories
-from pilotlab.online.metrics import aggregate, run_metrics
+from pilotlab.online.metrics import METRICS, aggregate, run_metrics
+from pilotlab.online.perfect_lap import perfect_lap
 from pilotlab.online.trajectory import Trajectory, save_csv, save_npz
 from pilotlab.sim.camera import CameraSpec
 from pilotlab.sim.env import DrivingEnv
@@ -72,14 +74,19 @@ def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | No
     return trajectories, media, env.circuit
 
 
-def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None) -> dict[str, Any]:
-    """Drive, measure, and write the files; returns the result (see the module docstring)."""
+def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None,
+                    checkpoints=None) -> dict[str, Any]:
+    """Drive, measure, and write the files; returns the result (see the module docstring). The
+    BehaviorMetrics-compatible metrics are scored against `checkpoints` (default: the expert's lap on
+    the same circuit and direction, `pilotlab.online.perfect_lap`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
+    if checkpoints is None:
+        checkpoints = perfect_lap(spec.circuit, spec.direction)
     trajectories, media, circuit = run_all(brain, spec, out, progress)
-    runs = [run_metrics(t) for t in trajectories]
-    means, spread = aggregate(runs)
+    runs = [{**run_metrics(t), **bm_run_metrics(t, checkpoints)} for t in trajectories]
+    means, spread = aggregate(runs, METRICS + BM_METRICS)
     save_npz(trajectories, out / "trajectory.npz")
     save_csv(trajectories, out / "trajectory.csv")
     title = picture_title(brain.name, spec, means, len(trajectories))
@@ -87,6 +94,7 @@ def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: Progres
     return {**means, "spread": spread, "runs": [run_summary(t, m) for t, m in zip(trajectories, runs)],
             "repetitions": len(trajectories), "brain": brain.name, "circuit": spec.circuit,
             "direction": spec.direction, "circuit_length_m": round(circuit.length, 3), "laps": spec.laps,
+            "perfect_lap_checkpoints": len(checkpoints),
             "timeout_s": trajectories[0].meta["timeout_s"], **_drive_settings(spec),
             "measured_inference_ms": float(np.mean([t.meta["measured_inference_ms"] for t in trajectories])),
             "trajectory": "trajectory.png", "trajectory_data": "trajectory.npz", "trajectory_csv": "trajectory.csv",

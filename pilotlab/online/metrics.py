@@ -137,18 +137,20 @@ def run_metrics(trajectory: Trajectory) -> dict[str, Any]:
     return {name: function(trajectory) for name, function in FUNCTIONS.items()}
 
 
-def aggregate(runs: Sequence[dict[str, Any]]) -> tuple[dict[str, Any], dict[str, dict[str, float]]]:
+def aggregate(runs: Sequence[dict[str, Any]], names: Sequence[str] = METRICS
+              ) -> tuple[dict[str, Any], dict[str, dict[str, float]]]:
     """(mean, spread) over repetitions. The mean of each metric is over the runs that have it
     (lap_seconds: over the completed laps); `lap_completed` is True only when every run completed
     its lap. The spread gives std (sample standard deviation; 0 for one run), min and max, and for
-    lap_completed the number of runs that completed."""
+    lap_completed the number of runs that completed. `names`: the metrics to aggregate (BehaviorMetrics'
+    `bm_` ones too; `bm_lap_completed` as lap_completed)."""
     means: dict[str, Any] = {}
     spread: dict[str, dict[str, float]] = {}
-    for name in METRICS:
+    for name in names:
         values = [run[name] for run in runs if run.get(name) is not None]
         if not values:
             continue
-        if name == "lap_completed":
+        if name.endswith("lap_completed"):
             means[name] = all(values) and len(values) == len(runs)
             spread[name] = {"completed": sum(bool(v) for v in values), "runs": len(runs)}
             continue

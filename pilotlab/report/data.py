@@ -264,7 +264,8 @@ class ReportData(_Frozen):
     def spread_columns(self) -> list[str]:
         """The result columns after the metrics: repetitions and repetitions_completed, then std, min and
         max of each metric that some row measured more than once (columns.py order)."""
-        measured = {name for row in self.rows for name in BY_NAME if row.spread_of(name)} - {"lap_completed"}
+        measured = {name for row in self.rows for name in BY_NAME if row.spread_of(name)} - {"lap_completed",
+                                                                                             "bm_lap_completed"}
         stats = [f"{name}_{stat}" for name in BY_NAME if name in measured for stat in ("std", "min", "max")]
         return ["repetitions", "repetitions_completed", *stats]
 

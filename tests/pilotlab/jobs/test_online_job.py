@@ -6,7 +6,7 @@ import pytest
 
 import pilotlab.jobs.online  # noqa: F401  (registers the kind)
 from matrix.kinds import KINDS, DepResult, NotApplicable
-from pilotlab.columns import ONLINE
+from pilotlab.columns import BEHAVIORMETRICS, ONLINE
 from pilotlab.errors import PilotlabError
 from pilotlab.hardware import host_fingerprint
 from pilotlab.online.trajectory import load_npz
@@ -43,7 +43,8 @@ def test_an_artifact_drives_from_two_start_points(tmp_path, artifact_dep):
     assert starts[0] == 0.0 and starts[1] == pytest.approx(result["circuit_length_m"] / 2, abs=1e-3)
     measured = set(pick_metrics(result))
     assert {"completed_distance_m", "position_deviation_mae_m", "brain_frequency_sim_hz", "mean_inference_ms",
-            "real_time_factor", "off_road_events"} <= measured <= {c.name for c in ONLINE}
+            "real_time_factor", "off_road_events", "bm_percentage_completed", "bm_position_deviation_mae",
+            "bm_suddenness"} <= measured <= {c.name for c in ONLINE + BEHAVIORMETRICS}
     assert result["mean_inference_ms"] == pytest.approx(5.0) and result["measured_inference_ms"] > 0
     assert result["spread"]["completed_distance_m"]["runs"] == 2
     assert (ctx.out / result["trajectory"]).stat().st_size > 10_000
