@@ -1,8 +1,8 @@
 """An online evaluation: one brain, one circuit and direction, one or more runs from different start
 points; metrics per run, their mean and spread, the trajectory data and pictures.
 
-    spec = OnlineSpec(circuit="simple_circuit", repetitions=3, timing="latency")   # pilotlab.specs.online
-    result = evaluate_online(brain, spec, out_dir)
+    spec = OnlineSpec(circuit="simple_circuit", repetitions=3, timing="replay")   # pilotlab.specs.online
+    result = evaluate_online(brain, spec, out_dir, latency_ms=samples)   # samples: pilotlab.online.latency
     result["position_deviation_mae_m"], result["spread"]["position_deviation_mae_m"]["std"]
 
 Files written into `out_dir`: trajectory.png (every run over the circuit, coloured by speed),
@@ -51,7 +51,7 @@ def make_env(spec: OnlineSpec, camera: bool) -> DrivingEnv:
                       timeout_s=spec.timeout_s, stop_off_road=spec.stop_off_road, trapped_s=spec.trapped_s)
 
 
-def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None
+def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None, latency_ms=None
             ) -> tuple[list[Trajectory], dict[str, Any], Circuit]:
     """Drive every repetition; returns the trajectories, the media written and the circuit driven."""
     wants_media = bool(spec.video or spec.camera_frames)
@@ -67,7 +67,8 @@ def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | No
             report = None if progress is None else (lambda done, total, what=what: progress(done, total, what))
             trajectories.append(drive(env, brain, spec, start=start, seed=spec.seed + i,
                                       render=brain.needs_camera or (wants_media and i == 0),
-                                      on_frame=recorder if i == 0 else None, progress=report))
+                                      on_frame=recorder if i == 0 else None, progress=report,
+                                      latency_ms=latency_ms))
     finally:
         env.close()
         media = recorder.close() if recorder else {}
@@ -75,16 +76,17 @@ def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | No
 
 
 def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None,
-                    checkpoints=None) -> dict[str, Any]:
+                    checkpoints=None, latency_ms=None) -> dict[str, Any]:
     """Drive, measure, and write the files; returns the result (see the module docstring). The
     BehaviorMetrics-compatible metrics are scored against `checkpoints` (default: the expert's lap on
-    the same circuit and direction, `pilotlab.online.perfect_lap`)."""
+    the same circuit and direction, `pilotlab.online.perfect_lap`); `latency_ms`: the samples the
+    replay timing mode draws from."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     if checkpoints is None:
         checkpoints = perfect_lap(spec.circuit, spec.direction)
-    trajectories, media, circuit = run_all(brain, spec, out, progress)
+    trajectories, media, circuit = run_all(brain, spec, out, progress, latency_ms)
     runs = [{**run_metrics(t), **bm_run_metrics(t, checkpoints)} for t in trajectories]
     means, spread = aggregate(runs, METRICS + BM_METRICS)
     save_npz(trajectories, out / "trajectory.npz")

@@ -17,24 +17,29 @@ from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, Spec
 from pilotlab.specs.offline import gpu_resources
 
 
+# the timing modes that charge the brain's time to the lap (pilotlab.online.drive explains all four)
+CHARGED = ("replay", "measured")
+
+
 class DriveSettings(Spec):
     """How simulated time advances around the brain (pilotlab.online.drive explains the modes)."""
-    timing: Literal["latency", "lockstep", "realtime"] = Field(
-        "latency", description="latency: each measured inference time passes in simulated time with the previous "
-                               "command in force; lockstep: the world waits for the brain; realtime: simulated "
-                               "time follows the wall clock")
+    timing: Literal["replay", "measured", "lockstep", "realtime"] = Field(
+        "replay", description="replay: each inference time, drawn from latencies measured once (the offline job's, "
+                              "or a device's latency file), passes in simulated time with the previous command in "
+                              "force; measured: the same with this host's wall clock; lockstep: the world waits "
+                              "for the brain; realtime: simulated time follows the wall clock")
     control_hz: float = Field(CONTROL_HZ, gt=0, le=1000, description="brain iterations per simulated second when "
                                                                      "the brain keeps up")
     extra_latency_ms: float = Field(0.0, ge=0, le=60_000, description="artificial latency added to every brain "
                                                                       "iteration (a slower network)")
-    fixed_inference_ms: float | None = Field(None, ge=0, le=60_000, description="latency timing: charge this "
-                                             "instead of the measured brain time (exactly reproducible runs)")
+    fixed_inference_ms: float | None = Field(None, ge=0, le=60_000, description="replay and measured timing: charge "
+                                             "this instead of the brain's time (\"what if it took X ms\")")
 
     @model_validator(mode="after")
-    def _fixed_needs_latency(self):
-        if self.fixed_inference_ms is not None and self.timing != "latency":
-            raise ValueError(f"fixed_inference_ms only means something in the latency timing mode, not "
-                             f"{self.timing!r}")
+    def _fixed_needs_a_charged_mode(self):
+        if self.fixed_inference_ms is not None and self.timing not in CHARGED:
+            raise ValueError(f"fixed_inference_ms only means something in the {' and '.join(CHARGED)} timing "
+                             f"modes, not {self.timing!r}")
         return self
 
     @property
