@@ -25,6 +25,7 @@ from pilotlab.online.drive import drive
 from pilotlab.online.media import CameraRecorder, plot_trajectories
 from pilotlab.online.metrics import METRICS, aggregate, run_metrics
 from pilotlab.online.perfect_lap import perfect_lap
+from pilotlab.online.tolerance import cell_tolerance
 from pilotlab.online.trajectory import Trajectory, save_csv, save_npz
 from pilotlab.sim.camera import CameraSpec
 from pilotlab.sim.env import DrivingEnv
@@ -76,11 +77,12 @@ def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | No
 
 
 def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None,
-                    checkpoints=None, latency_ms=None) -> dict[str, Any]:
+                    checkpoints=None, latency_ms=None, tolerance=None) -> dict[str, Any]:
     """Drive, measure, and write the files; returns the result (see the module docstring). The
     BehaviorMetrics-compatible metrics are scored against `checkpoints` (default: the expert's lap on
     the same circuit and direction, `pilotlab.online.perfect_lap`); `latency_ms`: the samples the
-    replay timing mode draws from."""
+    replay timing mode draws from; `tolerance` (a ToleranceSettings): also search the cell's latency
+    tolerance (pilotlab.online.tolerance) from the first run."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
@@ -89,6 +91,8 @@ def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: Progres
     trajectories, media, circuit = run_all(brain, spec, out, progress, latency_ms)
     runs = [{**run_metrics(t), **bm_run_metrics(t, checkpoints)} for t in trajectories]
     means, spread = aggregate(runs, METRICS + BM_METRICS)
+    if tolerance is not None:
+        means |= cell_tolerance(brain, spec, tolerance, trajectories[0], checkpoints, latency_ms, progress)
     save_npz(trajectories, out / "trajectory.npz")
     save_csv(trajectories, out / "trajectory.csv")
     title = picture_title(brain.name, spec, means, len(trajectories))
