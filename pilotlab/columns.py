@@ -80,4 +80,10 @@ BEHAVIORMETRICS = (
     Column("bm_suddenness", "", "BehaviorMetrics: mean change between consecutive normalised outputs", "lower"),
 )
 
-BY_NAME = {c.name: c for c in OFFLINE + ONLINE + BEHAVIORMETRICS}
+# The latency tolerance search of a lap cell (pilotlab.online.tolerance).
+TOLERANCE = (
+    Column("latency_tolerance_ms", "ms", "largest injected latency (5 ms steps, 0-1000 ms) at which the lap is "
+           "still completed", "higher"),
+)
+
+BY_NAME = {c.name: c for c in OFFLINE + ONLINE + BEHAVIORMETRICS + TOLERANCE}

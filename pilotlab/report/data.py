@@ -105,6 +105,16 @@ class Spread(_Frozen):
         return None if _unmeasured(value) else value
 
 
+class TolerancePoint(_Frozen):
+    """One lap of a latency tolerance search (pilotlab.online.tolerance): the online job's
+    `tolerance_laps[i]` (other keys are ignored)."""
+    model_config = ConfigDict(frozen=True, extra="ignore")
+    injected_ms: float
+    lap_completed: bool
+    position_deviation_mae_m: float | None = None
+    bm_position_deviation_mae: float | None = None
+
+
 class Claim(_Frozen):
     """A published claim checked against this report's figures (pilotlab.report.studies)."""
     claim: str
@@ -128,6 +138,8 @@ class ReportRow(_Frozen):
     trajectory: Path | None = None           # online rows: PNG of the path over the red line
     spread: dict[str, Spread] = Field(default_factory=dict)  # online rows: metric -> its spread over runs
     unstable: dict[str, str] = Field(default_factory=dict)   # offline rows: timed metric -> why it is unstable
+    tolerance: tuple[TolerancePoint, ...] = ()              # online rows: the laps of the tolerance search
+    tolerance_at_least: bool = False         # the lap was still completed at the search's largest latency
 
     @model_validator(mode="before")
     @classmethod

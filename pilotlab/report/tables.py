@@ -194,9 +194,29 @@ def online_cells(row: ReportRow, _baseline: ReportRow | None) -> tuple[Cell, ...
     return (lap_cell(row),) + tuple(metric_cell(row, name) for _, name in ONLINE_COLUMNS)
 
 
+TOLERANCE_HEADER = "Latency tolerance (ms)"
+
+
+def tolerance_cell(row: ReportRow) -> Cell:
+    """The largest injected latency at which the lap is still completed: `140`, `≥ 1000` (never lost
+    in the searched range) or `lost at 0` (lost with nothing injected)."""
+    value, title = row.get("latency_tolerance_ms"), "latency_tolerance_ms: " + BY_NAME["latency_tolerance_ms"].doc
+    if value is None:
+        lost = row.status == "ok" and row.tolerance and not row.tolerance[0].lap_completed
+        return Cell("lost at 0", -1.0, title) if lost else Cell(MISSING, None, title + ": not searched", missing=True)
+    return Cell(("≥ " if row.tolerance_at_least else "") + f"{value:.0f}", float(value), title)
+
+
+def online_cells_with_tolerance(row: ReportRow, baseline: ReportRow | None) -> tuple[Cell, ...]:
+    return online_cells(row, baseline) + (tolerance_cell(row),)
+
+
 def build_tables(data: ReportData, kind: str) -> list[Table]:
-    """One table per (hardware, test set) offline or (hardware, circuit and direction) online."""
+    """One table per (hardware, test set) offline or (hardware, circuit and direction) online; the
+    simulation tables get a latency tolerance column where some lap searched it."""
     headers, cells_of = (OFFLINE_HEADERS, offline_cells) if kind == "offline" else (ONLINE_HEADERS, online_cells)
+    if kind == "online" and any(row.tolerance for row in data.of_kind("online")):
+        headers, cells_of = headers + (TOLERANCE_HEADER,), online_cells_with_tolerance
     groups: dict[tuple[str, str], list[ReportRow]] = {}
     for row in data.of_kind(kind):
         groups.setdefault((row.hardware, row.place), []).append(row)
