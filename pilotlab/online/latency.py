@@ -92,3 +92,21 @@ class LatencyDraws:
 
     def next_s(self) -> float:
         return float(self.samples_ms[self.rng.integers(len(self.samples_ms))]) / 1000.0
+
+
+def scale_to(samples_ms: np.ndarray, reference_ms: np.ndarray, target_ms: float) -> tuple[np.ndarray, float]:
+    """`samples_ms` on a device k× slower than the one measured, k chosen so the reference's median
+    becomes `target_ms` (the study recipe: the baseline at the study's 124 ms); (samples, k)."""
+    median = float(np.median(check_samples(reference_ms, "reference latency")))
+    if median <= 0 or not target_ms > 0:
+        raise PilotlabError(f"cannot scale latencies to {target_ms} ms from a reference median of {median} ms")
+    factor = target_ms / median
+    return check_samples(samples_ms, "replayed latency") * factor, factor
+
+
+def describe(samples_ms: np.ndarray, source: str, factor: float = 1.0) -> dict[str, Any]:
+    """What the result says of the replayed latencies."""
+    described = {"latency_source": source, "replayed_latency_ms": round(float(np.median(samples_ms)), 4),
+                 "replayed_latency_p90_ms": round(float(np.percentile(samples_ms, 90)), 4),
+                 "replayed_latency_samples": int(len(samples_ms))}
+    return described | ({"latency_scale": round(factor, 6)} if factor != 1.0 else {})

@@ -68,3 +68,9 @@ def test_a_latency_file_gives_the_most_specific_rows(tmp_path):
     path.write_text("strategy,ms\nbaseline,5\n")
     with pytest.raises(PilotlabError, match="latency_ms column"):
         latency_file_samples(path, "pilotnet", "baseline")
+
+
+def test_scaling_gives_the_reference_its_target_median():
+    from pilotlab.online.latency import scale_to
+    scaled, factor = scale_to(np.array([1.0, 1.5]), np.array([2.0, 2.0, 3.0]), 124.0)
+    assert factor == pytest.approx(62.0) and list(scaled) == pytest.approx([62.0, 93.0])
