@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import csv
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -110,3 +111,41 @@ def describe(samples_ms: np.ndarray, source: str, factor: float = 1.0) -> dict[s
                  "replayed_latency_p90_ms": round(float(np.percentile(samples_ms, 90)), 4),
                  "replayed_latency_samples": int(len(samples_ms))}
     return described | ({"latency_scale": round(factor, 6)} if factor != 1.0 else {})
+
+
+@dataclass(frozen=True)
+class TimingSource:
+    """Where a lap's latency samples come from (what the online job's deps and inputs give it)."""
+    offline: tuple[Path, Mapping[str, Any]] | None = None        # the offline job's (artifacts, result)
+    latency_file: Path | None = None                              # a user's latency file
+    model: str | None = None                                      # the rows of the latency file to take
+    strategy: str | None = None
+    scale_to_ms: float | None = None                              # emulate a device where `reference` takes this
+    reference: tuple[Path, Mapping[str, Any]] | None = None       # the baseline's offline job (artifacts, result)
+    reference_strategy: str = "baseline"
+
+    def _own(self) -> tuple[np.ndarray, str]:
+        if self.latency_file is not None:
+            return latency_file_samples(self.latency_file, self.model, self.strategy), \
+                f"latency file {Path(self.latency_file).name}"
+        if self.offline is not None:
+            return offline_samples(*self.offline), "offline timing job"
+        raise PilotlabError("the replay timing mode needs the offline timing job of the same artifact and hardware "
+                            "profile (dependency 'timing') or a hardware profile's latency_file")
+
+    def _reference(self) -> np.ndarray:
+        if self.latency_file is not None:
+            return latency_file_samples(self.latency_file, self.model, self.reference_strategy)
+        if self.reference is None:
+            raise PilotlabError(f"scaling latencies to {self.scale_to_ms} ms needs the {self.reference_strategy} "
+                                "strategy's offline timing job (dependency 'scale_reference')")
+        return offline_samples(*self.reference)
+
+    def samples(self) -> tuple[np.ndarray, dict[str, Any]]:
+        """(samples in ms, what the result says of them)."""
+        samples, source = self._own()
+        if self.scale_to_ms is None:
+            return samples, describe(samples, source)
+        scaled, factor = scale_to(samples, self._reference(), self.scale_to_ms)
+        source += f", scaled so that {self.reference_strategy} takes {self.scale_to_ms:g} ms"
+        return scaled, describe(scaled, source, factor)

@@ -74,3 +74,22 @@ def test_scaling_gives_the_reference_its_target_median():
     from pilotlab.online.latency import scale_to
     scaled, factor = scale_to(np.array([1.0, 1.5]), np.array([2.0, 2.0, 3.0]), 124.0)
     assert factor == pytest.approx(62.0) and list(scaled) == pytest.approx([62.0, 93.0])
+
+
+def test_a_timing_source_takes_the_file_over_the_offline_job_and_scales(tmp_path):
+    from pilotlab.online.latency import TimingSource
+    np.save(tmp_path / "latency_ms.npy", np.array([2.0, 2.0, 4.0]))
+    np.save(tmp_path / "base.npy", np.array([4.0]))
+    offline = (tmp_path, {"latency_samples": "latency_ms.npy"})
+    samples, said = TimingSource(offline=offline).samples()
+    assert list(samples) == [2.0, 2.0, 4.0] and said["latency_source"] == "offline timing job"
+    assert said["replayed_latency_ms"] == 2.0 and "latency_scale" not in said
+    scaled, said = TimingSource(offline=offline, scale_to_ms=124.0, reference=(tmp_path, {"latency_samples": "base.npy"})
+                                ).samples()
+    assert list(scaled) == [62.0, 62.0, 124.0] and said["latency_scale"] == 31.0
+    path = tmp_path / "device.csv"
+    path.write_text("strategy,latency_ms\nbaseline,30\nqat,10\n")
+    samples, said = TimingSource(offline=offline, latency_file=path, strategy="qat").samples()
+    assert list(samples) == [10.0] and said["latency_source"] == "latency file device.csv"
+    with pytest.raises(PilotlabError, match="needs the offline timing job"):
+        TimingSource().samples()
