@@ -81,7 +81,7 @@ def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: Progres
     """Drive, measure, and write the files; returns the result (see the module docstring). The
     BehaviorMetrics-compatible metrics are scored against `checkpoints` (default: the expert's lap on
     the same circuit and direction, `pilotlab.online.perfect_lap`); `latency_ms`: the samples the
-    replay timing mode draws from; `tolerance` (a ToleranceSettings): also search the cell's latency
+    replay timing mode draws from; `tolerance` (a pilotlab.specs.online.ToleranceSpec): also search the cell's latency
     tolerance (pilotlab.online.tolerance) from the first run."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -1,6 +1,6 @@
 """Latency tolerance: how much latency a brain can take on top of its own before it loses the lap.
 
-    found = tolerance_search(lap, ToleranceSettings())     # lap(injected_ms) -> LapOutcome
+    found = tolerance_search(lap, ToleranceSpec())     # lap(injected_ms) -> LapOutcome (pilotlab.specs.online)
     found["latency_tolerance_ms"], found["tolerance_laps"]
 
 For one lap cell (brain, circuit, direction, hardware profile), the lap from the first start point is
@@ -24,22 +24,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from pilotlab.errors import PilotlabError
-
-
-@dataclass(frozen=True)
-class ToleranceSettings:
-    fixed_ms: tuple[float, ...] = (0.0, 50.0, 100.0, 200.0)   # deviation reported at these
-    max_ms: float = 1000.0
-    step_ms: float = 5.0
-
-    def __post_init__(self):
-        if not self.step_ms > 0 or self.max_ms < self.step_ms:
-            raise PilotlabError(f"tolerance: step_ms must be > 0 and max_ms >= step_ms, got {self.step_ms}, {self.max_ms}")
-        if any(ms < 0 or ms > self.max_ms or abs(ms / self.step_ms - round(ms / self.step_ms)) > 1e-9
-               for ms in self.fixed_ms):
-            raise PilotlabError(f"tolerance: fixed_ms {list(self.fixed_ms)} must be multiples of step_ms "
-                                f"({self.step_ms:g}) between 0 and max_ms ({self.max_ms:g})")
+from pilotlab.specs.online import ToleranceSpec
 
 
 @dataclass
@@ -67,7 +52,7 @@ class _Laps:
         return self.outcomes[ms].completed
 
 
-def _bracket(laps: _Laps, settings: ToleranceSettings) -> tuple[float | None, float | None]:
+def _bracket(laps: _Laps, settings: ToleranceSpec) -> tuple[float | None, float | None]:
     """(largest latency of the completed run of fixed latencies from 0, first lost one after it)."""
     completed, lost = None, None
     for ms in sorted({0.0, *settings.fixed_ms}):
@@ -78,7 +63,7 @@ def _bracket(laps: _Laps, settings: ToleranceSettings) -> tuple[float | None, fl
     return completed, lost
 
 
-def tolerance_search(lap: LapFn, settings: ToleranceSettings = ToleranceSettings(),
+def tolerance_search(lap: LapFn, settings: ToleranceSpec = ToleranceSpec(),
                      known: dict[float, LapOutcome] | None = None) -> dict[str, Any]:
     """Drive `lap(injected_ms)` as needed; `known`: outcomes already driven (the plain lap at 0 ms).
     latency_tolerance_ms is None when the lap is lost with nothing injected; tolerance_at_least is
@@ -111,12 +96,10 @@ def lap_outcome(trajectory, injected_ms: float, checkpoints=None) -> LapOutcome:
     return LapOutcome(injected_ms, lap_completed(trajectory), metrics)
 
 
-def cell_tolerance(brain, spec, settings: ToleranceSettings, first, checkpoints, latency_ms=None,
+def cell_tolerance(brain, spec, settings: ToleranceSpec, first, checkpoints, latency_ms=None,
                    progress: Callable[[float, float, str], None] | None = None) -> dict[str, Any]:
     """The tolerance search of one lap cell: the laps from `first`'s start and seed (`first` is the
     cell's first run, driven with nothing more injected: the 0 ms lap)."""
-    import dataclasses
-
     from pilotlab.online.drive import drive
     from pilotlab.online.evaluate import make_env
     env = make_env(spec, camera=brain.needs_camera)
@@ -125,7 +108,7 @@ def cell_tolerance(brain, spec, settings: ToleranceSettings, first, checkpoints,
     def lap(injected_ms: float) -> LapOutcome:
         if progress is not None:
             progress(0.0, 1.0, f"{brain.name}: latency tolerance, lap with +{injected_ms:g} ms")
-        settings_ms = dataclasses.replace(spec.drive, extra_latency_ms=spec.drive.extra_latency_ms + injected_ms)
+        settings_ms = spec.model_copy(update={"extra_latency_ms": spec.extra_latency_ms + injected_ms})
         trajectory = drive(env, brain, settings_ms, start=start, seed=seed, latency_ms=latency_ms)
         return lap_outcome(trajectory, injected_ms, checkpoints if injected_ms in settings.fixed_ms else None)
 

@@ -3,14 +3,17 @@ BehaviorMetrics' metrics. Exclusive (its latency may be measured live) and askin
 when its hardware profile is a CUDA one.
 
 deps: `artifact` (optional): the optimize job whose artifact the network brain runs; without it,
-`brain` names a reference brain. The recipe's `online:` section and `pilotlab drive` share the
-lap settings below.
+`brain` names a reference brain. `timing` (network brains, replay timing): the offline job of the
+same artifact and hardware profile, whose latency samples the lap replays; `scale_reference` (with
+latency_scale_to_ms): the baseline strategy's offline job on the same profile. inputs:
+`latency_file` (optional): a device's latency file, replayed instead (pilotlab.online.latency).
+The recipe's `online:` section and `pilotlab drive` share the lap settings below.
 """
 from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from matrix.kinds import register_kind
 from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, Spec
@@ -51,6 +54,23 @@ class DriveSettings(Spec):
         return self
 
 
+class ToleranceSpec(Spec):
+    """The latency tolerance search of a lap cell (pilotlab.online.tolerance)."""
+    fixed_ms: list[float] = Field([0.0, 50.0, 100.0, 200.0], description="injected latencies whose laps' deviation "
+                                                                         "is reported (they also bracket the search)")
+    max_ms: float = Field(1000.0, gt=0, le=60_000, description="the largest injected latency searched")
+    step_ms: float = Field(5.0, gt=0, description="the search's resolution")
+
+    @model_validator(mode="after")
+    def _fixed_on_the_grid(self):
+        if self.max_ms < self.step_ms or any(
+                ms < 0 or ms > self.max_ms or abs(ms / self.step_ms - round(ms / self.step_ms)) > 1e-9
+                for ms in self.fixed_ms):
+            raise ValueError(f"fixed_ms {self.fixed_ms} must be multiples of step_ms ({self.step_ms:g}) between 0 and "
+                             f"max_ms ({self.max_ms:g})")
+        return self
+
+
 class LapSettings(DriveSettings):
     laps: float = Field(1.0, gt=0, le=100, description="laps to drive")
     repetitions: int | None = Field(None, ge=1, le=1000, description="runs, each from its own start point "
@@ -70,6 +90,15 @@ class LapSettings(DriveSettings):
     video: bool = Field(False, description="write camera.mp4, the first run's camera view")
     video_seconds: float = Field(20.0, gt=0, description="length of that video (simulated seconds)")
     camera_frames: int = Field(4, ge=0, le=1000, description="JPEG stills of the first run's camera view")
+    tolerance: ToleranceSpec | None = Field(None, description="search the largest injected latency at which the lap "
+                                                              "is still completed (true: the default search)")
+    latency_scale_to_ms: float | None = Field(None, gt=0, description="replay: scale every latency by one factor so "
+                                                                      "the baseline's median is this (a slower device)")
+
+    @field_validator("tolerance", mode="before")
+    @classmethod
+    def _true_is_the_default_search(cls, value: Any) -> Any:
+        return {} if value is True else None if value is False else value
 
     @model_validator(mode="after")
     def _one_start_per_run(self):
@@ -105,6 +134,7 @@ class OnlineSpec(LapSettings):
     user_brain: UserBrainSpec | None = Field(None, description="with brain 'user': which class")
     hardware: dict[str, Any] = Field({"name": "cpu"}, description='the profile {"name", "device", "threads"}')
     host: dict[str, Any] | None = Field(None, description="the host the planner expects; another is an error")
+    latency_for: dict[str, str] = Field({}, description='{"model", "strategy"}: the rows of the latency file to replay')
     version: int = 1
 
     @model_validator(mode="after")
