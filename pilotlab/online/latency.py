@@ -149,3 +149,17 @@ class TimingSource:
         scaled, factor = scale_to(samples, self._reference(), self.scale_to_ms)
         source += f", scaled so that {self.reference_strategy} takes {self.scale_to_ms:g} ms"
         return scaled, describe(scaled, source, factor)
+
+
+def measure_samples(brain, runs: int = 200) -> np.ndarray:
+    """Batch-1 latencies (ms) of a network brain's predict call on this host, timed once before a lap
+    (`pilotlab drive` without an offline job): the lap then replays them."""
+    import time
+    blank = np.zeros((1, 3 * brain.frames, brain.config.height, brain.config.width), np.float32)
+    brain.warm_up()
+    times = []
+    for _ in range(runs):
+        started = time.perf_counter()
+        brain.predictor.predict(blank)
+        times.append(1000.0 * (time.perf_counter() - started))
+    return np.asarray(times)
