@@ -195,6 +195,9 @@ def online_cells(row: ReportRow, _baseline: ReportRow | None) -> tuple[Cell, ...
 
 
 TOLERANCE_HEADER = "Latency tolerance (ms)"
+# BehaviorMetrics' own figures (pilotlab/columns.py BEHAVIORMETRICS), shown where the laps have them
+BM_ONLINE_COLUMNS = (("BM deviation MAE (1000^d)", "bm_position_deviation_mae"),
+                     ("BM completed (%)", "bm_percentage_completed"))
 
 
 def tolerance_cell(row: ReportRow) -> Cell:
@@ -207,16 +210,23 @@ def tolerance_cell(row: ReportRow) -> Cell:
     return Cell(("≥ " if row.tolerance_at_least else "") + f"{value:.0f}", float(value), title)
 
 
-def online_cells_with_tolerance(row: ReportRow, baseline: ReportRow | None) -> tuple[Cell, ...]:
-    return online_cells(row, baseline) + (tolerance_cell(row),)
+def online_layout(data: ReportData) -> tuple[tuple[str, ...], Callable]:
+    """The simulation tables' headers and cells: ours, then BehaviorMetrics' figures and the latency
+    tolerance where some lap has them."""
+    rows = data.of_kind("online")
+    bm = [(header, name) for header, name in BM_ONLINE_COLUMNS if any(row.get(name) is not None for row in rows)]
+    tolerance = any(row.tolerance for row in rows)
+
+    def cells(row: ReportRow, baseline: ReportRow | None) -> tuple[Cell, ...]:
+        extra = tuple(metric_cell(row, name) for _, name in bm) + ((tolerance_cell(row),) if tolerance else ())
+        return online_cells(row, baseline) + extra
+    return ONLINE_HEADERS + tuple(header for header, _ in bm) + ((TOLERANCE_HEADER,) if tolerance else ()), cells
 
 
 def build_tables(data: ReportData, kind: str) -> list[Table]:
     """One table per (hardware, test set) offline or (hardware, circuit and direction) online; the
-    simulation tables get a latency tolerance column where some lap searched it."""
-    headers, cells_of = (OFFLINE_HEADERS, offline_cells) if kind == "offline" else (ONLINE_HEADERS, online_cells)
-    if kind == "online" and any(row.tolerance for row in data.of_kind("online")):
-        headers, cells_of = headers + (TOLERANCE_HEADER,), online_cells_with_tolerance
+    simulation tables get BehaviorMetrics' figures and a latency tolerance column where laps have them."""
+    headers, cells_of = (OFFLINE_HEADERS, offline_cells) if kind == "offline" else online_layout(data)
     groups: dict[tuple[str, str], list[ReportRow]] = {}
     for row in data.of_kind(kind):
         groups.setdefault((row.hardware, row.place), []).append(row)

@@ -49,3 +49,12 @@ def test_the_csv_has_the_tolerance():
     text = results_csv(tolerance_data(), {})
     header = text.splitlines()[0].split(",")
     assert "latency_tolerance_ms" in header and "bm_position_deviation_mae" in header
+
+
+def test_behaviormetrics_figures_are_columns_of_their_own_where_laps_have_them():
+    rows = [online_row("baseline", lap_completed=True, bm_position_deviation_mae=7.406, bm_percentage_completed=101.3),
+            online_row("qat", lap_completed=True)]
+    table = build_tables(ReportData.from_dict(small_dict(rows)), "online")[0]
+    assert table.headers[-2:] == ("BM deviation MAE (1000^d)", "BM completed (%)")
+    assert [cell.text for cell in table.rows[0].cells[-2:]] == ["7.41", "101"]
+    assert [cell.text for cell in table.rows[1].cells[-2:]] == ["—", "—"]
