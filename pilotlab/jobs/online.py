@@ -34,6 +34,7 @@ from pilotlab.errors import PilotlabError
 from pilotlab.hardware import check_available, check_host, profile_from_dict
 from pilotlab.online import brains, evaluate
 from pilotlab.online.latency import TimingSource, describe
+from pilotlab.online.perfect_lap import perfect_lap
 from pilotlab.specs.online import OnlineSpec
 
 
@@ -82,8 +83,9 @@ def run_online(ctx: JobContext) -> dict[str, Any]:
     ctx.log.info("%s on %s %s: %s timing at %g Hz, %d run(s)", strategy, spec.circuit, spec.direction,
                  spec.timing, spec.control_hz, spec.runs)
     samples, replayed = replayed_latency(ctx, spec, brain)
+    checkpoints = perfect_lap(spec.circuit, spec.direction, cache=ctx.cache / "perfect_laps")
     result = evaluate.evaluate_online(brain, spec, ctx.out, progress=lambda done, total, what: ctx.progress(
-        done, total, what), latency_ms=samples, tolerance=spec.tolerance)
+        done, total, what), latency_ms=samples, tolerance=spec.tolerance, checkpoints=checkpoints)
     result |= replayed
     ctx.log.info("%s: %s", strategy, ", ".join(f"{run['termination']} after {run['sim_seconds']:.1f} s"
                                                for run in result["runs"]))

@@ -12,6 +12,7 @@ from pilotlab.columns import BEHAVIORMETRICS
 from pilotlab.online.bm_metrics import BM_METRICS, bm_run_metrics, perfect_lap_checkpoints
 from pilotlab.online.brains import make_reference_brain
 from pilotlab.online.drive import DriveSettings, drive
+from pilotlab.online.perfect_lap import perfect_lap
 from pilotlab.online.trajectory import Trajectory
 from pilotlab.sim.env import DrivingEnv
 from tests.pilotlab.tracks import stadium, write_csv
@@ -170,11 +171,11 @@ class LeavesHalfWay:
 
 @pytest.fixture(scope="module")
 def track(tmp_path_factory):
-    path = write_csv(tmp_path_factory.mktemp("bm") / "stadium.csv", stadium(30.0, 12.0))
-    with DrivingEnv(str(path), camera=None, laps=1) as env:
-        expert = drive(env, make_reference_brain("expert"), DriveSettings(timing="lockstep"))
-    assert expert.termination == "lap_completed"
-    return str(path), perfect_lap_checkpoints(expert)
+    folder = tmp_path_factory.mktemp("bm")
+    path = write_csv(folder / "stadium.csv", stadium(30.0, 12.0))
+    checkpoints = perfect_lap(str(path), cache=folder / "cache")
+    np.testing.assert_array_equal(perfect_lap(str(path), cache=folder / "cache"), checkpoints)   # the cached one
+    return str(path), checkpoints
 
 
 def lap(track, brain, **settings):
