@@ -17,8 +17,9 @@ import numpy as np
 
 from pilotlab.errors import PilotlabError
 from pilotlab.online.brains import make_reference_brain
-from pilotlab.online.drive import DriveSettings, drive
+from pilotlab.online.drive import drive
 from pilotlab.sim.env import DrivingEnv
+from pilotlab.specs.online import DriveSettings
 
 # BehaviorMetrics' perfect laps are odometry recordings; ours samples the expert at the 50 ms cycle,
 # whatever the evaluated lap's control rate, so the checkpoints (and the deviation total) do not move
