@@ -147,7 +147,7 @@ class TimingSource:
         if self.scale_to_ms is None:
             return samples, describe(samples, source)
         scaled, factor = scale_to(samples, self._reference(), self.scale_to_ms)
-        source += f", scaled so that {self.reference_strategy} takes {self.scale_to_ms:g} ms"
+        source += f", scaled ×{factor:.3g} so that {self.reference_strategy} takes {self.scale_to_ms:g} ms"
         return scaled, describe(scaled, source, factor)
 
 

@@ -140,6 +140,7 @@ class ReportRow(_Frozen):
     unstable: dict[str, str] = Field(default_factory=dict)   # offline rows: timed metric -> why it is unstable
     tolerance: tuple[TolerancePoint, ...] = ()              # online rows: the laps of the tolerance search
     tolerance_at_least: bool = False         # the lap was still completed at the search's largest latency
+    latency_source: str | None = None        # online rows: where the replayed latencies came from
 
     @model_validator(mode="before")
     @classmethod

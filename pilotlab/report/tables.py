@@ -246,7 +246,8 @@ def _table(data: ReportData, kind: str, hardware: str, place: str, rows: list[Re
         return Table(title, kind, hardware, place, headers, (), (note,))
     baselines = {r.model: r for r in rows if r.strategy == data.baseline and r.status == "ok"}
     notes = tuple(f"No usable {data.baseline!r} row for {model} here: ratios are not shown."
-                  for model in _unique(r.model for r in rows) if model not in baselines) if kind == "offline" else ()
+                  for model in _unique(r.model for r in rows) if model not in baselines) if kind == "offline" else \
+        _latency_notes(rows)
     table_rows = tuple(TableRow(method_label(r, data), r, cells_of(r, baselines.get(r.model)), _note(r)) for r in rows)
     if kind != "offline":
         return Table(title, kind, hardware, place, headers, table_rows, notes)
@@ -294,6 +295,13 @@ def _extent(rows: list[ReportRow], name: str) -> str:
         return "the"
     low, high = min(values), max(values)
     return f"{low:,}" if low == high else f"{low:,}–{high:,}"
+
+
+def _latency_notes(rows: list[ReportRow]) -> tuple[str, ...]:
+    """Where the laps' latencies came from, when they were replayed (one line per source)."""
+    sources = _unique(r.latency_source for r in rows if r.status == "ok" and r.latency_source
+                      and not r.latency_source.startswith("none"))
+    return tuple(f"Latencies replayed from the {source}." for source in sources)
 
 
 def _all_alike_and_not_measured(rows: list[ReportRow]) -> bool:

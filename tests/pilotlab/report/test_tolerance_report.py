@@ -58,3 +58,13 @@ def test_behaviormetrics_figures_are_columns_of_their_own_where_laps_have_them()
     assert table.headers[-2:] == ("BM deviation MAE (1000^d)", "BM completed (%)")
     assert [cell.text for cell in table.rows[0].cells[-2:]] == ["7.41", "101"]
     assert [cell.text for cell in table.rows[1].cells[-2:]] == ["—", "—"]
+
+
+def test_a_simulation_table_says_where_its_replayed_latencies_came_from():
+    source = "offline timing job, scaled ×56.4 so that baseline takes 124 ms"
+    rows = [online_row("baseline", lap_completed=True) | {"latency_source": source},
+            online_row("qat", lap_completed=True) | {"latency_source": source},
+            online_row("expert", lap_completed=True) | {"latency_source": "none: a reference brain is charged only "
+                                                                          "the injected latency"}]
+    table = build_tables(ReportData.from_dict(small_dict(rows)), "online")[0]
+    assert table.notes == (f"Latencies replayed from the {source}.",)
