@@ -72,7 +72,7 @@ def test_a_network_lap_replays_the_offline_jobs_latency_scaled_and_searches_its_
     _, result = run(tmp_path, "online-replay", {**SHORT, "latency_scale_to_ms": 20.0,
                                                 "tolerance": {"fixed_ms": [0, 50], "max_ms": 100, "step_ms": 25}},
                     deps={"artifact": artifact_dep, "timing": offline, "scale_reference": base})
-    assert result["latency_source"].== "offline timing job, scaled ×10 so that baseline takes 20 ms"
+    assert result["latency_source"] == "offline timing job, scaled ×10 so that baseline takes 20 ms"
     assert result["latency_scale"] == 10.0 and result["replayed_latency_ms"] == 40.0
     assert result["bm_mean_inference_ms"] is None or 30.0 <= result["bm_mean_inference_ms"] <= 50.0
     assert {lap["injected_ms"] for lap in result["tolerance_laps"]} >= {0.0}
