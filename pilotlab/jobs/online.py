@@ -16,9 +16,9 @@ result:
     expert's perfect lap, and perfect_lap_checkpoints; in replay timing latency_source,
     replayed_latency_ms, replayed_latency_p90_ms, replayed_latency_samples (and latency_scale when
     scaled); with tolerance: latency_tolerance_ms, tolerance_at_least, tolerance_fixed_ms,
-    tolerance_laps, tolerance_laps_driven (pilotlab.online.tolerance); and the files, relative to the artifacts folder: trajectory ("trajectory.png"),
-    trajectory_data ("trajectory.npz"), trajectory_csv ("trajectory.csv"), video ("camera.mp4", if
-    asked), camera_frames (["frames/camera_012.00s.jpg", ...]).
+    tolerance_laps, tolerance_laps_driven (pilotlab.online.tolerance); and the files, relative to the
+    artifacts folder: trajectory ("trajectory.png"), trajectory_data ("trajectory.npz"), trajectory_csv
+    ("trajectory.csv"), video ("camera.mp4", if asked), camera_frames (["frames/camera_012.00s.jpg", ...]).
 """
 from __future__ import annotations
 

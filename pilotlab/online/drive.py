@@ -1,6 +1,6 @@
 """The closed loop: a brain drives the car in a DrivingEnv under one of four timing modes.
 
-    trajectory = drive(env, brain, DriveSettings(timing="replay"), start=0.0, latency_ms=samples)  # pilotlab.specs.online
+    trajectory = drive(env, brain, DriveSettings(timing="replay"), start=0.0, latency_ms=samples)
 
 Each brain iteration takes the camera image at the current simulated time, asks the brain for a
 command, and advances the world. How far the world moves on, and with which command, is the timing

@@ -215,8 +215,8 @@ def draw_latency_tolerance(data: ReportData) -> Figure | None:
         for r in (r for r in rows if (r.hardware, r.place) == (target, place)):
             points = [p for p in r.tolerance if p.position_deviation_mae_m is not None]
             done = [p for p in points if p.lap_completed]
-            ax.plot([p.injected_ms for p in done], [p.position_deviation_mae_m for p in done], color=colours[r.strategy],
-                    marker=markers[r.model], markersize=5, lw=1.4)
+            ax.plot([p.injected_ms for p in done], [p.position_deviation_mae_m for p in done],
+                    color=colours[r.strategy], marker=markers[r.model], markersize=5, lw=1.4)
             lost = [p for p in points if not p.lap_completed]
             ax.scatter([p.injected_ms for p in lost], [p.position_deviation_mae_m for p in lost], marker="X", s=70,
                        color=colours[r.strategy], edgecolors="crimson", linewidths=1.0, zorder=3)

@@ -71,7 +71,8 @@ def reference_walk(xs, ys, checkpoints, step):
 def reference_metrics(trajectory: Trajectory, checkpoints):
     xs, ys, t = list(trajectory.x), list(trajectory.y), list(trajectory.t)
     scores = reference_deviation(xs, ys, [tuple(c) for c in checkpoints])
-    percentage = 100 * max(reference_walk(xs, ys, checkpoints, +1), reference_walk(xs, ys, checkpoints, -1)) / len(checkpoints)
+    reached = max(reference_walk(xs, ys, checkpoints, +1), reference_walk(xs, ys, checkpoints, -1))
+    percentage = 100 * reached / len(checkpoints)
     path = sum(math.dist((xs[i], ys[i]), (xs[i + 1], ys[i + 1])) for i in range(len(xs) - 1))
     decided = [i for i in range(len(t)) if not math.isnan(trajectory.v[i])]
     iteration_times = [t[j] - t[i] for i, j in zip(decided, decided[1:] + [len(t) - 1])]

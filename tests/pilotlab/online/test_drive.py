@@ -94,7 +94,8 @@ def test_fixed_inference_time_belongs_to_the_modes_that_charge_the_brain():
     with pytest.raises(pydantic.ValidationError, match="fixed_inference_ms only means something in the replay and "
                                                        "measured"):
         DriveSettings(timing="realtime", fixed_inference_ms=5.0)
-    with pytest.raises(pydantic.ValidationError, match="Input should be 'replay', 'measured', 'lockstep' or 'realtime'"):
+    with pytest.raises(pydantic.ValidationError, match="Input should be 'replay', 'measured', 'lockstep' or "
+                                                       "'realtime'"):
         DriveSettings(timing="lazy")
 
 
