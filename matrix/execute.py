@@ -59,7 +59,9 @@ class Schedule:
 
     def __init__(self, stale: list[Job]):
         self.jobs = {job.key: job for job in stale}
-        self.graph = {job.key: [d.key for d in job.dep_jobs() if d.key in self.jobs] for job in stale}
+        # one entry per dependency, even one a job needs under two roles (else it would be made ready twice)
+        self.graph = {job.key: list(dict.fromkeys(d.key for d in job.dep_jobs() if d.key in self.jobs))
+                      for job in stale}
         self.waiting = {key: set(deps) for key, deps in self.graph.items()}
         self.needed_by: dict[str, list[str]] = {}
         for key, deps in self.graph.items():
