@@ -7,7 +7,9 @@ import pytest
 from pilotlab.online.brains import make_reference_brain
 from pilotlab.online.drive import drive
 from pilotlab.online.evaluate import evaluate_online
+from pilotlab.online.perfect_lap import perfect_lap
 from pilotlab.online.tolerance import LapOutcome, tolerance_search
+from pilotlab.sim.camera import CameraSpec
 from pilotlab.sim.env import DrivingEnv
 from pilotlab.specs.online import DriveSettings, OnlineSpec, ToleranceSpec
 from tests.pilotlab.tracks import stadium, write_csv
@@ -52,9 +54,9 @@ def track(tmp_path_factory):
     return str(write_csv(tmp_path_factory.mktemp("tolerance") / "stadium.csv", stadium(30.0, 12.0)))
 
 
-def expert_cell(track, out, tolerance=None):
+def expert_cell(track, out, tolerance=None, brain="expert", checkpoints=None):
     spec = OnlineSpec(circuit=track, timeout_s=40.0, timing="replay", fixed_inference_ms=0.0)
-    return evaluate_online(make_reference_brain("expert"), spec, out, tolerance=tolerance)
+    return evaluate_online(make_reference_brain(brain), spec, out, tolerance=tolerance, checkpoints=checkpoints)
 
 
 def test_the_expert_tolerates_latency_up_to_a_limit_it_finds(track, tmp_path):
@@ -68,18 +70,21 @@ def test_the_expert_tolerates_latency_up_to_a_limit_it_finds(track, tmp_path):
 
 
 @pytest.mark.benchmark
-def test_benchmark_tolerance_search_against_one_plain_lap(track, tmp_path):
-    with DrivingEnv(track, camera=None, timeout_s=40.0) as env:
+@pytest.mark.parametrize("brain", ["expert", "explicit"])
+def test_benchmark_tolerance_search_against_one_plain_lap(track, tmp_path, brain):
+    camera = CameraSpec() if brain == "explicit" else None
+    with DrivingEnv(track, camera=camera, renderer="ground", timeout_s=40.0) as env:
         started = time.perf_counter()
-        drive(env, make_reference_brain("expert"), DriveSettings(fixed_inference_ms=0.0))
+        drive(env, make_reference_brain(brain), DriveSettings(fixed_inference_ms=0.0))
         lap_s = time.perf_counter() - started
+    checkpoints = perfect_lap(track)
     started = time.perf_counter()
-    plain = expert_cell(track, tmp_path / "plain")
+    plain = expert_cell(track, tmp_path / "plain", brain=brain, checkpoints=checkpoints)
     plain_s = time.perf_counter() - started
     started = time.perf_counter()
-    found = expert_cell(track, tmp_path / "search", ToleranceSpec())
+    found = expert_cell(track, tmp_path / "search", ToleranceSpec(), brain=brain, checkpoints=checkpoints)
     search_s = time.perf_counter() - started - plain_s
-    print(f"\nexpert on a {plain['circuit_length_m']:.0f} m stadium: one plain lap {lap_s:.2f} s, the online "
-          f"evaluation of it {plain_s:.2f} s (perfect lap, metrics, files); the tolerance search adds {search_s:.2f} s "
-          f"= {search_s / lap_s:.1f} plain laps for {found['tolerance_laps_driven']} laps driven (lost ones stop "
+    print(f"\n{brain} on a {plain['circuit_length_m']:.0f} m stadium: one plain lap {lap_s:.2f} s, its online "
+          f"evaluation {plain_s:.2f} s (metrics, files); the tolerance search adds {search_s:.2f} s = "
+          f"{search_s / lap_s:.1f} plain laps for {found['tolerance_laps_driven']} laps driven (lost ones stop "
           f"early); tolerance {found['latency_tolerance_ms']} ms")
