@@ -18,7 +18,8 @@ where we differ, so our numbers can be read next to the 2022 study's:
   the last) of the car's distance from the red line, in metres. BehaviorMetrics' numbers are NOT
   metres: for every point of a "perfect lap" it finds the nearest point of a spline through the
   car's positions and adds `1000 ** distance`, so its MAE is an exponential score (0.1 m -> 2.0,
-  0.5 m -> 31.6) that cannot be compared with ours.
+  0.5 m -> 31.6) that cannot be compared with ours; `pilotlab.online.bm_metrics` computes it (and
+  BehaviorMetrics' other definitions) beside ours, as the `bm_*` columns.
 - brain_frequency_sim_hz: brain iterations per simulated second: 1 / the mean simulated time between
   consecutive decisions, as BehaviorMetrics (1 / the mean simulated duration of an iteration).
 - brain_frequency_real_hz: 1 / the mean wall-clock time of one brain iteration (camera image in,
