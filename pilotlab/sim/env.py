@@ -16,8 +16,8 @@ camera it is the state. The action is (v, w) in m/s and rad/s within the car's l
 
 `step` keeps Gymnasium's signature (`step(action)`) and adds two keyword arguments: `duration`, the
 simulated seconds this command stays in force (default: `env.control_period`, 0.05 s = 20 Hz;
-pilotlab's "replay" and "measured" timing modes pass max(control period, inference time) here, so a slow brain
-reacts late), and `render=False` to skip the camera (obs is then None: for callers that only advance
+pilotlab's "replay" and "measured" timing modes pass max(control period, inference time) here, so a
+slow brain reacts late), and `render=False` to skip the camera (obs is then None: for callers that only advance
 time). Time advances in physics steps (1/120 s): a duration is rounded to the nearest step, at least
 one; `info["sim_time"]` is exact. `timing="latency"` does the same inside `step` for agents that
 call plain `step(action)`: the wall-clock time since the last observation was returned (or
