@@ -92,7 +92,8 @@ def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: Progres
     runs = [{**run_metrics(t), **bm_run_metrics(t, checkpoints)} for t in trajectories]
     means, spread = aggregate(runs, METRICS + BM_METRICS)
     if tolerance is not None:
-        means |= cell_tolerance(brain, spec, tolerance, trajectories[0], checkpoints, latency_ms, progress)
+        means |= cell_tolerance(make_env(spec, camera=brain.needs_camera), brain, spec, tolerance, trajectories[0],
+                                checkpoints, latency_ms, progress)
     save_npz(trajectories, out / "trajectory.npz")
     save_csv(trajectories, out / "trajectory.csv")
     title = picture_title(brain.name, spec, means, len(trajectories))

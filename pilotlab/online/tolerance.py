@@ -96,13 +96,11 @@ def lap_outcome(trajectory, injected_ms: float, checkpoints=None) -> LapOutcome:
     return LapOutcome(injected_ms, lap_completed(trajectory), metrics)
 
 
-def cell_tolerance(brain, spec, settings: ToleranceSpec, first, checkpoints, latency_ms=None,
+def cell_tolerance(env, brain, spec, settings: ToleranceSpec, first, checkpoints, latency_ms=None,
                    progress: Callable[[float, float, str], None] | None = None) -> dict[str, Any]:
-    """The tolerance search of one lap cell: the laps from `first`'s start and seed (`first` is the
-    cell's first run, driven with nothing more injected: the 0 ms lap)."""
+    """The tolerance search of one lap cell in `env` (closed at the end): the laps from `first`'s
+    start and seed (`first` is the cell's first run, driven with nothing more injected: the 0 ms lap)."""
     from pilotlab.online.drive import drive
-    from pilotlab.online.evaluate import make_env
-    env = make_env(spec, camera=brain.needs_camera)
     start, seed = first.meta["start_m"], spec.seed
 
     def lap(injected_ms: float) -> LapOutcome:
