@@ -78,6 +78,61 @@ class OnnxPredictor(Predictor):
         return self._run_session(self._outputs, {INPUT_NAME: batch})[0]
 
 
+class LiteRTPredictor(Predictor):
+    """A .tflite model on the LiteRT interpreter (XNNPACK on the CPU). The interpreter is resized
+    when the batch size changes. An integer-only model (int8 input and output) gets the image
+    quantized and (v, w) dequantized with the scales stored in it, as a deployment must."""
+
+    def __init__(self, meta: ArtifactMeta, hardware: HardwareProfile, interpreter):
+        super().__init__(meta, hardware)
+        self.interpreter = interpreter
+        inp, out = interpreter.get_input_details()[0], interpreter.get_output_details()[0]
+        self._input, self._output, self._batch = inp["index"], out["index"], None
+        self._quantize = inp["quantization"] if inp["dtype"] == np.int8 else None
+        self._dequantize = out["quantization"] if out["dtype"] == np.int8 else None
+
+    def _run(self, batch: np.ndarray) -> np.ndarray:
+        if len(batch) != self._batch:
+            self.interpreter.resize_tensor_input(self._input, list(batch.shape))
+            self.interpreter.allocate_tensors()
+            self._batch = len(batch)
+        if self._quantize:
+            scale, zero = self._quantize
+            batch = np.clip(np.round(batch / scale) + zero, -128, 127).astype(np.int8)
+        self.interpreter.set_tensor(self._input, batch)
+        self.interpreter.invoke()
+        output = self.interpreter.get_tensor(self._output)
+        if self._dequantize:
+            scale, zero = self._dequantize
+            return (output.astype(np.float32) - zero) * np.float32(scale)
+        return output
+
+
+class ExecuTorchPredictor(Predictor):
+    """An ExecuTorch .pte program (XNNPACK delegate). Its memory is planned for at most
+    `max_batch` images, so larger batches run in slices. XNNPACK's thread pool is one per process:
+    it is set to this profile's threads before a call whenever another profile changed it."""
+
+    def __init__(self, meta: ArtifactMeta, hardware: HardwareProfile, method):
+        import torch
+        super().__init__(meta, hardware)
+        self._torch, self._method = torch, method
+        self._max_batch = int(meta.extra.get("max_batch", 1))
+
+    def _run(self, batch: np.ndarray) -> np.ndarray:
+        _executorch_threads(self.threads)
+        if len(batch) <= self._max_batch:
+            return self._method.execute([self._torch.from_numpy(batch)])[0].numpy().copy()
+        return np.concatenate([self._run(batch[start:start + self._max_batch])
+                               for start in range(0, len(batch), self._max_batch)])
+
+
+def _executorch_threads(threads: int) -> None:
+    from executorch.extension.pybindings import portable_lib
+    if portable_lib._threadpool_get_thread_count() != threads:
+        portable_lib._unsafe_reset_threadpool(threads)
+
+
 def resolve_profile(hardware: HardwareProfile | dict | str | None) -> HardwareProfile:
     if hardware is None:
         return BUILTIN["cpu"]
@@ -106,7 +161,30 @@ def load_predictor(artifact_dir: Path, hardware: HardwareProfile | dict | str | 
         return OnnxPredictor(meta, profile, _ort_session(path, meta, profile, spin))
     if meta.runtime == "torch":
         return TorchPredictor(meta, profile, _torch_module(path, meta, profile))
+    if meta.runtime in EDGE_RUNTIMES:
+        return _edge_predictor(path, meta, profile)
     raise PilotlabError(f"{artifact_dir}: unknown runtime {meta.runtime!r} in artifact.json")
+
+
+EDGE_RUNTIMES = {"litert": ("ai_edge_litert", "LiteRT"), "executorch": ("executorch", "ExecuTorch")}
+
+
+def _edge_predictor(path: Path, meta: ArtifactMeta, profile: HardwareProfile) -> Predictor:
+    """LiteRT and ExecuTorch artifacts: CPU only (XNNPACK), and only where the runtime is installed."""
+    import importlib.util
+    module, runtime = EDGE_RUNTIMES[meta.runtime]
+    if profile.device != "cpu":
+        raise NotApplicable(f"artifact {meta.strategy} runs on {runtime}'s CPU path (XNNPACK); "
+                            f"hardware {profile.name!r} is {profile.device}")
+    if importlib.util.find_spec(module) is None:
+        raise NotApplicable(f"artifact {meta.strategy} needs {runtime} ({module}), not installed here "
+                            "(pip install -e '.[edge]')")
+    if meta.runtime == "litert":
+        from ai_edge_litert.interpreter import Interpreter
+        return LiteRTPredictor(meta, profile, Interpreter(model_path=str(path), num_threads=profile.cpu_threads))
+    from executorch.runtime import Runtime
+    _executorch_threads(profile.cpu_threads)
+    return ExecuTorchPredictor(meta, profile, Runtime.get().load_program(str(path)).load_method("forward"))
 
 
 def _torch_module(path: Path, meta: ArtifactMeta, profile: HardwareProfile):
