@@ -155,6 +155,8 @@ def load_predictor(artifact_dir: Path, hardware: HardwareProfile | dict | str | 
     profile = resolve_profile(hardware)
     if meta.device == "cuda" and profile.device != "cuda":
         raise NotApplicable(f"artifact {meta.strategy} was built for CUDA; hardware {profile.name!r} is a CPU")
+    if meta.runtime in EDGE_RUNTIMES:
+        _check_edge(meta, profile)
     apply_profile(profile)
     path = artifact_dir / meta.file
     if meta.runtime == "onnxruntime":
@@ -169,7 +171,7 @@ def load_predictor(artifact_dir: Path, hardware: HardwareProfile | dict | str | 
 EDGE_RUNTIMES = {"litert": ("ai_edge_litert", "LiteRT"), "executorch": ("executorch", "ExecuTorch")}
 
 
-def _edge_predictor(path: Path, meta: ArtifactMeta, profile: HardwareProfile) -> Predictor:
+def _check_edge(meta: ArtifactMeta, profile: HardwareProfile) -> None:
     """LiteRT and ExecuTorch artifacts: CPU only (XNNPACK), and only where the runtime is installed."""
     import importlib.util
     module, runtime = EDGE_RUNTIMES[meta.runtime]
@@ -179,6 +181,9 @@ def _edge_predictor(path: Path, meta: ArtifactMeta, profile: HardwareProfile) ->
     if importlib.util.find_spec(module) is None:
         raise NotApplicable(f"artifact {meta.strategy} needs {runtime} ({module}), not installed here "
                             "(pip install -e '.[edge]')")
+
+
+def _edge_predictor(path: Path, meta: ArtifactMeta, profile: HardwareProfile) -> Predictor:
     if meta.runtime == "litert":
         from ai_edge_litert.interpreter import Interpreter
         return LiteRTPredictor(meta, profile, Interpreter(model_path=str(path), num_threads=profile.cpu_threads))
