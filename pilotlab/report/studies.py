@@ -259,7 +259,41 @@ def tensorrt_fastest(data: ReportData) -> ClaimCheck:
                       f"tensorrt on {gpu}: {rows[0].get('latency_ms'):.3g} ms, {speedup:.1f}× the baseline's speed")
 
 
+def _missing_reason(data: ReportData, strategy: str) -> str:
+    """Why a strategy has no measured offline row: its own reason (not installed...) where given."""
+    return next((r.reason for r in data.rows if r.strategy == strategy and r.reason),
+                f"no {strategy} and baseline offline rows")
+
+
+def dynamic_range_smaller_at_equal_mse(data: ReportData) -> ClaimCheck:
+    claim = "TF Lite dynamic-range quantization makes PilotNet about 4× smaller at about the same MSE."
+    rows = _offline(data)
+    base, row = rows.get("baseline"), rows.get("litert_dynamic_range")
+    ratio = _ratio(rows, "litert_dynamic_range", "size_mb")
+    if ratio is None or base.get("mse") is None or row.get("mse") is None:
+        return _untestable(claim, _missing_reason(data, "litert_dynamic_range"))
+    change = (row.get("mse") - base.get("mse")) / base.get("mse")
+    return ClaimCheck(claim, _verdict(ratio >= 3.5 and abs(change) <= 0.10),
+                      f"litert_dynamic_range (LiteRT) is {ratio:.2f}× smaller than the baseline, MSE "
+                      f"{100 * change:+.1f}% against the baseline's {base.get('mse'):.4g}")
+
+
+def full_integer_unusable(data: ReportData) -> ClaimCheck:
+    claim = ("Integer-only quantization is unusable for a regression network "
+             "(TF Lite \"Integer only Q\", int8 input and output: MSE 28,157).")
+    rows = _offline(data)
+    base, row = rows.get("baseline"), rows.get("litert_full_int8")
+    if base is None or row is None or not base.get("mse") or row.get("mse") is None:
+        return _untestable(claim, _missing_reason(data, "litert_full_int8"))
+    ratio = row.get("mse") / base.get("mse")
+    return ClaimCheck(claim, _verdict(ratio > 10.0),
+                      f"litert_full_int8 MSE {row.get('mse'):.4g}, {ratio:.2f}× the baseline's "
+                      f"{base.get('mse'):.4g}, with its int8 output dequantized by the scale stored in the "
+                      "model; read raw it is off by that scale (the optimize job's raw_output_mse)")
+
+
 STUDIES.add("study2022", ("Compared with the 2022 study", (
     static_quant_smaller, int8_keeps_mse, prune_quant_lowest_mse, local_prune_fastest,
     unstructured_pruning_no_speedup, dynamic_quant_slower_in_pytorch, optimized_models_complete_the_lap,
-    fastest_drives_as_well, montreal_is_hard, tensorrt_fastest)))
+    fastest_drives_as_well, montreal_is_hard, tensorrt_fastest, dynamic_range_smaller_at_equal_mse,
+    full_integer_unusable)))

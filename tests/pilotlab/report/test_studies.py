@@ -93,3 +93,22 @@ def test_the_montreal_claim_is_judged_from_the_latency_tolerance():
     assert verdict == "does not hold" and "so at 124 ms it keeps Montreal" in found
     assert verdicts([online_row("baseline", lap_completed=True) | {"circuit": "montreal"}])[claim][0] == \
         "not testable here"
+
+
+def test_the_tf_lite_claims_are_judged_on_the_litert_rows():
+    size = "TF Lite dynamic-range quantization makes PilotNet about 4× smaller at about the same MSE."
+    full = "Integer-only quantization is unusable for a regression network"
+    base = offline_row("baseline", size_mb=6.1, mse=0.0050)
+    found = verdicts([base, offline_row("litert_dynamic_range", size_mb=1.55, mse=0.0052),
+                      offline_row("litert_full_int8", size_mb=1.55, mse=0.0055)])
+    assert found[size] == ("holds", "litert_dynamic_range (LiteRT) is 3.94× smaller than the baseline, "
+                                    "MSE +4.0% against the baseline's 0.005")
+    verdict, text = found[full]
+    assert verdict == "does not hold" and text.startswith("litert_full_int8 MSE 0.0055, 1.10× the baseline's")
+    found = verdicts([base, offline_row("litert_dynamic_range", size_mb=1.55, mse=0.0090),
+                      offline_row("litert_full_int8", size_mb=1.55, mse=2.0)])
+    assert found[size][0] == "does not hold" and found[full][0] == "holds"
+    missing = [base, offline_row("litert_full_int8", status="not_applicable",
+                                 reason="litert_full_int8 needs tensorflow, not installed here")]
+    assert verdicts(missing)[full] == ("not testable here", "litert_full_int8 needs tensorflow, not installed here")
+    assert verdicts(missing)[size][1] == "no litert_dynamic_range and baseline offline rows"
