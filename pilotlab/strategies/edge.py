@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib.util
 
 from matrix.kinds import NotApplicable
+from pilotlab.strategies.registry import StrategySource
 
 EXTRA = "pip install -e '.[edge]'"
 EXECUTORCH = ("executorch",)
@@ -18,9 +19,9 @@ def missing(modules: tuple[str, ...]) -> list[str]:
     return [name for name in modules if importlib.util.find_spec(name) is None]
 
 
-def require(strategy: str, modules: tuple[str, ...]) -> None:
+def require(source: StrategySource, modules: tuple[str, ...]) -> None:
     """NotApplicable unless every module is importable here (found without importing it: planning
     stays light)."""
     absent = missing(modules)
     if absent:
-        raise NotApplicable(f"{strategy} needs {', '.join(absent)}, not installed here ({EXTRA})")
+        raise NotApplicable(f"{source.strategy} needs {', '.join(absent)}, not installed here ({EXTRA})")

@@ -12,8 +12,7 @@ from pilotlab.strategies.fold import fold_input_norm
 from pilotlab.strategies.registry import StrategySource
 
 
-def save_pte(model: nn.Module, source: StrategySource, strategy: str, max_batch: int,
-             quantizer: dict | None) -> None:
+def save_pte(model: nn.Module, source: StrategySource, max_batch: int, quantizer: dict | None) -> None:
     """Export `model` (int8 when `quantizer` = {"per_channel", "calibration_frames"}), lower every
     supported op to XNNPACK and write source.out/model.pte plus artifact.json."""
     from executorch.backends.xnnpack.partition.xnnpack_partitioner import XnnpackPartitioner
@@ -32,7 +31,7 @@ def save_pte(model: nn.Module, source: StrategySource, strategy: str, max_batch:
         extra |= {"quantizer": "executorch XNNPACKQuantizer (symmetric)",
                   "weights": "int8 per channel" if quantizer["per_channel"] else "int8 per tensor",
                   "activations": "int8 per tensor"}
-    source.write(source.meta(strategy, format="executorch-pte", file="model.pte", runtime="executorch",
+    source.write(source.meta(format="executorch-pte", file="model.pte", runtime="executorch",
                              dtype="int8" if quantizer else "float32", extra=extra))
 
 

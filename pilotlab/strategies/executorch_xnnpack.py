@@ -32,9 +32,9 @@ class ExecuTorchConfig:
 
 @register_strategy("executorch", ExecuTorchConfig)
 def executorch_fp32(config: ExecuTorchConfig, source: StrategySource) -> dict:
-    require("executorch", EXECUTORCH)
+    require(source, EXECUTORCH)
     from pilotlab.strategies.executorch_lower import save_pte
-    save_pte(source.load_model(), source, "executorch", config.max_batch, quantizer=None)
+    save_pte(source.load_model(), source, config.max_batch, quantizer=None)
     return {}
 
 
@@ -48,8 +48,8 @@ class ExecuTorchInt8Config:
 
 @register_strategy("executorch_int8", ExecuTorchInt8Config)
 def executorch_int8(config: ExecuTorchInt8Config, source: StrategySource) -> dict:
-    require("executorch_int8", EXECUTORCH)
+    require(source, EXECUTORCH)
     from pilotlab.strategies.executorch_lower import save_pte
-    save_pte(source.load_model(), source, "executorch_int8", config.max_batch,
+    save_pte(source.load_model(), source, config.max_batch,
              quantizer={"per_channel": config.per_channel, "calibration_frames": config.calibration_frames})
     return {"calibration_frames": min(config.calibration_frames, len(source.calibration))}

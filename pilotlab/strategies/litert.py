@@ -38,32 +38,32 @@ class LiteRTCalibratedConfig:
     calibration_frames: int = 512    # the representative dataset: training frames spread evenly
 
 
-def _convert(name: str, mode: str, source: StrategySource, calibration_frames: int = 0) -> dict:
-    require(name, LITERT_CONVERTER)
+def _convert(mode: str, source: StrategySource, calibration_frames: int = 0) -> dict:
+    require(source, LITERT_CONVERTER)
     from pilotlab.strategies.litert_convert import save_tflite
-    return save_tflite(source.load_model(), source, name, mode, calibration_frames)
+    return save_tflite(source.load_model(), source, mode, calibration_frames)
 
 
 @register_strategy("litert", LiteRTConfig)
 def litert_fp32(config: LiteRTConfig, source: StrategySource) -> dict:
-    return _convert("litert", "float32", source)
+    return _convert("float32", source)
 
 
 @register_strategy("litert_dynamic_range", LiteRTConfig)
 def litert_dynamic_range(config: LiteRTConfig, source: StrategySource) -> dict:
-    return _convert("litert_dynamic_range", "dynamic_range", source)
+    return _convert("dynamic_range", source)
 
 
 @register_strategy("litert_float16", LiteRTConfig)
 def litert_float16(config: LiteRTConfig, source: StrategySource) -> dict:
-    return _convert("litert_float16", "float16", source)
+    return _convert("float16", source)
 
 
 @register_strategy("litert_int8", LiteRTCalibratedConfig)
 def litert_int8(config: LiteRTCalibratedConfig, source: StrategySource) -> dict:
-    return _convert("litert_int8", "int8", source, config.calibration_frames)
+    return _convert("int8", source, config.calibration_frames)
 
 
 @register_strategy("litert_full_int8", LiteRTCalibratedConfig)
 def litert_full_int8(config: LiteRTCalibratedConfig, source: StrategySource) -> dict:
-    return _convert("litert_full_int8", "full_int8", source, config.calibration_frames)
+    return _convert("full_int8", source, config.calibration_frames)

@@ -26,7 +26,7 @@ MODES = {  # mode -> (artifact dtype, what artifact.json says about it)
 }
 
 
-def save_tflite(model, source: StrategySource, strategy: str, mode: str, calibration_frames: int) -> dict:
+def save_tflite(model, source: StrategySource, mode: str, calibration_frames: int) -> dict:
     """Write source.out/model.tflite and artifact.json; returns the strategy's result figures."""
     with tempfile.TemporaryDirectory() as tmp, _quiet():
         saved = _saved_model(model, source, Path(tmp))
@@ -37,7 +37,7 @@ def save_tflite(model, source: StrategySource, strategy: str, mode: str, calibra
     if mode == "full_int8":
         extra |= _io_quantization(source.out / "model.tflite")
         result["raw_output_mse"] = raw_output_mse(source.out / "model.tflite", source, calibration_frames)
-    source.write(source.meta(strategy, format="tflite", file="model.tflite", runtime="litert", dtype=dtype,
+    source.write(source.meta(format="tflite", file="model.tflite", runtime="litert", dtype=dtype,
                              extra=extra))
     return result
 

@@ -31,8 +31,8 @@ class StructuredPruneXnnpackConfig:
     calibration_frames: int = 512
 
     def __post_init__(self) -> None:
-        check_fraction("structured_prune_*_int8", "amount", self.amount)
-        check_multiple("structured_prune_*_int8", self.multiple_of)
+        check_fraction("amount", self.amount)
+        check_multiple(self.multiple_of)
 
 
 def _pruned(config: StructuredPruneXnnpackConfig, source: StrategySource):
@@ -57,20 +57,20 @@ def _record_pruning(source: StrategySource, figures: dict) -> None:
 
 @register_strategy("structured_prune_litert_int8", StructuredPruneXnnpackConfig)
 def structured_prune_litert_int8(config: StructuredPruneXnnpackConfig, source: StrategySource) -> dict:
-    require("structured_prune_litert_int8", LITERT_CONVERTER)
+    require(source, LITERT_CONVERTER)
     from pilotlab.strategies.litert_convert import save_tflite
     model, figures = _pruned(config, source)
-    result = save_tflite(model, source, "structured_prune_litert_int8", "int8", config.calibration_frames)
+    result = save_tflite(model, source, "int8", config.calibration_frames)
     _record_pruning(source, figures)
     return {**result, **figures}
 
 
 @register_strategy("structured_prune_executorch_int8", StructuredPruneXnnpackConfig)
 def structured_prune_executorch_int8(config: StructuredPruneXnnpackConfig, source: StrategySource) -> dict:
-    require("structured_prune_executorch_int8", EXECUTORCH)
+    require(source, EXECUTORCH)
     from pilotlab.strategies.executorch_lower import save_pte
     model, figures = _pruned(config, source)
-    save_pte(model, source, "structured_prune_executorch_int8", 64,
+    save_pte(model, source, 64,
              quantizer={"per_channel": True, "calibration_frames": config.calibration_frames})
     _record_pruning(source, figures)
     return {"calibration_frames": min(config.calibration_frames, len(source.calibration)), **figures}

@@ -137,11 +137,14 @@ def test_executorch_runs_batches_beyond_its_memory_plan_in_slices(artifacts, tes
     np.testing.assert_allclose(predictor.predict(batch)[:planned], predictor.predict(batch[:planned]), atol=1e-6)
 
 
-def test_a_missing_optional_runtime_is_not_applicable_with_the_install_line():
+def test_a_missing_optional_runtime_is_not_applicable_with_the_install_line(tmp_path):
     from matrix.kinds import NotApplicable
+    from pilotlab.strategies import StrategySource
     from pilotlab.strategies.edge import require
-    with pytest.raises(NotApplicable, match=r"needs no_such_runtime_xyz, not installed here \(pip install -e '\.\[edge\]'\)"):
-        require("litert", ("no_such_runtime_xyz",))
+    source = StrategySource(tmp_path / "model.pt", tmp_path, strategy="litert")
+    with pytest.raises(NotApplicable, match=r"litert needs no_such_runtime_xyz, not installed here "
+                                            r"\(pip install -e '\.\[edge\]'\)"):
+        require(source, ("no_such_runtime_xyz",))
 
 
 @pytest.mark.parametrize("name", ["executorch", "litert"])
