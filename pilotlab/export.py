@@ -33,14 +33,6 @@ interpreter.allocate_tensors()
 interpreter.invoke()
 vw = interpreter.get_tensor(out["index"]){dequantize}
 ```""",
-    "executorch-pte": """```python
-import numpy as np, torch
-from executorch.runtime import Runtime                # pip install executorch
-forward = Runtime.get().load_program("{file}").load_method("forward")
-# its memory holds at most {max_batch} images at a time: run larger batches in slices
-vw = np.concatenate([forward.execute([torch.from_numpy(images[i:i + {max_batch}])])[0].numpy()
-                     for i in range(0, len(images), {max_batch})])   # images: float32 {shape}
-```""",
     "pilotlab-checkpoint": """```python
 import torch
 from pilotlab.models import load_checkpoint          # needs pilotlab installed
@@ -97,9 +89,7 @@ v (m/s) and w (rad/s)."""
 FRAMEWORKS = {"onnx": "ONNX (run with ONNX Runtime ≥ 1.18, no Python needed in C/C++/C#/Java)",
               "torchscript": "TorchScript (run with PyTorch or libtorch in C++)",
               "pilotlab-checkpoint": "a pilotlab checkpoint (PyTorch eager; needs pilotlab)",
-              "tflite": "TF Lite (run with the LiteRT interpreter, `ai-edge-litert`, or TF Lite in C++/Java/Kotlin)",
-              "executorch-pte": "an ExecuTorch program with the XNNPACK delegate (run with ExecuTorch: "
-                                "Python `executorch`, or its C++/Android/iOS runtimes)"}
+              "tflite": "TF Lite (run with the LiteRT interpreter, `ai-edge-litert`, or TF Lite in C++/Java/Kotlin)"}
 QUANTIZE = """s, z = inp["quantization"]                            # integer-only: int8 in, int8 out
 x = np.clip(np.round(images / s) + z, -128, 127).astype(np.int8)
 """
@@ -149,7 +139,7 @@ def readme(meta: ArtifactMeta, result: dict[str, Any]) -> str:
 def loader(meta: ArtifactMeta, shape: str, cast: str) -> str:
     integer_only = "input_quantization" in meta.extra
     return LOADERS[meta.format].format(
-        file=meta.file, shape=shape, cast=cast, max_batch=meta.extra.get("max_batch", 1),
+        file=meta.file, shape=shape, cast=cast,
         quantize=QUANTIZE if integer_only else "x = images\n", dequantize=DEQUANTIZE if integer_only else "")
 
 

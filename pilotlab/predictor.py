@@ -108,31 +108,6 @@ class LiteRTPredictor(Predictor):
         return output
 
 
-class ExecuTorchPredictor(Predictor):
-    """An ExecuTorch .pte program (XNNPACK delegate). Its memory is planned for at most
-    `max_batch` images, so larger batches run in slices. XNNPACK's thread pool is one per process:
-    it is set to this profile's threads before a call whenever another profile changed it."""
-
-    def __init__(self, meta: ArtifactMeta, hardware: HardwareProfile, method):
-        import torch
-        super().__init__(meta, hardware)
-        self._torch, self._method = torch, method
-        self._max_batch = int(meta.extra.get("max_batch", 1))
-
-    def _run(self, batch: np.ndarray) -> np.ndarray:
-        _executorch_threads(self.threads)
-        if len(batch) <= self._max_batch:
-            return self._method.execute([self._torch.from_numpy(batch)])[0].numpy().copy()
-        return np.concatenate([self._run(batch[start:start + self._max_batch])
-                               for start in range(0, len(batch), self._max_batch)])
-
-
-def _executorch_threads(threads: int) -> None:
-    from executorch.extension.pybindings import portable_lib
-    if portable_lib._threadpool_get_thread_count() != threads:
-        portable_lib._unsafe_reset_threadpool(threads)
-
-
 def resolve_profile(hardware: HardwareProfile | dict | str | None) -> HardwareProfile:
     if hardware is None:
         return BUILTIN["cpu"]
@@ -168,11 +143,11 @@ def load_predictor(artifact_dir: Path, hardware: HardwareProfile | dict | str | 
     raise PilotlabError(f"{artifact_dir}: unknown runtime {meta.runtime!r} in artifact.json")
 
 
-EDGE_RUNTIMES = {"litert": ("ai_edge_litert", "LiteRT"), "executorch": ("executorch", "ExecuTorch")}
+EDGE_RUNTIMES = {"litert": ("ai_edge_litert", "LiteRT")}   # runtime -> (module, name)
 
 
 def _check_edge(meta: ArtifactMeta, profile: HardwareProfile) -> None:
-    """LiteRT and ExecuTorch artifacts: CPU only (XNNPACK), and only where the runtime is installed."""
+    """LiteRT artifacts: CPU only (XNNPACK), and only where the runtime is installed."""
     import importlib.util
     module, runtime = EDGE_RUNTIMES[meta.runtime]
     if profile.device != "cpu":
@@ -184,12 +159,8 @@ def _check_edge(meta: ArtifactMeta, profile: HardwareProfile) -> None:
 
 
 def _edge_predictor(path: Path, meta: ArtifactMeta, profile: HardwareProfile) -> Predictor:
-    if meta.runtime == "litert":
-        from ai_edge_litert.interpreter import Interpreter
-        return LiteRTPredictor(meta, profile, Interpreter(model_path=str(path), num_threads=profile.cpu_threads))
-    from executorch.runtime import Runtime
-    _executorch_threads(profile.cpu_threads)
-    return ExecuTorchPredictor(meta, profile, Runtime.get().load_program(str(path)).load_method("forward"))
+    from ai_edge_litert.interpreter import Interpreter
+    return LiteRTPredictor(meta, profile, Interpreter(model_path=str(path), num_threads=profile.cpu_threads))
 
 
 def _torch_module(path: Path, meta: ArtifactMeta, profile: HardwareProfile):

@@ -1,4 +1,4 @@
-"""What the edge-runtime strategies (ExecuTorch, LiteRT) share: they run only where their optional
+"""What the edge-runtime strategies (LiteRT) share: they run only where their optional
 packages are installed (`pip install -e '.[edge]'`), and otherwise say so as "not applicable"
 instead of failing the run; their artifacts run on the CPU only (XNNPACK), which the predictor
 checks."""
@@ -10,8 +10,6 @@ from matrix.kinds import NotApplicable
 from pilotlab.strategies.registry import StrategySource
 
 EXTRA = "pip install -e '.[edge]'"
-EXECUTORCH = ("executorch",)
-LITERT_RUNTIME = ("ai_edge_litert",)
 LITERT_CONVERTER = ("tensorflow", "tf_keras", "onnx2tf", "onnx_graphsurgeon", "ai_edge_litert")
 
 

@@ -1,7 +1,8 @@
-"""Structured pruning then XNNPACK int8: `structured_prune_litert_int8` (LiteRT, TF Lite's int8 with
-float input/output) and `structured_prune_executorch_int8` (ExecuTorch, XNNPACK quantizer) — the
-`structured_prune_int8` recipe (30 % of the channels removed, kept counts rounded to multiples of 8,
-fine-tuned) with the int8 step done by the runtime that runs PilotNet's int8 fastest at batch 1 here.
+"""Structured pruning then XNNPACK int8: `structured_prune_litert_int8` — the `structured_prune_int8`
+recipe (30 % of the channels removed, kept counts rounded to multiples of 8, fine-tuned) with the
+int8 step done by LiteRT (TF Lite's int8 with float input/output), the runtime that runs PilotNet's
+int8 fastest here at batch 1 and batch 64 (ExecuTorch's XNNPACK was measured too: slower,
+docs/strategies.md).
 
 Why: ONNX Runtime's int8 PilotNet spends a third of its batch-1 time outside the int8 GEMMs
 (layout transposes around the fp32 first convolution, quantize/dequantize nodes, the fully
@@ -13,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pilotlab.strategies.edge import EXECUTORCH, LITERT_CONVERTER, require
+from pilotlab.strategies.edge import LITERT_CONVERTER, require
 from pilotlab.strategies.common import finetune
 from pilotlab.strategies.prune import check_fraction
 from pilotlab.strategies.registry import StrategySource, register_strategy
@@ -63,14 +64,3 @@ def structured_prune_litert_int8(config: StructuredPruneXnnpackConfig, source: S
     result = save_tflite(model, source, "int8", config.calibration_frames)
     _record_pruning(source, figures)
     return {**result, **figures}
-
-
-@register_strategy("structured_prune_executorch_int8", StructuredPruneXnnpackConfig)
-def structured_prune_executorch_int8(config: StructuredPruneXnnpackConfig, source: StrategySource) -> dict:
-    require(source, EXECUTORCH)
-    from pilotlab.strategies.executorch_lower import save_pte
-    model, figures = _pruned(config, source)
-    save_pte(model, source, 64,
-             quantizer={"per_channel": True, "calibration_frames": config.calibration_frames})
-    _record_pruning(source, figures)
-    return {"calibration_frames": min(config.calibration_frames, len(source.calibration)), **figures}

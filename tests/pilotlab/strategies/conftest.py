@@ -15,7 +15,6 @@ TEST_OPTIONS = {
     "structured_prune": {"finetune_epochs": 1, "batch_size": 16},
     "structured_prune_int8": {"finetune_epochs": 1, "batch_size": 16, "calibration_frames": 32},
     "structured_prune_litert_int8": {"finetune_epochs": 1, "batch_size": 16, "calibration_frames": 32},
-    "structured_prune_executorch_int8": {"finetune_epochs": 1, "batch_size": 16, "calibration_frames": 32},
     "cluster": {"finetune_epochs": 1, "batch_size": 16},
     "qat": {"finetune_epochs": 1, "batch_size": 16},
     "prune_quant": {"finetune_epochs": 1, "batch_size": 16},

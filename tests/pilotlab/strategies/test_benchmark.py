@@ -8,7 +8,7 @@ GEMM peak, measured in the same run (ONNX Runtime fp32 MatMul and u8s8 MatMulInt
 how close a strategy is to what the CPU can do shows; two ceilings for batch 64 follow it (the full
 network at the int8 peak, and the first convolution alone, which pruning cannot make cheaper).
 Every runtime is in it: PyTorch eager and TorchScript, ONNX Runtime, and where the `edge` extra is
-installed ExecuTorch and LiteRT (both XNNPACK), each row naming its runtime.
+installed LiteRT (XNNPACK), each row naming its runtime.
 Run: PYTHONPATH=. python -m pytest -m benchmark -s tests/pilotlab/strategies/test_benchmark.py
 (PILOTLAB_BENCH_ROUNDS=N rounds, default 5; PILOTLAB_BENCH_STRATEGIES=a,b,... only those strategies
 beside the baseline). Never asserts timings (the machine is shared).
@@ -41,7 +41,7 @@ ROUND_TIMING = TimingSettings(warmup_runs=20, warmup_seconds=0.1, min_runs=200, 
                               throughput_seconds=0.4)
 NO_FINETUNE = {name: {"finetune_epochs": 0} for name in
                ("local_prune", "global_prune", "structured_prune", "structured_prune_int8", "cluster", "qat",
-                "prune_quant", "structured_prune_litert_int8", "structured_prune_executorch_int8")}
+                "prune_quant", "structured_prune_litert_int8")}
 
 
 def build_all(trained, frames, root) -> tuple[dict, dict]:

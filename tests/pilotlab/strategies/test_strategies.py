@@ -17,10 +17,10 @@ from pilotlab.predictor import load_predictor
 from pilotlab.strategies import STRATEGIES
 
 CUDA_ONLY = {"tensorrt"}
-INT8 = {"static_quant", "qat", "prune_quant", "onnxruntime_int8", "executorch_int8", "litert_dynamic_range",
+INT8 = {"static_quant", "qat", "prune_quant", "onnxruntime_int8", "litert_dynamic_range",
         "litert_int8", "litert_full_int8"}
 EDGE = {name: STRATEGIES.get(name).module for name in STRATEGIES
-        if STRATEGIES.get(name).module.rsplit(".", 1)[-1] in ("executorch_xnnpack", "litert", "structured_prune_xnnpack")}
+        if STRATEGIES.get(name).module.rsplit(".", 1)[-1] in ("litert", "structured_prune_xnnpack")}
 ROOT = Path(__file__).resolve().parents[3]
 
 
@@ -71,7 +71,7 @@ def test_reloads_in_a_fresh_process_and_predicts_the_same(artifacts, test_frames
 
 
 @pytest.mark.parametrize("name", ["torchscript", "onnxruntime", "bf16", "fp16", "dynamic_quant",
-                                  "onnxruntime_int8", "static_quant", "executorch", "executorch_int8", "litert",
+                                  "onnxruntime_int8", "static_quant", "litert",
                                   "litert_dynamic_range", "litert_float16", "litert_int8", "litert_full_int8"])
 def test_strategies_without_finetuning_keep_the_function(name, artifacts, trained, test_frames):
     runnable(artifacts, name)
@@ -118,23 +118,13 @@ def test_litert_full_int8_is_integer_only_and_its_raw_output_is_the_studys_mista
                                load_predictor(artifacts["litert_int8"][0], "cpu1").predict(batch), atol=0.02)
 
 
-@pytest.mark.parametrize("name", ["structured_prune_litert_int8", "structured_prune_executorch_int8"])
+@pytest.mark.parametrize("name", ["structured_prune_litert_int8"])
 def test_structured_prune_xnnpack_prunes_then_quantizes(name, artifacts):
     runnable(artifacts, name)
     folder, result = artifacts[name]
     assert result["macs"] < 0.55 * result["macs_before"]
     assert json.loads((folder / "artifact.json").read_text())["extra"]["macs"] == result["macs"]
     assert result["size_mb"] < 0.6 * artifacts["onnxruntime_int8"][1]["size_mb"]
-
-
-def test_executorch_runs_batches_beyond_its_memory_plan_in_slices(artifacts, test_frames):
-    runnable(artifacts, "executorch")
-    folder, _ = artifacts["executorch"]
-    planned = json.loads((folder / "artifact.json").read_text())["extra"]["max_batch"]
-    batch = inputs(test_frames, count=24)
-    assert planned < len(batch)
-    predictor = load_predictor(folder, "cpu1")
-    np.testing.assert_allclose(predictor.predict(batch)[:planned], predictor.predict(batch[:planned]), atol=1e-6)
 
 
 def test_a_missing_optional_runtime_is_not_applicable_with_the_install_line(tmp_path):
@@ -147,7 +137,7 @@ def test_a_missing_optional_runtime_is_not_applicable_with_the_install_line(tmp_
         require(source, ("no_such_runtime_xyz",))
 
 
-@pytest.mark.parametrize("name", ["executorch", "litert"])
+@pytest.mark.parametrize("name", ["litert", "litert_full_int8"])
 def test_edge_artifacts_on_a_cuda_profile_are_not_applicable(name, artifacts):
     from matrix.kinds import NotApplicable
     from pilotlab.hardware import BUILTIN
