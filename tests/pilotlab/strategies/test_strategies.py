@@ -104,8 +104,8 @@ def test_litert_float16_halves_the_size(artifacts):
 
 
 def test_litert_full_int8_is_integer_only_and_its_raw_output_is_the_studys_mistake(artifacts, test_frames):
-    from ai_edge_litert.interpreter import Interpreter
     runnable(artifacts, "litert_full_int8")
+    from ai_edge_litert.interpreter import Interpreter
     folder, result = artifacts["litert_full_int8"]
     interpreter = Interpreter(model_path=str(folder / "model.tflite"))
     assert interpreter.get_input_details()[0]["dtype"] == np.int8
