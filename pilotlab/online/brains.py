@@ -116,15 +116,23 @@ class NetworkBrain:
         for _ in range(runs):
             self.predictor.predict(blank)
 
-    def inputs(self, image: np.ndarray, t: float) -> np.ndarray:
-        """The network's input for the camera image seen at simulated time `t`."""
-        stack = self.stack.push(preprocess(image, self.config), t)
+    @property
+    def view(self) -> PreprocessConfig:
+        """What the env may render instead of the camera image (DrivingEnv's `view`): the network's
+        preprocessed frame, drawn directly."""
+        return self.config
+
+    def inputs(self, image: np.ndarray, t: float, rendered_view=None) -> np.ndarray:
+        """The network's input for the camera image seen at simulated time `t`; when the env rendered
+        this brain's view (`rendered_view` is its config) the image is already the preprocessed frame."""
+        frame = image if rendered_view == self.config else preprocess(image, self.config)
+        stack = self.stack.push(frame, t)
         return np.ascontiguousarray(to_input(stack[None]).numpy())
 
     def act(self, image: np.ndarray | None, info: dict[str, Any]) -> tuple[float, float]:
         if image is None:
             raise PilotlabError("a network brain needs the camera image; the env was made without a camera")
-        inputs = self.inputs(image, info["sim_time"])
+        inputs = self.inputs(image, info["sim_time"], info.get("view"))
         started = time.perf_counter()
         output = self.predictor.predict(inputs)
         self.last_inference_s = time.perf_counter() - started
