@@ -7,6 +7,7 @@ start at the same point.
 """
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -63,6 +64,10 @@ class Circuit:
         self.headings = np.arctan2(self._seg_dir[:, 1], self._seg_dir[:, 0])
         turn = wrap_angle(np.roll(self.headings, -1) - np.roll(self.headings, 1))
         self.curvature = turn / (np.roll(self._seg_len, -1) + self._seg_len)  # 1/m, + turning left
+        # Per-segment steps to the next point, for the lookups the simulator makes every step.
+        self._heading_step = wrap_angle(np.roll(self.headings, -1) - self.headings)
+        self._next_curvature = np.roll(self.curvature, -1)
+        self._arc_list = self.arc.tolist()
 
     @classmethod
     def from_points(cls, name: str, raw: np.ndarray, *, road_width: float, timeout_s: float | None = None,
@@ -97,6 +102,10 @@ class Circuit:
 
     # -- lookups along the arc ----------------------------------------------------------------
     def _locate(self, s):
+        if isinstance(s, (float, int, np.floating, np.integer)):  # one point: the same numbers, without
+            s = float(s) % self.length                                # numpy's per-call overhead
+            index = min(max(bisect.bisect_right(self._arc_list, s) - 1, 0), len(self._arc_list) - 1)
+            return index, (s - self.arc[index]) / self._seg_len[index]
         s = np.mod(np.asarray(s, dtype=np.float64), self.length)
         index = np.clip(np.searchsorted(self.arc, s, side="right") - 1, 0, len(self.arc) - 1)
         return index, (s - self.arc[index]) / self._seg_len[index]
@@ -108,12 +117,11 @@ class Circuit:
 
     def heading_at(self, s):
         index, t = self._locate(s)
-        step = wrap_angle(np.roll(self.headings, -1)[index] - self.headings[index])
-        return wrap_angle(self.headings[index] + t * step)
+        return wrap_angle(self.headings[index] + t * self._heading_step[index])
 
     def curvature_at(self, s):
         index, t = self._locate(s)
-        return (1 - t) * self.curvature[index] + t * np.roll(self.curvature, -1)[index]
+        return (1 - t) * self.curvature[index] + t * self._next_curvature[index]
 
     def start_pose(self, s: float = 0.0, lateral: float = 0.0) -> tuple[float, float, float]:
         """x, y, yaw of a car on the centreline at `s`, shifted `lateral` metres to the left."""

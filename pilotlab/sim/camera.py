@@ -99,7 +99,9 @@ def camera_pose(spec: CameraSpec, position, quaternion, axle_height: float) -> t
     pitch = math.radians(spec.pitch_deg)
     forward = car @ np.array([math.cos(pitch), 0.0, -math.sin(pitch)])
     down = car @ np.array([-math.sin(pitch), 0.0, -math.cos(pitch)])
-    right = np.cross(down, forward)
+    # np.cross's arithmetic, without its per-call overhead (the camera moves every step)
+    right = np.array([down[1] * forward[2] - down[2] * forward[1], down[2] * forward[0] - down[0] * forward[2],
+                      down[0] * forward[1] - down[1] * forward[0]])
     return eye, np.stack([right, down, forward])
 
 
