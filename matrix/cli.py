@@ -17,12 +17,11 @@ from rich.markup import escape
 from rich.table import Table
 
 from matrix import engine
-from matrix.display import RichDisplay
+from matrix.display import RichDisplay, print_plan
 from matrix.recipe import Domain, load_recipe
 from matrix.store import ARTIFACTS, LOG, read_json
 
 GetDomain = Callable[[], Domain]
-STATE_STYLE = {"fresh": "green", "stale": "yellow", "new": "cyan"}
 
 
 def add_engine_commands(subparsers, get_domain: GetDomain,
@@ -46,7 +45,9 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
                      help="with Dask: run timing jobs only on workers started with --resources NAME=1")
     plan = add("plan", cmd_plan, "show what `run` would do: each job fresh / stale / new, and why")
     plan.add_argument("recipe")
-    plan.add_argument("--json", action="store_true", help="print a JSON list instead of a table")
+    plan.add_argument("--json", action="store_true", help="print a JSON list of every job instead of a table")
+    plan.add_argument("--all", action="store_true",
+                      help="a row for every job (by default a large plan shows a summary per kind and its first rows)")
     plan.add_argument("--force", action="append", default=[], metavar="KIND", help="show every job of KIND as stale")
     add("status", cmd_status, "summarise the job store")
     show = add("show", cmd_show, "show one stored job: spec, result, log and artifacts")
@@ -68,24 +69,8 @@ def cmd_plan(args, domain: Domain) -> int:
                  "reason": s.reason} for s in plan.statuses]
         print(json.dumps(rows, indent=1))
         return 0
-    out = console()
-    table = Table("status", "kind", "job", "reason", "key", box=None, pad_edge=False)
-    for s in plan.statuses:
-        style = STATE_STYLE[s.state]
-        table.add_row(f"[{style}]{s.state}[/]", s.job.kind, escape(s.job.name), escape(s.reason), s.job.key[:10])
-    out.print(table)
-    out.print(_counts_line(plan))
+    print_plan(console(), plan.statuses, plan.counts(), every_row=args.all, tool=args.tool)
     return 0
-
-
-def _counts_line(plan: engine.Plan) -> str:
-    parts = []
-    for kind, counts in plan.counts().items():
-        states = ", ".join(f"{n} {state}" for state, n in sorted(counts.items()))
-        parts.append(f"{kind}: {states}")
-    total = Counter(s.state for s in plan.statuses)
-    summary = ", ".join(f"{n} {state}" for state, n in sorted(total.items()))
-    return f"[bold]{len(plan.statuses)} jobs[/] ({summary}) — " + "; ".join(parts)
 
 
 def cmd_run(args, domain: Domain) -> int:
