@@ -18,6 +18,7 @@ from rich.table import Table
 
 from matrix import engine
 from matrix.display import RichDisplay, print_plan
+from matrix.execute import default_jobs
 from matrix.recipe import Domain, load_recipe
 from matrix.store import ARTIFACTS, LOG, read_json
 
@@ -35,7 +36,9 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
 
     run = add("run", cmd_run, "run a recipe: every job that is not fresh, in dependency order")
     run.add_argument("recipe")
-    run.add_argument("-j", "--jobs", type=int, default=1, help="jobs at once (worker processes)")
+    run.add_argument("-j", "--jobs", type=int, default=None,
+                     help=f"jobs at once (worker processes; default: one per core, {default_jobs()} here); a timing "
+                          "job always runs alone")
     run.add_argument("--keep-going", action="store_true", help="after a failure, run what does not depend on it")
     run.add_argument("--force", action="append", default=[], metavar="KIND", help="rerun every job of KIND")
     run.add_argument("--executor", choices=["local", "dask", "dask-local"], default="local",
@@ -76,6 +79,7 @@ def cmd_plan(args, domain: Domain) -> int:
 def cmd_run(args, domain: Domain) -> int:
     store = engine.open_store(domain, args.store)
     recipe = load_recipe(args.recipe, domain)
+    args.jobs = default_jobs() if args.jobs is None else args.jobs
     executor = engine.Executor(args.executor, args.jobs, args.scheduler, args.timing_resource)
     plan = engine.make_plan(recipe, domain, store, args.force)
     out = console()

@@ -2,12 +2,14 @@
 
 The driver keeps the schedule (which jobs are ready, which are blocked by a failure); workers run
 `matrix.worker.execute_job`, which does the locking and the atomic commit. Jobs of an `exclusive`
-kind (timings) run alone. A failed job's dependents are skipped; without `keep_going` nothing new
+kind (timings) run alone: one waits until the running jobs are done, and nothing starts beside it
+(`Schedule.take`), so its figures come from a quiet host whatever `-j` is. A failed job's dependents are skipped; without `keep_going` nothing new
 starts after the first failure.
 """
 from __future__ import annotations
 
 import multiprocessing
+import os
 import time
 from collections import deque
 from collections.abc import Iterable
@@ -107,6 +109,14 @@ class Schedule:
         return [job for key, job in self.jobs.items() if key not in self.settled]
 
 
+def default_jobs() -> int:
+    """Jobs at once by default: one per core this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
 def run_local(statuses: list[JobStatus], store: Store, *, jobs: int = 1, keep_going: bool = False,
               kind_modules: Iterable[str] = (), display: Display | None = None) -> RunSummary:
     """Run every non-fresh job of `statuses` (in dependency order) on `jobs` worker processes."""
@@ -142,15 +152,15 @@ def _drive(schedule: Schedule, pool: _Pool, summary: RunSummary, keep_going: boo
                 display.job_waiting(job)
                 schedule.retry_later(job.key)
                 continue
-            _record(outcome, schedule, summary, display)
+            record_outcome(outcome, schedule, summary, display)
             stopping = stopping or (outcome.status == FAILED and not keep_going)
     for job in schedule.pending():
-        _record(Outcome(job.key, job.name, job.kind, NOT_STARTED,
+        record_outcome(Outcome(job.key, job.name, job.kind, NOT_STARTED,
                         "not started: the run stopped at the first failure (use --keep-going)"),
                 schedule, summary, display)
 
 
-def _record(outcome: Outcome, schedule: Schedule, summary: RunSummary, display: Display) -> None:
+def record_outcome(outcome: Outcome, schedule: Schedule, summary: RunSummary, display: Display) -> None:
     summary.outcomes.append(outcome)
     display.job_finished(outcome)
     if outcome.status == FAILED:
