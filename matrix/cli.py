@@ -52,7 +52,10 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
     plan.add_argument("--all", action="store_true",
                       help="a row for every job (by default a large plan shows a summary per kind and its first rows)")
     plan.add_argument("--force", action="append", default=[], metavar="KIND", help="show every job of KIND as stale")
-    add("status", cmd_status, "summarise the job store")
+    status = add("status", cmd_status, "summarise the job store")
+    status.add_argument("--times", action="store_true",
+                        help="how long the stored jobs took, per kind (where a recipe's minutes go)")
+    status.add_argument("--recipe", metavar="NAME", help="with --times: only the jobs of this recipe's last run")
     show = add("show", cmd_show, "show one stored job: spec, result, log and artifacts")
     show.add_argument("key", help="a job key or its first characters")
     gc = add("gc", cmd_gc, "remove stored jobs that none of the given recipes reaches")
@@ -113,6 +116,8 @@ def _summary_line(summary: engine.RunSummary, tool: str) -> str:
 def cmd_status(args, domain: Domain) -> int:
     store = engine.open_store(domain, args.store)
     out = console()
+    if args.times or args.recipe:
+        return _print_times(out, store, args.recipe)
     out.print(f"store: {store.root.resolve()}")
     kinds: dict[str, Counter] = {}
     for key in store.keys():
@@ -129,6 +134,26 @@ def cmd_status(args, domain: Domain) -> int:
         data = read_json(index) or {}
         out.print(f"recipe {escape(data.get('recipe', index.stem))}: {len(data.get('jobs', {}))} jobs "
                   f"({escape(str(data.get('file', '?')))})")
+    return 0
+
+
+def _print_times(out: Console, store: Store, recipe: str | None) -> int:
+    from matrix.errors import MatrixError
+    from matrix.times import kind_times, recipe_keys
+    keys = None if recipe is None else recipe_keys(store, recipe)
+    if recipe is not None and keys is None:
+        raise MatrixError(f"recipe {recipe!r} never ran on the store {store.root}; give the `name:` of a recipe "
+                          "that ran here, or leave --recipe out for every stored job")
+    rows = kind_times(store, keys)
+    total = sum(row.total_s for row in rows)
+    table = Table("kind", "jobs", "total s", "share", "mean s", "max s", "slowest job", box=None)
+    for row in rows:
+        table.add_row(row.kind, str(row.jobs), f"{row.total_s:.1f}", f"{100 * row.total_s / (total or 1):.0f} %",
+                      f"{row.mean_s:.1f}", f"{row.max_s:.1f}", escape(row.slowest))
+    out.print(table if rows else "no finished jobs yet")
+    what = f"recipe {escape(recipe)}" if recipe else "every stored job"
+    out.print(f"{what}: {sum(r.jobs for r in rows)} jobs, {total:.1f} s of job time "
+              "(jobs run at once overlap: a run's wall time can be less)")
     return 0
 
 

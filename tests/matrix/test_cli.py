@@ -105,3 +105,15 @@ def test_a_large_plan_is_summarised_per_kind_and_all_of_it_is_in_json(tmp_path, 
     assert sum(line.startswith("new ") for line in cli(capsys, "plan", str(path), "--store", store, "--all")[1].splitlines()) \
         == total
     assert len(json.loads(cli(capsys, "plan", str(path), "--store", store, "--json")[1])) == total
+
+
+def test_status_times_sums_job_durations_per_kind(recipe, tmp_path, capsys):
+    store = str(tmp_path / "s")
+    (tmp_path / "slow.yaml").write_text((RECIPE % 3).replace("b: {value: 3}", "b: {value: 3, sleep: 0.5}"))
+    assert cli(capsys, "run", str(tmp_path / "slow.yaml"), "--store", store)[0] == 0
+    code, out, _ = cli(capsys, "status", "--store", store, "--times", "--recipe", "toy")
+    lines = out.splitlines()
+    assert code == 0 and lines[1].split()[:2] == ["source", "2"]   # the slowest kind first
+    assert float(lines[1].split()[2]) >= 0.5 and "source b" in lines[1]
+    assert "recipe toy: 5 jobs" in out
+    assert cli(capsys, "status", "--store", store, "--times", "--recipe", "nope")[0] == 2
