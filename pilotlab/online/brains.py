@@ -7,7 +7,7 @@
     brain.reset(env.circuit); v, w = brain.act(image, info)
 
 A network brain feeds the network exactly what training saw: `pilotlab.data.preprocess` on the
-camera image with the artifact's preprocessing settings, `to_input` to the float tensor, and the
+camera image with the artifact's preprocessing settings, `to_input`'s float layout, and the
 artifact's label ranges to de-normalise the output. Temporal models get their stacked frames, picked
 `frame_interval_s` apart in simulated time (the spacing of consecutive recorded frames in training).
 
@@ -27,7 +27,7 @@ import numpy as np
 from matrix.registry import Registry
 from pilotlab.circuits import Circuit
 from pilotlab.data.frames import LabelRanges
-from pilotlab.data.preprocess import PreprocessConfig, preprocess, to_input
+from pilotlab.data.preprocess import PreprocessConfig, preprocess
 from pilotlab.errors import PilotlabError
 from pilotlab.specs.base import build_config
 from pilotlab.sim.expert import Expert, ExpertConfig
@@ -127,7 +127,11 @@ class NetworkBrain:
         this brain's view (`rendered_view` is its config) the image is already the preprocessed frame."""
         frame = image if rendered_view == self.config else preprocess(image, self.config)
         stack = self.stack.push(frame, t)
-        return np.ascontiguousarray(to_input(stack[None]).numpy())
+        # `to_input`'s layout and arithmetic (uint8 -> float32, / 255) in numpy: torch's per-call
+        # overhead on one small frame costs more than the conversion itself
+        frames, height, width, _ = stack.shape
+        channels_first = stack.transpose(0, 3, 1, 2).reshape(1, 3 * frames, height, width)
+        return channels_first.astype(np.float32) / np.float32(255.0)
 
     def act(self, image: np.ndarray | None, info: dict[str, Any]) -> tuple[float, float]:
         if image is None:
