@@ -82,9 +82,15 @@ class Schedule:
         self.later = [(at, key) for at, key in self.later if at > now]
         if not self.ready or exclusive_running or running >= slots:
             return None
-        if KINDS.get(self.jobs[self.ready[0]].kind).exclusive and running:
-            return None  # an exclusive job waits until the others finish, then runs alone
-        return self.jobs[self.ready.popleft()]
+        if not running:  # an idle host: the next job, exclusive or not
+            return self.jobs[self.ready.popleft()]
+        # Others run: the first ready job that may run beside them. An exclusive job waits until the
+        # host is idle (it then runs alone); the work it would have held up goes on meanwhile.
+        for position, key in enumerate(self.ready):
+            if not KINDS.get(self.jobs[key].kind).exclusive:
+                del self.ready[position]
+                return self.jobs[key]
+        return None
 
     def done(self, key: str) -> None:
         self.settled.add(key)
