@@ -143,25 +143,29 @@ class Circuit:
         """The nearest centreline point to (x, y). With `near_s`, only segments within `window`
         metres of it are searched (fast, and never jumps to a neighbouring stretch of road)."""
         segments = self._segment_window(near_s, window)
-        start = self.points[segments]
-        direction = self._seg_dir[segments]
-        offset = np.array([x, y]) - start
+        start, direction = self.points[segments], self._seg_dir[segments]
+        point = np.array([x, y])
+        offset = point - start
         # np.minimum(np.maximum()) is np.clip without its Python-level overhead (called every step)
         along = np.minimum(np.maximum(np.einsum("ij,ij->i", offset, direction), 0.0), self._seg_len[segments])
         nearest = start + along[:, None] * direction
-        squared = np.sum((np.array([x, y]) - nearest) ** 2, axis=1)
+        squared = np.sum((point - nearest) ** 2, axis=1)
         best = int(np.argmin(squared))
         side = direction[best, 0] * offset[best, 1] - direction[best, 1] * offset[best, 0]
-        s = float((self.arc[segments[best]] + along[best]) % self.length)
+        s = float((self.arc[segments][best] + along[best]) % self.length)
         return Projection(s=s, lateral=math.copysign(math.sqrt(squared[best]), side),
                           x=float(nearest[best, 0]), y=float(nearest[best, 1]), heading=float(self.heading_at(s)))
 
-    def _segment_window(self, near_s: float | None, window: float) -> np.ndarray:
+    def _segment_window(self, near_s: float | None, window: float) -> slice | np.ndarray:
+        """The segments to search, in order: a slice where they do not wrap past the start line (views,
+        not copies: the env projects the car every step), else their indices."""
         count = len(self.points)
         if near_s is None or 2 * window >= self.length:
-            return np.arange(count)
+            return slice(0, count)
         centre = int(self._locate(near_s)[0])
         half = int(math.ceil(window / (self.length / count)))
+        if 0 <= centre - half and centre + half + 1 <= count:
+            return slice(centre - half, centre + half + 1)
         return np.arange(centre - half, centre + half + 1) % count
 
     # -- extent ---------------------------------------------------------------------------------
