@@ -161,7 +161,7 @@ class DrivingEnv(gymnasium.Env):
         before = self._progress
         segments = self._schedule(command, duration)
         for segment_command, steps in segments:
-            self.car.apply(*segment_command)
+            self.car.apply(*segment_command, speed=self._state[2])  # read after the last physics step
             self._advance(steps)
         self._steps += 1
         self._last_dt = sum(steps for _, steps in segments) / self.physics_hz
