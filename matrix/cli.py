@@ -20,7 +20,7 @@ from matrix import engine
 from matrix.display import RichDisplay, print_plan
 from matrix.execute import default_jobs
 from matrix.recipe import Domain, load_recipe
-from matrix.store import ARTIFACTS, LOG, read_json
+from matrix.store import ARTIFACTS, LOG, Store, read_json
 
 GetDomain = Callable[[], Domain]
 

@@ -17,8 +17,8 @@ import time
 import uuid
 from collections.abc import Iterable
 
-from matrix.errors import MatrixError
 from matrix.display import NullDisplay
+from matrix.errors import MatrixError
 from matrix.execute import NOT_STARTED, Outcome, RunSummary, Schedule, record_outcome
 from matrix.jobs import Job
 from matrix.kinds import KINDS
