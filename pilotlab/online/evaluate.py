@@ -45,18 +45,21 @@ def start_points(spec: LapSettings, length: float) -> list[float]:
     return [float(s) % length for s in spec.starts]
 
 
-def make_env(spec: OnlineSpec, camera: bool) -> DrivingEnv:
+def make_env(spec: OnlineSpec, camera: bool, view=None) -> DrivingEnv:
+    """`view`: the brain's preprocessing, rendered directly instead of the camera image (sim.view)."""
     return DrivingEnv(spec.circuit, direction=spec.direction,
                       camera=CameraSpec(width=spec.camera.width, height=spec.camera.height) if camera else None,
                       renderer=spec.renderer, control_period=spec.period_s, laps=spec.laps,
-                      timeout_s=spec.timeout_s, stop_off_road=spec.stop_off_road, trapped_s=spec.trapped_s)
+                      timeout_s=spec.timeout_s, stop_off_road=spec.stop_off_road, trapped_s=spec.trapped_s,
+                      view=view)
 
 
 def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None, latency_ms=None
             ) -> tuple[list[Trajectory], dict[str, Any], Circuit]:
     """Drive every repetition; returns the trajectories, the media written and the circuit driven."""
     wants_media = bool(spec.video or spec.camera_frames)
-    env = make_env(spec, camera=brain.needs_camera or wants_media)
+    # A network brain is given its preprocessed frame rendered directly (pilotlab.sim.view)
+    env = make_env(spec, camera=brain.needs_camera or wants_media, view=getattr(brain, "view", None))
     recorder = CameraRecorder(out, control_hz=spec.control_hz, video_seconds=spec.video_length_s,
                               stills=spec.camera_frames) if wants_media else None
     trajectories = []
@@ -66,14 +69,22 @@ def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | No
         for i, start in enumerate(starts):
             what = f"{brain.name} on {spec.circuit} {spec.direction}, run {i + 1}/{len(starts)} from {start:.0f} m"
             report = None if progress is None else (lambda done, total, what=what: progress(done, total, what))
-            trajectories.append(drive(env, brain, spec, start=start, seed=spec.seed + i,
-                                      render=brain.needs_camera or (wants_media and i == 0),
-                                      on_frame=recorder if i == 0 else None, progress=report,
-                                      latency_ms=latency_ms))
+            trajectories.append(drive(env, brain, spec, start=start, seed=spec.seed + i, render=brain.needs_camera,
+                                      on_frame=media_frames(env, recorder) if recorder and i == 0 else None,
+                                      progress=report, latency_ms=latency_ms))
     finally:
         env.close()
         media = recorder.close() if recorder else {}
     return trajectories, media, env.circuit
+
+
+def media_frames(env: DrivingEnv, recorder: CameraRecorder):
+    """`drive`'s on_frame for the media: the full camera image, rendered only when the recorder keeps it
+    (the brain may see only its view, or no image at all)."""
+    def on_frame(image, info: dict[str, Any], command) -> None:
+        if recorder.wants(info["sim_time"]):
+            recorder(env.camera_image(), info, command)
+    return on_frame
 
 
 def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None,
