@@ -123,7 +123,7 @@ class Job:
     labels: Mapping[str, Any] = field(default_factory=dict)   # descriptive only, not in the key
 
     def __post_init__(self):
-        canonical_json(self.params)  # fail at construction, naming nothing random
+        _check_json(self.params, "")  # fail at construction, naming nothing random (no text: the key makes it)
         deps = {role: tuple(d) if isinstance(d, (list, tuple)) else d for role, d in self.deps.items()}
         object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
         object.__setattr__(self, "deps", MappingProxyType(deps))
