@@ -131,7 +131,7 @@ def network_lap(artifacts: Path, view: bool) -> dict:
     profile = profile_from_dict({"name": "cpu1", "device": "cpu", "threads": 1})
     cv2.setNumThreads(1)
     brain = NetworkBrain(load_predictor(artifacts, profile, spin=False))
-    spec = OnlineSpec(circuit="simple_circuit")
+    spec = OnlineSpec(circuit="simple_circuit", timing="measured")   # timed live, as before replay timing
     with make_env(spec, camera=True, view=brain.view if view else None) as env:
         brain.warm_up()
         cpu = time.process_time()
@@ -144,7 +144,7 @@ def test_network_laps_real_time_factor(quickstart):
     store = Store(quickstart[0])
     optimized = {store.spec(k)["name"]: store.job_dir(k) / "artifacts" for k in store.keys()
                  if store.spec(k)["kind"] == "optimize"}
-    print(f"\nnetwork laps of simple_circuit, latency timing, 1 thread ({load()}):")
+    print(f"\nnetwork laps of simple_circuit, measured timing, 1 thread ({load()}):")
     for name, artifacts in sorted(optimized.items()):
         for view in (True, False):
             lap = network_lap(artifacts, view)

@@ -104,7 +104,7 @@ def test_reference_brains_are_a_registry_with_checked_options():
 def test_in_the_loop_the_network_is_given_its_view_and_uses_it_as_is(pilotnet_artifact, tmp_path):
     from pilotlab.online.evaluate import OnlineSpec, make_env, run_all
     brain = NetworkBrain(load_predictor(pilotnet_artifact, "cpu1"))
-    spec = OnlineSpec(circuit="simple_circuit", timeout_s=0.5)
+    spec = OnlineSpec(circuit="simple_circuit", timeout_s=0.5, timing="measured")
     with make_env(spec, camera=True, view=brain.view) as env:
         frame, info = env.reset(seed=0)
     assert frame.shape == (66, 200, 3) and info["view"] == brain.config
