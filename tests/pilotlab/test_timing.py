@@ -119,4 +119,5 @@ def test_a_timing_beside_cpu_hogs_is_marked_unstable(tmp_path):
     result = json.loads(output.splitlines()[-1])
     reason = result["unstable"]["latency_ms"]
     assert "ran with no thread of this process waiting for a CPU" in reason and "other processes used" in reason, reason
-    assert result["timing_calls_discarded"] > 0 and result["timing_other_cores"] > 1.0
+    # the hogs share the two cores with this timing, so they get about one of them between them
+    assert result["timing_calls_discarded"] > 0 and result["timing_other_cores"] > 0.5
