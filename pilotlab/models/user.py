@@ -19,6 +19,7 @@ from typing import Any
 import torch
 from torch import nn
 
+from matrix.errors import did_you_mean
 from pilotlab import usercode
 from pilotlab.errors import PilotlabError
 from pilotlab.models.imported import NetworkConfig, OnnxConfig, TorchScriptConfig
@@ -49,12 +50,17 @@ def construct(cls: Any, options: dict[str, Any], where: str) -> nn.Module:
     """`cls(**options)`, an nn.Module; options it does not take are named with those it does."""
     if not (isinstance(cls, type) and issubclass(cls, nn.Module)):
         raise PilotlabError(f"{where}: {getattr(cls, '__name__', cls)!r} is not a torch.nn.Module class")
+    parameters = inspect.signature(cls).parameters
+    takes = [n for n, p in parameters.items() if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)]
+    signature = f"{cls.__name__}({', '.join(takes)})"
+    if not any(p.kind == p.VAR_KEYWORD for p in parameters.values()):
+        if unknown := [name for name in options if name not in takes]:
+            guesses = "".join(did_you_mean(name, takes) for name in unknown)
+            raise PilotlabError(f"options: {signature} does not take {', '.join(unknown)}{guesses}")
     try:
         inspect.signature(cls).bind(**options)
     except TypeError as error:
-        takes = [name for name in inspect.signature(cls).parameters if name not in ("args", "kwargs")]
-        raise PilotlabError(f"options: {cls.__name__}({', '.join(takes)}) does not take {_given(options)}: "
-                            f"{error}") from None
+        raise PilotlabError(f"options: {signature}: {error}") from None
     try:
         return cls(**options)
     except Exception as error:  # noqa: BLE001 — the user's constructor: say where it failed
@@ -245,10 +251,10 @@ def user_model(spec, files: dict[str, Path], input_shape: tuple[int, int, int], 
     onnx); every error starts with `where` (models.<name>)."""
     channels, height, width = input_shape
     source = spec.source
+    if source == "network":
+        return _network(spec, files, input_shape, where)
+    path = files[source]
     try:
-        if source == "network":
-            return _network(spec, files, input_shape, where)
-        path = files[source]
         if source == "torchscript":
             config = TorchScriptConfig(file=str(path), sha256=sha256_of(path), channels=channels,
                                        height=height, width=width)
