@@ -91,14 +91,14 @@ class TrainSpec(Spec):
     @model_validator(mode="after")
     def _training_fits_the_source(self):
         if self.train and self.source in ("torchscript", "onnx"):
-            raise ValueError(f"train: true: a {self.source} model is used as it is; give `network:` (the PyTorch "
+            raise ValueError(f"train: true: {self.source} models are used as they are; give `network:` (the PyTorch "
                              "class) to train it")
         if self.train is False and self.source in ("arch", "network") and self.weights is None:
             raise ValueError("train: false needs `weights:` (a state dict to use as it is)")
         if self.weights is not None and self.source not in ("arch", "network"):
-            raise ValueError(f"weights: a {self.source} file holds its weights; weights go with arch or network")
+            raise ValueError(f"weights: {self.source} files hold their weights; weights go with arch or network")
         if self.source in ("torchscript", "onnx") and self.options:
-            raise ValueError(f"options: a {self.source} model takes no constructor options")
+            raise ValueError(f"options: {self.source} models take no constructor options")
         return self
 
     @property
