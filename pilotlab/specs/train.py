@@ -97,6 +97,9 @@ class TrainSpec(Spec):
             raise ValueError("train: false needs `weights:` (a state dict to use as it is)")
         if self.weights is not None and self.source not in ("arch", "network"):
             raise ValueError(f"weights: {self.source} files hold their weights; weights go with arch or network")
+        if not self.trains and self.labels == "auto":
+            raise ValueError("labels: a model used as it is needs the label ranges it was trained with: give "
+                             "labels: {v: [lo, hi], w: [lo, hi]} or a preset (preset: dls)")
         if self.source in ("torchscript", "onnx") and self.options:
             raise ValueError(f"options: {self.source} models take no constructor options")
         return self

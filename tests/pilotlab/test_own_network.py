@@ -22,8 +22,8 @@ models:
   dls: {network: nets/pilotnet.py:PilotNet, options: {image_shape: [200, 66, 3], num_labels: 2}, preset: dls,
         epochs: 1}
   frozen: {network: nets/pilotnet.py:PilotNet, options: {image_shape: [200, 66, 3], num_labels: 2},
-           weights: weights/dls.pth, train: false}
-  graph: {onnx: models/pilotnet.onnx}
+           weights: weights/dls.pth, train: false, preset: dls}
+  graph: {onnx: models/pilotnet.onnx, preset: dls}
 matrix:
   model: [builtin, dls, frozen, graph]
   strategy: [baseline, dynamic_quant]
@@ -104,10 +104,11 @@ def test_a_syntax_error_names_the_key_and_the_line(folder):
 
 
 @pytest.mark.parametrize("old, new, said", [
-    ("graph: {onnx: models/pilotnet.onnx}", "graph: {onnx: models/pilotnet.onnx, arch: pilotnet}",
+    ("graph: {onnx: models/pilotnet.onnx,", "graph: {onnx: models/pilotnet.onnx, arch: pilotnet,",
      "give one of arch, network, torchscript, onnx, not arch and onnx"),
     ("weights: weights/dls.pth, train: false", "train: false", "train: false needs `weights:`"),
-    ("graph: {onnx: models/pilotnet.onnx}", "graph: {onnx: models/pilotnet.onnx, train: true}",
+    ("preset: dls}\n  graph", "}\n  graph", "labels: a model used as it is needs the label ranges it was trained with"),
+    ("graph: {onnx: models/pilotnet.onnx,", "graph: {onnx: models/pilotnet.onnx, train: true,",
      "onnx models are used as they are"),
     ("builtin: {arch: pilotnet", "builtin: {arch: network", "arch 'network' names checkpoints of models you bring"),
     ("preset: dls", "preset: bls", "preset"),
