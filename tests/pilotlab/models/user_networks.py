@@ -15,28 +15,39 @@ import torch.nn as nn
 class PilotNet(nn.Module):
     def __init__(self, image_shape, num_labels):
         super().__init__()
-        self.num_channels = image_shape[2]
+        self.img_height, self.img_width, self.num_channels = image_shape
         self.ln_1 = nn.BatchNorm2d(self.num_channels, eps=1e-03)
         self.cn_1 = nn.Conv2d(self.num_channels, 24, kernel_size=5, stride=2)
+        self.relu1 = nn.ReLU()
         self.cn_2 = nn.Conv2d(24, 36, kernel_size=5, stride=2)
+        self.relu2 = nn.ReLU()
         self.cn_3 = nn.Conv2d(36, 48, kernel_size=5, stride=2)
+        self.relu3 = nn.ReLU()
         self.cn_4 = nn.Conv2d(48, 64, kernel_size=3, stride=1)
+        self.relu4 = nn.ReLU()
         self.cn_5 = nn.Conv2d(64, 64, kernel_size=3, stride=1)
+        self.relu5 = nn.ReLU()
         self.flatten = nn.Flatten()
         self.fc_1 = nn.Linear(1 * 18 * 64, 1164)
+        self.relu_fc1 = nn.ReLU()
         self.fc_2 = nn.Linear(1164, 100)
+        self.relu_fc2 = nn.ReLU()
         self.fc_3 = nn.Linear(100, 50)
+        self.relu_fc3 = nn.ReLU()
         self.fc_4 = nn.Linear(50, 10)
+        self.relu_fc4 = nn.ReLU()
         self.fc_5 = nn.Linear(10, num_labels)
-        self.relu = nn.ReLU()
 
     def forward(self, img):
-        out = self.ln_1(img)
-        for conv in (self.cn_1, self.cn_2, self.cn_3, self.cn_4, self.cn_5):
-            out = self.relu(conv(out))
-        out = self.flatten(out)
-        for fc in (self.fc_1, self.fc_2, self.fc_3, self.fc_4):
-            out = self.relu(fc(out))
+        out = self.relu1(self.cn_1(self.ln_1(img)))
+        out = self.relu2(self.cn_2(out))
+        out = self.relu3(self.cn_3(out))
+        out = self.relu4(self.cn_4(out))
+        out = self.flatten(self.relu5(self.cn_5(out)))
+        out = self.relu_fc1(self.fc_1(out))
+        out = self.relu_fc2(self.fc_2(out))
+        out = self.relu_fc3(self.fc_3(out))
+        out = self.relu_fc4(self.fc_4(out))
         return self.fc_5(out)
 '''
 
