@@ -49,12 +49,18 @@ def main() -> None:
         fit(model, data, LabelRanges.from_dict(LABELS), config, on_epoch=bar.on_epoch, on_batch=bar.on_batch)
     (HERE / "weights").mkdir(exist_ok=True)
     torch.save(model.state_dict(), HERE / "weights/small_pilotnet.pth")
+    export_onnx(model)
+    print(f"wrote {HERE / 'weights'}/small_pilotnet.pth and .onnx from {len(data)} frames")
+
+
+def export_onnx(model) -> None:
+    """As a user would: torch.onnx.export with their own input and output names and a dynamic batch."""
+    batch = torch.export.Dim("batch", min=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        torch.onnx.export(model.eval(), (torch.rand(1, 3, 66, 200),), str(HERE / "weights/small_pilotnet.onnx"),
-                          dynamo=False, input_names=["image"], output_names=["v_w"],
-                          dynamic_axes={"image": {0: "batch"}, "v_w": {0: "batch"}})
-    print(f"wrote {HERE / 'weights'}/small_pilotnet.pth and .onnx from {len(data)} frames")
+        program = torch.onnx.export(model.eval(), (torch.rand(2, 3, 66, 200),), dynamo=True, input_names=["image"],
+                                    output_names=["v_w"], dynamic_shapes=({0: batch},), verbose=False)
+    program.save(str(HERE / "weights/small_pilotnet.onnx"), external_data=False)
 
 
 def _flip():
@@ -63,4 +69,11 @@ def _flip():
 
 
 if __name__ == "__main__":
-    main()
+    if sys.argv[1:] == ["--onnx-only"]:           # the .onnx again from the .pth
+        sys.path.insert(0, str(HERE))
+        from small_pilotnet import SmallPilotNet
+        net = SmallPilotNet(width=8)
+        net.load_state_dict(torch.load(HERE / "weights/small_pilotnet.pth", weights_only=True))
+        export_onnx(net)
+    else:
+        main()

@@ -210,5 +210,7 @@ def _run_handler(entry: StrategyEntry, config, source: StrategySource) -> dict[s
         raise
     except Exception as error:  # noqa: BLE001 — the user's network is outside what the strategy handles
         first = str(error).strip().splitlines()[0][:300] if str(error).strip() else ""
-        raise NotApplicable(f"{entry.name} cannot work on {source.origin}: {type(error).__name__}"
+        hint = (" (it rewrites nn.Module layers, which a TorchScript program does not expose; give `network:`, "
+                "the class, to run it)" if source.imported == "torchscript" else "")
+        raise NotApplicable(f"{entry.name} cannot work on {source.origin}{hint}: {type(error).__name__}"
                             + (f": {first}" if first else "")) from error
