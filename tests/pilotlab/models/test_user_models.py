@@ -14,6 +14,7 @@ from matrix.kinds import KINDS, NotApplicable
 from pilotlab import offline
 from pilotlab.data.frames import FrameSet
 from pilotlab.errors import PilotlabError
+from pilotlab.export import export_artifact
 from pilotlab.hardware import BUILTIN
 from pilotlab.models import load_checkpoint
 from tests.pilotlab.conftest import random_frames
@@ -62,10 +63,13 @@ def train(tmp_path, frames, name, params, inputs):
                deps={"frames": (_frames(frames, "frames"),)}, inputs=inputs)
 
 
-def offline_mse(model, test_frames) -> float:
+def offline_mse(model, test_frames, exports) -> float:
+    """The baseline artifact's offline MSE; `pilotlab export`'s README of it goes into `exports`."""
     artifact = run(model.artifacts.parent, "optimize", f"optimize {model.name}", {"strategy": "baseline"},
                    deps={"model": model})
-    return offline.evaluate_offline(artifact.artifacts, BUILTIN["cpu"], FrameSet.load(test_frames), QUICK)["mse"]
+    out = export_artifact(artifact.artifacts, artifact.result, model.artifacts.parent / f"export {model.name}")
+    exports[model.name.removeprefix("train ")] = (out / "README.md").read_text()
+    return offline.evaluate_offline(out, BUILTIN["cpu"], FrameSet.load(test_frames), QUICK)["mse"]
 
 
 def test_a_dls_state_dict_as_it_is_torchscript_and_onnx_give_the_same_mse(tmp_path, dls, frames, test_frames):
@@ -85,8 +89,12 @@ def test_a_dls_state_dict_as_it_is_torchscript_and_onnx_give_the_same_mse(tmp_pa
     assert len(models["network"].result["source"]["sha256"]) == 64
     val = {name: m.result["val_mse"] for name, m in models.items()}
     assert max(val.values()) - min(val.values()) < 1e-4, val
-    mse = {name: offline_mse(m, test_frames) for name, m in models.items()}
+    exports = {}
+    mse = {name: offline_mse(m, test_frames, exports) for name, m in models.items()}
     assert max(mse.values()) - min(mse.values()) < 1e-4, mse
+    assert f"Your class `{dls / 'nets/pilotnet.py'}:PilotNet` with options" in exports["network"]
+    assert "Your onnx file" in exports["exported"] and "Your torchscript file" in exports["scripted"]
+    assert models["exported"].result["source"]["sha256"][:12] in exports["exported"]
     for model in models.values():   # checkpoints are plain data
         payload = torch.load(model.artifacts / "model.pt", map_location="cpu", weights_only=True)
         assert payload["arch"] in ("network", "torchscript", "onnx", "pilotnet")

@@ -59,12 +59,16 @@ def user_folder(tmp_path):
 
 
 def run_recipe(folder, text: str) -> dict[str, dict]:
-    (folder / "recipe.yaml").write_text(text)
+    """Run the recipe, write its report into folder/reports; the results by job name."""
+    from pilotlab.report.recipe import write_recipe_report
+    (folder / "recipe.yaml").write_text(text + f"report: {{folder: {folder / 'reports'}}}\n")
     recipe, store = load_recipe(folder / "recipe.yaml", DOMAIN), Store(folder / "store")
     plan = engine.make_plan(recipe, DOMAIN, store)
     summary = engine.run_plan(plan, DOMAIN, store, jobs=1)
     assert not summary.failed, summary.outcomes
-    return {status.job.name: store.result(status.job.key) for status in plan.statuses}
+    jobs = [status.job for status in plan.statuses]
+    write_recipe_report(recipe, store, jobs)
+    return {job.name: store.result(job.key) for job in jobs}
 
 
 def test_dls_weights_as_they_are_go_through_a_recipe(tmp_path):
@@ -77,9 +81,10 @@ def test_dls_weights_as_they_are_go_through_a_recipe(tmp_path):
         assert offline["status"] == "ok" and offline["value"]["mse"] >= 0
     lap = results["online dls/baseline on cpu at simple_circuit cw"]
     assert lap["status"] == "ok" and lap["value"]["runs"]
-    readme = (tmp_path / "reports" / "dls-quick" / "README.md")
-    if readme.exists():   # the report names the model's source
-        assert "nets/pilotnet.py:PilotNet (sha256 " in readme.read_text()
+    readme = (tmp_path / "reports" / "dls-quick" / "README.md").read_text()
+    digest = train["source"]["sha256"][:12]     # the report names the model's source
+    assert f"- **Model dls**: network nets/pilotnet.py:PilotNet (sha256 {digest}), weights " in readme
+    assert "used as it is" in readme
 
 
 @pytest.mark.slow
