@@ -200,8 +200,8 @@ def _run_handler(entry: StrategyEntry, config, source: StrategySource) -> dict[s
     """The strategy's result. On a model the user brought, a strategy that cannot work on it is not
     applicable (an ONNX graph for a PyTorch strategy; a network it cannot trace or rewrite), never a crash."""
     if source.imported == "onnx" and not entry.takes_onnx:
-        raise NotApplicable(f"{entry.name} works on a PyTorch network; {source.origin} is an ONNX graph "
-                            "(ONNX strategies: " + ", ".join(n for n, e in STRATEGIES.items() if e.takes_onnx) + ")")
+        raise NotApplicable(f"{entry.name} works on a PyTorch network, not on {source.origin} (strategies for ONNX "
+                            "graphs: " + ", ".join(n for n, e in STRATEGIES.items() if e.takes_onnx) + ")")
     if source.imported is None:
         return entry.handler(config, source) or {}
     try:

@@ -129,7 +129,7 @@ def test_strategies_run_on_user_models_or_say_why_not(tmp_path, dls, frames):
     assert optimize(network, "local_prune").result["sparsity"] > 0.2
     assert optimize(graph, "dynamic_quant").result["dtype"] == "int8"
     assert optimize(graph, "onnxruntime").result["format"] == "onnx"
-    with pytest.raises(NotApplicable, match="local_prune works on a PyTorch network; the ONNX graph pilotnet.onnx"):
+    with pytest.raises(NotApplicable, match="local_prune works on a PyTorch network, not on the ONNX graph pilotnet.onnx"):
         optimize(graph, "local_prune")
 
 
