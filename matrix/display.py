@@ -1,22 +1,29 @@
-"""What a person sees while a run goes: an overall bar (jobs done / total, elapsed, time left), a
-line per running job with its own progress, and one line per finished job.
+"""What a person sees while a run goes: an overall bar (jobs done / total, time elapsed, time left),
+a line per running job with its own progress, and one line per finished job. When the output is not
+a terminal (CI, nohup, a notebook), a status line is printed at a steady interval instead of bars.
 
 Time left is estimated from how long each job kind took before on this store (kept in
-`<store>/stats.json`), so a run of three trainings and a hundred evaluations predicts well.
+`<store>/stats.json`), corrected by the running jobs' own progress and by how many jobs ran at once,
+and smoothed, so it counts down instead of jumping.
 """
 from __future__ import annotations
 
+import threading
+import time
 from collections.abc import Iterable
 
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.progress import BarColumn, Progress, TaskID, TextColumn
 
 from matrix.store import Store, read_json, write_json_atomic
 
 SYMBOLS = {"ok": "[green]✓[/]", "not_applicable": "[yellow]–[/]", "failed": "[red]✗[/]",
            "skipped": "[red]↷[/]", "not_started": "[red]·[/]", "done_elsewhere": "[green]✓[/]"}
 DEFAULT_ESTIMATE_S = 5.0
+NAME_WIDTH = 44           # longer job names are cut, so the times stay on the line
+PLAIN_INTERVAL_S = 10.0   # a status line this often when the output is not a terminal
+SMOOTHING = 0.2           # weight of a new estimate against the shown one, per update
 
 
 class NullDisplay:
@@ -36,7 +43,8 @@ class KindStats:
 
     def __init__(self, store: Store):
         self.path = store.root / "stats.json"
-        self.means: dict[str, list[float]] = read_json(self.path) or {}
+        means = read_json(self.path)
+        self.means: dict[str, list[float]] = means if isinstance(means, dict) else {}
 
     def estimate(self, kind: str) -> float:
         if kind in self.means:
@@ -56,45 +64,135 @@ class KindStats:
             pass  # estimates are a nicety; a read-only store still runs
 
 
+class Estimate:
+    """Seconds left: the prior of each job not finished (its kind's mean), the running ones
+    corrected by their own progress, divided by how many jobs have been running at once; smoothed."""
+
+    def __init__(self, stats: KindStats, jobs: Iterable, now: float):
+        self.prior = {job.key: stats.estimate(job.kind) for job in jobs}
+        self.started_at: dict[str, float] = {}
+        self.fraction: dict[str, float] = {}
+        self.busy_s = 0.0                      # job-seconds of finished jobs
+        self.began = now
+        self.shown: float | None = None
+        self.shown_at = now
+
+    def job_started(self, key: str, now: float) -> None:
+        self.started_at[key] = now
+
+    def job_progress(self, key: str, fraction: float) -> None:
+        self.fraction[key] = min(max(fraction, 0.0), 1.0)
+
+    def job_finished(self, key: str, now: float) -> None:
+        if key in self.started_at:
+            self.busy_s += now - self.started_at.pop(key)
+        self.prior.pop(key, None)
+        self.fraction.pop(key, None)
+
+    def raw(self, now: float) -> float:
+        work = sum(self._left_of(key, now) for key in self.prior)
+        running = sum(now - at for at in self.started_at.values())
+        parallel = max(1.0, (self.busy_s + running) / max(now - self.began, 1e-9))
+        return work / min(parallel, max(1, len(self.started_at)))
+
+    def left(self, now: float) -> float:
+        """The shown estimate: it counts down with the clock and moves a share towards the raw one."""
+        raw = self.raw(now)
+        if self.shown is None or not self.prior:     # nothing left: say so at once
+            self.shown = raw
+        else:
+            counted_down = max(0.0, self.shown - (now - self.shown_at))
+            self.shown = counted_down + SMOOTHING * (raw - counted_down)
+        self.shown_at = now
+        return self.shown
+
+    def _left_of(self, key: str, now: float) -> float:
+        prior = self.prior[key]
+        if key not in self.started_at:
+            return prior
+        elapsed, done = now - self.started_at[key], self.fraction.get(key, 0.0)
+        from_prior = max(prior - elapsed, 0.1 * prior)
+        if done < 0.05:
+            return from_prior
+        from_progress = elapsed * (1 - done) / done
+        return done * from_progress + (1 - done) * from_prior   # trust the job's progress as it grows
+
+
+def clock(seconds: float) -> str:
+    seconds = max(0, int(round(seconds)))
+    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
+
+
+def short(name: str, width: int = NAME_WIDTH) -> str:
+    return name if len(name) <= width else name[:width - 1] + "…"
+
+
 class RichDisplay(NullDisplay):
-    def __init__(self, store: Store, console: Console | None = None, title: str = "jobs"):
+    def __init__(self, store: Store, console: Console | None = None, title: str = "jobs",
+                 interval_s: float = PLAIN_INTERVAL_S):
         self.console = console or Console(stderr=True)
+        self.live = self.console.is_terminal
         self.stats = KindStats(store)
         self.title = title
-        self.progress = Progress(TextColumn("{task.description}"), BarColumn(),
-                                 TextColumn("{task.fields[count]}"), TimeElapsedColumn(),
-                                 TextColumn("left"), TimeRemainingColumn(),
+        self.interval_s = interval_s if not self.live else 1.0
+        self.progress = Progress(TextColumn("{task.description}"), BarColumn(bar_width=24),
+                                 TextColumn("{task.fields[count]}"), TextColumn("[dim]{task.fields[times]}"),
                                  console=self.console, transient=False)
         self.tasks: dict[str, TaskID] = {}
+        self.running: dict[str, tuple[str, float, str]] = {}    # key -> (name, started, what)
         self.weights: dict[str, float] = {}
         self.done = self.total = 0
+        self.lock = threading.Lock()
+        self.stopped = threading.Event()
 
     def start(self, jobs: Iterable) -> None:
         jobs = list(jobs)
-        self.total = len(jobs)
+        now = time.monotonic()
+        self.total, self.began = len(jobs), now
         self.weights = {job.key: self.stats.estimate(job.kind) for job in jobs}
-        self.overall = self.progress.add_task(f"[bold]{self.title}", total=sum(self.weights.values()) or 1,
-                                              count=f"0/{self.total}")
-        self.progress.start()
+        self.estimate = Estimate(self.stats, jobs, now)
+        self.overall = self.progress.add_task(f"[bold]{short(self.title, 24)}", total=sum(self.weights.values()) or 1,
+                                              count=f"0/{self.total}", times=self._times(now))
+        if self.live:
+            self.progress.start()
+        self.ticker = threading.Thread(target=self._tick, name="matrix-display", daemon=True)
+        self.ticker.start()
 
     def job_started(self, job) -> None:
-        self.tasks[job.key] = self.progress.add_task(f"  {escape(job.name)}", total=None, count="")
+        with self.lock:
+            now = time.monotonic()
+            self.estimate.job_started(job.key, now)
+            self.running[job.key] = (job.name, now, "")
+            self.tasks[job.key] = self.progress.add_task(f"  {escape(short(job.name))}", total=None, count="",
+                                                         times="")
 
     def job_waiting(self, job) -> None:
-        self._remove(job.key)
+        with self.lock:
+            self.running.pop(job.key, None)
+            self.estimate.started_at.pop(job.key, None)
+            self._remove(job.key)
 
     def job_progress(self, key: str, completed=None, total=None, description=None) -> None:
-        if key in self.tasks:
+        with self.lock:
+            if key not in self.tasks:
+                return
+            if completed is not None and total:
+                self.estimate.job_progress(key, completed / total)
             fields = {"completed": completed, "total": total}
             if description:
-                fields["count"] = escape(description)
+                fields["count"] = escape(short(description, 30))
+                name, started, _ = self.running[key]
+                self.running[key] = (name, started, description)
             self.progress.update(self.tasks[key], **{k: v for k, v in fields.items() if v is not None})
 
     def job_finished(self, outcome) -> None:
-        self._remove(outcome.key)
-        self.done += 1
-        self.progress.update(self.overall, advance=self.weights.get(outcome.key, 0),
-                             count=f"{self.done}/{self.total}")
+        with self.lock:
+            self._remove(outcome.key)
+            self.running.pop(outcome.key, None)
+            self.estimate.job_finished(outcome.key, time.monotonic())
+            self.done += 1
+            self.progress.update(self.overall, advance=self.weights.get(outcome.key, 0),
+                                 count=f"{self.done}/{self.total}", times=self._times(time.monotonic()))
         if outcome.status == "ok":
             self.stats.add(outcome.kind, outcome.duration_s)
         reason = f" [dim]{escape(outcome.reason)}[/]" if outcome.reason else ""
@@ -103,8 +201,33 @@ class RichDisplay(NullDisplay):
                                     highlight=False, soft_wrap=True)
 
     def stop(self) -> None:
-        self.progress.stop()
+        self.stopped.set()
+        if self.live:
+            self.progress.stop()
         self.stats.save()
+
+    def status_line(self, now: float) -> str:
+        """One line for a log: jobs done, the times, and what runs (with its own progress)."""
+        jobs = [f"{short(name)} {clock(now - started)}" + (f" ({short(what, 30)})" if what else "")
+                for name, started, what in self.running.values()]
+        running = f"; running: {', '.join(jobs)}" if jobs else ""
+        return f"{self.done}/{self.total} jobs, {self._times(now)}{running}"
+
+    def _times(self, now: float) -> str:
+        left = self.estimate.left(now)
+        return f"elapsed {clock(now - self.began)}, about {clock(left)} left"
+
+    def _tick(self) -> None:
+        while not self.stopped.wait(self.interval_s):
+            with self.lock:
+                now = time.monotonic()
+                if self.live:
+                    self.progress.update(self.overall, times=self._times(now))
+                    for key, task in self.tasks.items():
+                        self.progress.update(task, times=f"elapsed {clock(now - self.running[key][1])}")
+                    continue
+                line = self.status_line(now)
+            self.console.print(escape(line), highlight=False, soft_wrap=True)
 
     def _remove(self, key: str) -> None:
         if key in self.tasks:

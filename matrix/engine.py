@@ -20,6 +20,9 @@ from matrix.stale import FRESH, JobStatus, job_status
 from matrix.store import Store, read_json, write_json_atomic
 
 
+TRASH_GRACE_S = 60.0
+
+
 def open_store(domain: Domain, root: str | Path | None = None) -> Store:
     """The store at `root`, else $<domain.store_env>, else the domain's default folder."""
     return Store(root or os.environ.get(domain.store_env) or domain.default_store)
@@ -103,6 +106,8 @@ def run_plan(plan: Plan, domain: Domain, store: Store, *, jobs: int = 1, keep_go
              display=None, executor: Executor | None = None) -> RunSummary:
     """Record the recipe's jobs (for reasons and gc), then run the stale ones."""
     executor = executor or Executor("local", jobs)
+    for leftover in leftovers(store):   # of killed runs; never a folder a running job holds
+        shutil.rmtree(leftover, ignore_errors=True)
     write_json_atomic(store.recipe_path(slug(plan.recipe.name)),
                       {"recipe": plan.recipe.name, "file": plan.recipe.file, "written_at": time.time(),
                        "jobs": {s.job.name: s.job.spec() for s in plan.statuses}})
@@ -142,8 +147,7 @@ def find_garbage(store: Store, keep: set[str]) -> Garbage:
     """Stored jobs no kept recipe reaches, failure records, and leftovers of killed runs."""
     keys = [key for key in store.keys() if key not in keep]
     failed = [p.stem for p in (store.root / "failed").glob("*.json") if p.stem not in keep]
-    temp = [p for p in (store.root / "tmp").glob("*") if not _in_flight(store, p)] \
-        if (store.root / "tmp").is_dir() else []
+    temp = leftovers(store)
     size = sum(_size(store.job_dir(k)) for k in keys) + sum(_size(p) for p in temp)
     return Garbage(sorted(set(keys) | set(failed)), temp, size)
 
@@ -158,10 +162,20 @@ def collect_garbage(store: Store, garbage: Garbage) -> None:
         shutil.rmtree(path, ignore_errors=True)
 
 
+def leftovers(store: Store) -> list[Path]:
+    """Folders in the store's tmp/ that no running job holds: what killed runs left behind."""
+    tmp = store.root / "tmp"
+    return [p for p in sorted(tmp.iterdir()) if not _in_flight(store, p)] if tmp.is_dir() else []
+
+
 def _in_flight(store: Store, temp: Path) -> bool:
-    """A temp folder belongs to a running job when a lock whose key starts like it is held."""
+    """A job's temp folder is in flight while a lock whose key starts like it is held; a trash
+    folder while it is young (its writer is deleting it)."""
     if temp.name.startswith("trash-"):
-        return False
+        try:
+            return time.time() - temp.stat().st_mtime < TRASH_GRACE_S
+        except OSError:
+            return True              # gone already
     prefix = temp.name.split("-", 1)[0]
     return any(store.is_locked(p.stem) for p in (store.root / "locks").glob(f"{prefix}*.lock"))
 

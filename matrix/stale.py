@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from matrix.jobs import Job, canonical_json
-from matrix.store import Store, result_token
+from matrix.store import CHANGED, INTACT, Store, result_token
 
 FRESH, STALE, NEW = "fresh", "stale", "new"
 
@@ -36,8 +36,11 @@ def job_status(job: Job, store: Store, previous: Mapping[str, dict],
     result = store.result(job.key)
     if job.kind in forced_kinds:
         return JobStatus(job, STALE, (f"forced (--force {job.kind})",), result and result_token(result))
-    if result is not None and store.outputs_intact(job.key, result):
+    outputs = store.outputs_state(job.key, result) if result is not None else None
+    if outputs == INTACT:
         return JobStatus(job, FRESH, ())
+    if outputs == CHANGED:
+        return JobStatus(job, STALE, ("output changed",))
     if result is not None:
         return JobStatus(job, STALE, ("output missing or corrupt",))
     before = previous.get(job.name)
@@ -47,7 +50,9 @@ def job_status(job: Job, store: Store, previous: Mapping[str, dict],
     if before is None:
         return JobStatus(job, NEW, ("new",))
     reasons = own_changes(job, before) + dependency_changes(job, before)
-    return JobStatus(job, STALE, tuple(reasons) or ("output missing or corrupt",))
+    if not reasons:   # planned as it is by the last run, which ended (or was killed) before it ran
+        return JobStatus(job, NEW, ("new",))
+    return JobStatus(job, STALE, tuple(reasons))
 
 
 def results_to_replace(statuses: list[JobStatus]) -> dict[str, str]:

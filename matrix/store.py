@@ -1,6 +1,6 @@
 """The job store: content-addressed folders, atomic writes, per-job locks.
 
-    <root>/jobs/<key[:2]>/<key>/   spec.json, result.json, log.txt, artifacts/
+    <root>/jobs/<key[:2]>/<key>/   spec.json, result.json, log.txt, artifacts/, verified.json
     <root>/failed/<key>.json       the last failure of a job (error, traceback, log tail)
     <root>/locks/<key>.lock        held (flock) by the process running the job
     <root>/tmp/                    jobs in flight; renamed into jobs/ when their result is written
@@ -9,6 +9,12 @@
 
 A job is done exactly when `jobs/<key>/result.json` exists: the folder appears by one rename, so a
 killed run loses only the jobs it had in flight, and readers never see half a job.
+
+result.json lists every artifact with its size and sha256 ("manifest"). Checking that an entry is
+intact costs a stat per file: verified.json keeps (size, mtime, inode) of each file as last hashed,
+and a file whose stat differs is hashed again; a job about to read its dependencies' artifacts
+hashes them in full (`outputs_state(..., full=True)`). A file that no longer has its sha256 makes
+the entry "changed": it is never read, and the next run rebuilds it.
 """
 from __future__ import annotations
 
@@ -17,6 +23,7 @@ import fcntl
 import hashlib
 import json
 import os
+import re
 import shutil
 import tempfile
 import time
@@ -28,6 +35,8 @@ from typing import Any
 from matrix.errors import MatrixError
 
 RESULT, SPEC, LOG, ARTIFACTS = "result.json", "spec.json", "log.txt", "artifacts"
+VERIFIED = "verified.json"
+INTACT, MISSING, CHANGED = "", "missing", "changed"
 
 
 class StoreError(MatrixError):
@@ -92,15 +101,34 @@ class Store:
         return read_json(self.job_dir(key) / SPEC)
 
     def outputs_intact(self, key: str, result: dict) -> bool:
-        """Every artifact the result lists is there with its size (a cheap check, no hashing)."""
-        folder = self.artifacts(key)
-        for name, size in result.get("manifest", {}).items():
+        return self.outputs_state(key, result) == INTACT
+
+    def outputs_state(self, key: str, result: dict, full: bool = False) -> str:
+        """INTACT, MISSING (a file gone or of another size) or CHANGED (not the sha256 recorded).
+        Hashes only files whose stat changed since they were last hashed, or every file if `full`."""
+        folder, verified_path = self.artifacts(key), self.job_dir(key) / VERIFIED
+        verified = read_json(verified_path)
+        verified = verified if isinstance(verified, dict) else {}
+        if verified.get(CHANGED):
+            return CHANGED
+        rehashed = False
+        for name, entry in result.get("manifest", {}).items():
+            size, digest = (entry, None) if isinstance(entry, int) else (entry.get("size"), entry.get("sha256"))
             try:
-                if (folder / name).stat().st_size != size:
-                    return False
+                stat = (folder / name).stat()
             except OSError:
-                return False
-        return True
+                return MISSING
+            if stat.st_size != size:
+                return MISSING
+            if digest is None or (not full and verified.get(name) == _signature(stat)):
+                continue
+            if file_sha256(folder / name) != digest:
+                _try_write(verified_path, {**verified, CHANGED: name})
+                return CHANGED
+            verified[name], rehashed = _signature(stat), True
+        if rehashed:
+            _try_write(verified_path, verified)
+        return INTACT
 
     def keys(self) -> Iterator[str]:
         jobs = self.root / "jobs"
@@ -110,7 +138,12 @@ class Store:
                     yield folder.name
 
     def find(self, prefix: str) -> str:
-        """The one stored key starting with `prefix` (as git does for commits)."""
+        """The one stored key starting with `prefix` (as git does for commits): hex digits only, so a
+        prefix is never a path or a glob pattern."""
+        if not re.fullmatch(r"[0-9a-fA-F]*", prefix) or len(prefix) > 64:
+            raise StoreError(f"{prefix[:80]!r} is not a job key: give the key's first hex digits (0-9, a-f), "
+                             "as `plan RECIPE` lists them")
+        prefix = prefix.lower()
         if len(prefix) < 4:
             raise StoreError(f"key prefix {prefix!r} is too short; give at least 4 characters")
         shard = self.root / "jobs" / prefix[:2]
@@ -137,12 +170,13 @@ class Store:
 
         Call with the job's lock held: an existing (corrupt or stale) entry is replaced."""
         result = dict(result, manifest=_manifest(workdir / ARTIFACTS))
+        write_json_atomic(workdir / VERIFIED, _signatures(workdir / ARTIFACTS))
         write_json_atomic(workdir / SPEC, spec)
         write_json_atomic(workdir / RESULT, result)
         final = self.job_dir(key)
         final.parent.mkdir(parents=True, exist_ok=True)
         if final.exists():
-            shutil.rmtree(self._trash(final))
+            shutil.rmtree(self._trash(final), ignore_errors=True)
         os.replace(workdir, final)
         self.failed_path(key).unlink(missing_ok=True)
 
@@ -155,7 +189,7 @@ class Store:
     def remove(self, key: str) -> None:
         final = self.job_dir(key)
         if final.exists():
-            shutil.rmtree(self._trash(final))
+            shutil.rmtree(self._trash(final), ignore_errors=True)
         self.failed_path(key).unlink(missing_ok=True)
 
     def _trash(self, folder: Path) -> Path:
@@ -189,6 +223,28 @@ class Store:
             return not held
 
 
-def _manifest(folder: Path) -> dict[str, int]:
-    return {p.relative_to(folder).as_posix(): p.stat().st_size
+def _manifest(folder: Path) -> dict[str, dict]:
+    return {p.relative_to(folder).as_posix(): {"size": p.stat().st_size, "sha256": file_sha256(p)}
             for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _signatures(folder: Path) -> dict[str, list[int]]:
+    return {p.relative_to(folder).as_posix(): _signature(p.stat())
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _signature(stat: os.stat_result) -> list[int]:
+    """What tells a file apart from the one last hashed without reading it (as DVC's state db)."""
+    return [stat.st_size, stat.st_mtime_ns, stat.st_ino]
+
+
+def file_sha256(path: Path) -> str:
+    with open(path, "rb") as handle:
+        return hashlib.file_digest(handle, "sha256").hexdigest()
+
+
+def _try_write(path: Path, value: Any) -> None:
+    try:
+        write_json_atomic(path, value)
+    except OSError:
+        pass  # a read-only store: the check is only repeated next time

@@ -19,8 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from matrix.errors import MatrixError
+from matrix.hostlock import host_slot
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
-from matrix.store import LOG, Store, result_token
+from matrix.store import INTACT, LOG, Store, result_token
 
 OK, NOT_APPLICABLE, FAILED, BUSY, DONE_ELSEWHERE = "ok", "not_applicable", "failed", "busy", "done_elsewhere"
 
@@ -52,15 +53,16 @@ def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = (), r
         done = store.result(key)
         if done is not None and store.outputs_intact(key, done) and result_token(done) != replaces:
             return {"status": DONE_ELSEWHERE, "reason": done.get("reason", ""), "duration_s": 0.0}
-        return _run_locked(store, spec)
+        with host_slot(exclusive=KINDS.get(spec["kind"]).exclusive):   # timings: the host to itself
+            return _run_locked(store, spec)
 
 
 def _run_locked(store: Store, spec: dict) -> dict:
     key, started = spec["key"], time.time()
     workdir = store.new_workdir(key)
-    deps = _dep_results(store, spec)
-    blocker = _not_applicable_dep(deps)
     try:
+        deps = _dep_results(store, spec)
+        blocker = _not_applicable_dep(deps)
         if blocker:
             status, reason, value = NOT_APPLICABLE, blocker.reason, {}
         else:
@@ -113,6 +115,11 @@ def _dep_results(store: Store, spec: dict) -> dict[str, DepResult | tuple[DepRes
         result, dep_spec = store.result(key), store.spec(key) or {}
         if result is None:
             raise RuntimeError(f"dependency {key[:12]} has no result in {store.root}")
+        outputs = store.outputs_state(key, result, full=True)   # hashed before the handler reads them
+        if outputs != INTACT:
+            raise RuntimeError(f"dependency {dep_spec.get('name', key[:12])}: output {outputs} since its job "
+                               "wrote it (a file in its artifacts is not the one recorded); the next run "
+                               "rebuilds it")
         return DepResult(key, dep_spec.get("kind", ""), dep_spec.get("params", {}),
                          result.get("value", {}), store.artifacts(key), dep_spec.get("name", key[:12]),
                          result["status"], result.get("reason", ""))

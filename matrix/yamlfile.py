@@ -1,9 +1,12 @@
 """Safe YAML loading that remembers the line of every key, so errors can say file:line.
 
-Duplicate keys are errors (PyYAML silently keeps the last one, which hides typos).
+Duplicate keys are errors (PyYAML silently keeps the last one, which hides typos). A document is
+bounded: its text to MAX_TEXT_BYTES, and what it expands to (each alias counted as a copy of what it
+names) to MAX_VALUES, so a few nested aliases ("billion laughs") are an error, not hours of work.
 """
 from __future__ import annotations
 
+import difflib
 from pathlib import Path
 from typing import Any
 
@@ -12,14 +15,20 @@ import yaml
 from matrix.errors import RecipeError
 
 Lines = dict[tuple, int]
+MAX_TEXT_BYTES = 4 * 2**20
+MAX_VALUES = 100_000
 
 
 def load_yaml(text: str, file: str = "<recipe>") -> tuple[Any, Lines]:
     """(data, lines) where lines maps a key path such as ("models", "pilotnet", "lr") to its line."""
+    if len(text) > MAX_TEXT_BYTES:
+        raise RecipeError(f"{len(text) / 2**20:.1f} MB is too large for a recipe (at most "
+                          f"{MAX_TEXT_BYTES // 2**20} MB); list big data in files the recipe names", file=file)
     loader = None
     try:
         loader = yaml.SafeLoader(text)  # the reader already rejects unprintable characters
         node = loader.get_single_node()
+        _check_expansion(node, file)
         lines: Lines = {}
         data = _build(loader, node, (), lines, file) if node is not None else None
     except yaml.MarkedYAMLError as error:
@@ -39,10 +48,52 @@ def load_yaml(text: str, file: str = "<recipe>") -> tuple[Any, Lines]:
 def read_yaml(path: Path) -> tuple[Any, Lines, str]:
     try:
         text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise RecipeError(f"no such file{_nearby(Path(path))}", file=str(path)) from None
     except (OSError, UnicodeDecodeError) as error:
-        raise RecipeError(f"cannot read the recipe: {error}", file=str(path)) from None
+        raise RecipeError(f"cannot read the recipe: {str(error)[:300]}", file=str(path)[:300]) from None
     data, lines = load_yaml(text, str(path))
     return data, lines, text
+
+
+def _nearby(path: Path) -> str:
+    """'; did you mean recipes/x.yaml?' for YAML files near `path` with a close name (or a list)."""
+    folders = dict.fromkeys(f for f in (path.parent, path.parent / "recipes", Path("recipes")) if f.is_dir())
+    try:
+        found = [p for folder in folders for p in sorted(folder.iterdir()) if p.suffix in (".yaml", ".yml")]
+    except OSError:
+        return ""
+    by_name = {}
+    for candidate in found:
+        by_name.setdefault(candidate.name, candidate)
+    close = difflib.get_close_matches(path.name, list(by_name), n=3, cutoff=0.6)
+    if close:
+        return "; did you mean " + " or ".join(str(by_name[name]) for name in close) + "?"
+    if by_name:
+        return "; recipes nearby: " + ", ".join(str(p) for p in list(by_name.values())[:5])
+    return ""
+
+
+def _check_expansion(root: yaml.Node | None, file: str) -> None:
+    """Count the values the document expands to (linear time: each node's count is remembered)."""
+    counts: dict[int, int] = {}
+
+    def count(node: yaml.Node) -> int:
+        if id(node) not in counts:
+            counts[id(node)] = -1            # in progress: meeting it again means an alias cycle
+            if isinstance(node, yaml.MappingNode):
+                children = [n for pair in node.value for n in pair]
+            else:
+                children = node.value if isinstance(node, yaml.SequenceNode) else []
+            counts[id(node)] = 1 + sum(count(child) for child in children)
+        if counts[id(node)] < 0:
+            raise RecursionError
+        return counts[id(node)]
+
+    total = count(root) if root is not None else 0
+    if total > MAX_VALUES:
+        raise RecipeError(f"the document expands to {total:.3g} values through its aliases (at most "
+                          f"{MAX_VALUES:,}); write the values out or use fewer nested aliases (*name)", file=file)
 
 
 def _build(loader: yaml.SafeLoader, node: yaml.Node, path: tuple, lines: Lines, file: str) -> Any:

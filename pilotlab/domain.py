@@ -11,6 +11,7 @@ Relative paths in a recipe (bags, dataset folders, circuit CSVs) are relative to
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -64,6 +65,7 @@ class Planner:
         self.datasets: dict[tuple[str, PreprocessConfig], list[Job]] = {}
         self.trained: dict[str, Job] = {}
         self.optimized: dict[tuple, Job] = {}
+        self.shared_params: dict[tuple, dict] = {}
 
     def jobs(self) -> list[Job]:
         jobs: list[Job] = []
@@ -212,15 +214,22 @@ class Planner:
         from pilotlab.hardware import host_fingerprint
         model, strategy = combination["model"], combination["strategy"]
         test = self.dataset(self.config.offline.data, ["offline", "data"], self.config.models[model].preprocess)
-        spec = OfflineSpec(hardware=self.profile(hardware).as_dict(), host=host_fingerprint(),
-                           batch=self.config.offline.batch)
+        params = self.params_once(("offline", hardware), lambda: OfflineSpec(
+            hardware=self.profile(hardware).as_dict(), host=host_fingerprint(),
+            batch=self.config.offline.batch).model_dump(mode="json"))
         labels = {"model": model, "strategy": strategy, "hardware": hardware,
                   "test_set": self.config.offline.data}
-        return job("offline", f"offline {model}/{strategy} on {hardware}", spec,
+        return Job("offline", f"offline {model}/{strategy} on {hardware}", params,
                    deps={"artifact": optimize, "test": tuple(test)}, labels=labels)
 
     def reference_jobs(self) -> list[Job]:
         return reference_jobs(self)
+
+    def params_once(self, slot: tuple, build) -> dict:
+        """Job params shared by many jobs (every strategy's laps on one circuit), validated once."""
+        if slot not in self.shared_params:
+            self.shared_params[slot] = build()
+        return self.shared_params[slot]
 
 
 def _check_model(recipe: Recipe, name: str, spec: ModelSpec) -> None:
@@ -299,12 +308,16 @@ def reference_brain(planner: Planner, reference: str | dict[str, str], index: in
 def _lap(planner: Planner, name: str, labels: dict, hardware: str, circuit: str, direction: str,
          brain: dict, deps: dict, inputs: dict | None = None) -> Job:
     from pilotlab.hardware import host_fingerprint
-    online = planner.config.online
     params, circuit_inputs = planner.circuit_param(circuit, ["matrix", "circuit"])
-    settings = {field: getattr(online, field) for field in LapSettings.model_fields}
-    spec = OnlineSpec(**settings, **params, **brain, direction=direction, host=host_fingerprint(),
-                      hardware=planner.profile(hardware).as_dict())
-    return job("online", f"{name} at {circuit} {direction}", spec, deps=deps,
+
+    def lap_params() -> dict:
+        online = planner.config.online
+        settings = {field: getattr(online, field) for field in LapSettings.model_fields}
+        return OnlineSpec(**settings, **params, **brain, direction=direction, host=host_fingerprint(),
+                          hardware=planner.profile(hardware).as_dict()).model_dump(mode="json")
+    # The params of every lap of one (hardware, circuit, direction, brain) are equal: built once.
+    slot = ("online", hardware, circuit, direction, json.dumps(brain, sort_keys=True))
+    return Job("online", f"{name} at {circuit} {direction}", planner.params_once(slot, lap_params), deps=deps,
                inputs={**circuit_inputs, **(inputs or {})}, labels={**labels, "circuit": circuit, "direction": direction})
 
 

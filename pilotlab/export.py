@@ -49,6 +49,32 @@ def camera_to_images(rgb):    # one HxWx3 uint8 RGB camera image -> float32 [1, 
     return image.transpose(2, 0, 1)[None].astype(np.float32) / np.float32(255)
 ```"""
 
+FROM_A_BAG = """```python
+from pathlib import Path
+
+import cv2, numpy as np
+from rosbags.highlevel import AnyReader                      # pip install rosbags
+from rosbags.typesys import Stores, get_typestore
+
+def camera_images(bag, topic="/F1ROS/cameraL/image_raw"):
+    \"\"\"(stamp in ns, H×W×3 uint8 RGB) for each image of a ROS1 .bag or a ROS2 bag folder;
+    give the .../compressed topic for jpeg/png frames.\"\"\"
+    with AnyReader([Path(bag)], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+        connections = [c for c in reader.connections if c.topic == topic]
+        for connection, stamp, raw in reader.messages(connections=connections):
+            msg = reader.deserialize(raw, connection.msgtype)
+            if connection.msgtype.endswith("CompressedImage"):   # jpeg/png decode to BGR
+                bgr = cv2.imdecode(np.asarray(msg.data), cv2.IMREAD_COLOR)
+                yield stamp, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+                continue
+            rows = np.asarray(msg.data).reshape(msg.height, msg.step)[:, :msg.width * 3]
+            pixels = rows.reshape(msg.height, msg.width, 3)       # sensor_msgs/Image rgb8 or bgr8
+            yield stamp, pixels[..., ::-1] if msg.encoding == "bgr8" else pixels
+```
+
+Then, for each image: `vw = <run the model>(camera_to_images(rgb))` and denormalise as above to get
+v (m/s) and w (rad/s)."""
+
 FRAMEWORKS = {"onnx": "ONNX (run with ONNX Runtime ≥ 1.18, no Python needed in C/C++/C#/Java)",
               "torchscript": "TorchScript (run with PyTorch or libtorch in C++)",
               "pilotlab-checkpoint": "a pilotlab checkpoint (PyTorch eager; needs pilotlab)"}
@@ -84,7 +110,10 @@ def readme(meta: ArtifactMeta, result: dict[str, Any]) -> str:
         "Denormalise:", "", "```python",
         f"v = vw[:, 0] * ({labels['v'][1]} - {labels['v'][0]}) + {labels['v'][0]}",
         f"w = vw[:, 1] * ({labels['w'][1]} - {labels['w'][0]}) + {labels['w'][0]}", "```", "",
-        "Or with pilotlab: `pilotlab.predictor.load_predictor(folder, 'cpu').predict(images)`.", "",
+        "Or with pilotlab: `pilotlab.predictor.load_predictor(folder, 'cpu').predict(images)`. It returns the "
+        "same normalised `vw` (float32 [N, 2], each in about [0, 1]), not speeds: denormalise it as above, or "
+        "`pilotlab.data.frames.LabelRanges.from_dict(predictor.meta.labels).denormalise(vw)` gives "
+        "[N, 2] (v m/s, w rad/s).", "",
         *source_section(meta), *camera_section(meta)]
     return "\n".join(lines)
 
@@ -113,7 +142,12 @@ def camera_section(meta: ArtifactMeta) -> list[str]:
     resize = RESIZES[pre.get("interpolation", "fast_area")].format(w=width, h=height, w2=2 * width, h2=2 * height)
     return ["## From a camera image", "",
             CAMERA_TO_IMAGES.format(top=pre.get("crop_top", 0.0), bottom=pre.get("crop_bottom", 1.0),
-                                    w=width, h=height, resize=resize), ""]
+                                    w=width, h=height, resize=resize), "",
+            "## Camera images from a recorded bag", "",
+            "pilotlab's recordings (and DeepLearningStudio's) keep the camera on `/F1ROS/cameraL/image_raw` "
+            "(sensor_msgs/Image rgb8) or `/F1ROS/cameraL/image_raw/compressed` (jpeg/png); the expert's "
+            "commands (the labels) are on `/F1ROS/cmd_vel` (Twist: `linear.x` = v, `angular.z` = w), "
+            "stamped like the frame they answer.", "", FROM_A_BAG, ""]
 
 
 def export_job(store: Store, key_prefix: str, out_dir: Path) -> Path:
@@ -124,7 +158,9 @@ def export_job(store: Store, key_prefix: str, out_dir: Path) -> Path:
         raise PilotlabError(f"job {key[:12]} has no result (it failed or has not run; "
                             "`pilotlab plan RECIPE` shows each job's state and key)")
     if spec.get("kind") != "optimize":
-        raise PilotlabError(f"job {key[:12]} is a {spec.get('kind')!r} job ({spec.get('name', '')}); "
+        kind = str(spec.get("kind"))
+        raise PilotlabError(f"job {key[:12]} is {'an' if kind[:1] in 'aeiou' else 'a'} {kind!r} job "
+                            f"({spec.get('name', '')}); "
                             "export the key of an optimize job (`pilotlab plan RECIPE` lists them)")
     if stored.get("status") != "ok":
         raise PilotlabError(f"job {key[:12]} ({spec.get('name', '')}) produced no artifact: "

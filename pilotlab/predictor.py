@@ -112,7 +112,11 @@ def load_predictor(artifact_dir: Path, hardware: HardwareProfile | dict | str | 
 def _torch_module(path: Path, meta: ArtifactMeta, profile: HardwareProfile):
     import torch
     if meta.format == "torchscript":
-        module = torch.jit.load(str(path), map_location=profile.device)
+        try:
+            module = torch.jit.load(str(path), map_location=profile.device)
+        except Exception as error:  # torch raises RuntimeError/ValueError/... for a bad archive
+            first = (str(error).splitlines() or [""])[0][:300]
+            raise PilotlabError(f"{path}: not a readable TorchScript file ({type(error).__name__}: {first})") from None
     elif meta.format == "pilotlab-checkpoint":
         from pilotlab.models import load_checkpoint
         module, _ = load_checkpoint(path)
@@ -121,8 +125,30 @@ def _torch_module(path: Path, meta: ArtifactMeta, profile: HardwareProfile):
     return module.to(profile.device).eval()
 
 
+def check_onnx_file(path: Path) -> None:
+    """An ONNX file that ONNX Runtime may load: readable, and any weights it keeps in external files
+    inside its own folder (a location such as ../../etc/x would make the runtime read outside)."""
+    import onnx
+    from onnx.external_data_helper import _get_all_tensors, uses_external_data
+    try:
+        model = onnx.load(str(path), load_external_data=False)
+    except Exception as error:  # protobuf's DecodeError, OSError, ...
+        raise PilotlabError(f"{path}: not a readable ONNX model ({type(error).__name__}: "
+                            f"{(str(error).splitlines() or [''])[0][:200]})") from None
+    folder = path.parent.resolve()
+    for tensor in _get_all_tensors(model):
+        if not uses_external_data(tensor):
+            continue
+        location = next((entry.value for entry in tensor.external_data if entry.key == "location"), "")
+        target = (folder / location).resolve()
+        if not location or Path(location).is_absolute() or not target.is_relative_to(folder):
+            raise PilotlabError(f"{path}: tensor {tensor.name!r} keeps its data in {location!r}, outside "
+                                "the artifact's folder; refused (an exported model keeps its files together)")
+
+
 def _ort_session(path: Path, meta: ArtifactMeta, profile: HardwareProfile, spin: bool = True):
     import onnxruntime
+    check_onnx_file(path)
     options = onnxruntime.SessionOptions()
     if not spin:
         options.add_session_config_entry("session.intra_op.allow_spinning", "0")
@@ -131,7 +157,11 @@ def _ort_session(path: Path, meta: ArtifactMeta, profile: HardwareProfile, spin:
     options.intra_op_num_threads = profile.cpu_threads
     options.inter_op_num_threads = 1
     options.log_severity_level = 3
-    return onnxruntime.InferenceSession(str(path), options, providers=_providers(meta, profile))
+    try:
+        return onnxruntime.InferenceSession(str(path), options, providers=_providers(meta, profile))
+    except Exception as error:  # onnxruntime raises its own Fail/InvalidGraph/... for a bad model
+        first = (str(error).splitlines() or [""])[0][:300]
+        raise PilotlabError(f"{path}: ONNX Runtime cannot load it ({type(error).__name__}: {first})") from None
 
 
 def _providers(meta: ArtifactMeta, profile: HardwareProfile) -> list[Any]:

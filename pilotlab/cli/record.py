@@ -50,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from pilotlab.circuits import get_circuit
+    from pilotlab.sim.env import describe_end
     from pilotlab.sim.record import record
     from pilotlab.sim.record import check_rates
     spec = spec_from_args(RecordSpec, args, circuit=args.circuit, **camera_of(args),
@@ -64,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
             task, completed=done, total=total, frames=frames))
     print(f"{summary.path}: {summary.frames} frames, {summary.commands} commands, {summary.sim_seconds:.1f} s "
           f"simulated in {summary.wall_seconds:.1f} s, {summary.distance_m:.0f} m at {summary.average_speed:.1f} m/s, "
-          f"{summary.bytes / 1e6:.1f} MB ({summary.termination or 'stopped'})")
+          f"{summary.bytes / 1e6:.1f} MB ({describe_end(summary.termination, spec.laps)})")
     if summary.interrupted:
         print("interrupted: the bag holds what was recorded so far and is complete and readable")
         return 130

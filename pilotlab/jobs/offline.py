@@ -2,7 +2,11 @@
 
 result: the pilotlab.columns names: mse, mse_v, mse_w, mse_v_phys, mse_w_phys, size_mb, latency_ms,
 latency_p90_ms, latency_p99_ms, latency_runs, throughput_ips, throughput_batch, peak_mem_mb,
-threads, test_frames; plus strategy, hardware (the profile) and host (the fingerprint).
+threads, test_frames, their percentiles and timing_* figures (pilotlab.offline); unstable
+({metric: reason} for a timing that stayed disturbed; absent when none did); latency_samples
+("latency_ms.npy" in the artifacts: the batch-1 calls the latency is made of, float64 ms, in
+measurement order: the clean calls, or every call when unstable); plus strategy, hardware (the
+profile) and host (the fingerprint).
 """
 from __future__ import annotations
 
@@ -32,7 +36,7 @@ def run_offline(ctx: JobContext) -> dict:
     test = sets[0] if len(sets) == 1 else FrameSet.concat(sets)
     settings = timing_settings(ctx.name, spec)
     ctx.progress(0, 1, f"timing {ctx.dep('artifact').result.get('strategy', '?')} on {profile.name}")
-    result = offline.evaluate_offline(ctx.dep("artifact").artifacts, profile, test, settings)
+    result = offline.evaluate_offline(ctx.dep("artifact").artifacts, profile, test, settings, ctx.out)
     ctx.progress(1, 1)
     return {**result, "strategy": ctx.dep("artifact").result.get("strategy"),
             "hardware": profile.as_dict(), "host": host}

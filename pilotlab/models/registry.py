@@ -79,22 +79,53 @@ def build_model(arch: str, config=None) -> nn.Module:
 def save_checkpoint(path: Path, model: nn.Module, arch: str, config, **extra: Any) -> None:
     """Write a checkpoint with the arch, its config and `extra` (normalisation, preprocessing, history)."""
     import torch
-    payload = {"format": CHECKPOINT_FORMAT, "arch": arch, "config": dataclasses.asdict(config),
-               "state_dict": model.state_dict(), **extra}
+    payload = plain_data({"format": CHECKPOINT_FORMAT, "arch": arch, "config": dataclasses.asdict(config),
+                          "state_dict": model.state_dict(), **extra}, "checkpoint")
     tmp = Path(path).with_suffix(".tmp")
     torch.save(payload, tmp)
     tmp.replace(path)
 
 
+def plain_data(value: Any, where: str) -> Any:
+    """`value` with numpy scalars made Python numbers and tuples lists; anything but dicts, lists,
+    str, numbers, bool, None and tensors is an error. A checkpoint holds only this, so that
+    `torch.load(weights_only=True)` reads it and never runs code from the file."""
+    import torch
+    if value is None or type(value) in (str, bool, int, float) or isinstance(value, torch.Tensor):
+        return value
+    if isinstance(value, dict):
+        return {k: plain_data(v, f"{where}.{k}") for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain_data(v, f"{where}[{i}]") for i, v in enumerate(value)]
+    if type(value).__module__ == "numpy" and getattr(value, "shape", None) == ():
+        return value.item()          # a numpy scalar (np.float64 is also a float: checked here)
+    raise PilotlabError(f"{where}: a {type(value).__name__} cannot go into a checkpoint (plain data only)")
+
+
 def load_checkpoint(path: Path) -> tuple[nn.Module, dict[str, Any]]:
-    """(model in eval mode, the whole checkpoint dict)."""
+    """(model in eval mode, the whole checkpoint dict).
+
+    weights_only=True: a checkpoint is plain data (tensors, dicts, lists, numbers, strings); a file
+    holding any other Python object (which unpickling would construct, running its code) is refused."""
+    import pickle
+
     import torch
     try:
-        payload = torch.load(path, map_location="cpu", weights_only=False)
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as error:
+        first = next((line for line in str(error).splitlines() if "Unsupported global" in line), "")
+        raise PilotlabError(f"{path}: refused: the file holds Python objects, not only plain data "
+                            f"({first.strip() or 'weights_only load failed'}); a pilotlab checkpoint never does, "
+                            "so do not load it unless you trust its origin") from None
     except Exception as error:  # torch raises many types for a bad file
-        raise PilotlabError(f"{path}: not a readable checkpoint ({error})") from None
+        first = (str(error).splitlines() or [""])[0][:200]
+        raise PilotlabError(f"{path}: not a readable checkpoint ({type(error).__name__}: {first})") from None
     if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
         raise PilotlabError(f"{path}: not a pilotlab checkpoint (expected format {CHECKPOINT_FORMAT})")
-    model = build_model(payload["arch"], make_config(payload["arch"], payload["config"]))
-    model.load_state_dict(payload["state_dict"])
+    try:
+        model = build_model(payload["arch"], make_config(payload["arch"], payload["config"]))
+        model.load_state_dict(payload["state_dict"])
+    except (KeyError, TypeError, ValueError, RuntimeError) as error:
+        first = (str(error).splitlines() or [""])[0][:200]
+        raise PilotlabError(f"{path}: a damaged pilotlab checkpoint ({type(error).__name__}: {first})") from None
     return model.eval(), payload

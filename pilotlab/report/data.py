@@ -25,6 +25,9 @@ missing, never as 0. A row whose status is not "ok" needs a one-line reason and 
 An online row whose lap was repeated from several start points carries the online job's `spread`
 ({metric: {std, min, max, runs}}, lap_completed: {completed, runs}; `pick_spread(job_result)`): its
 metrics are then the means, and the report shows `mean ± std` and how many laps were completed.
+An offline row whose timing stayed disturbed carries the offline job's `unstable` ({metric: reason},
+`pick_unstable(job_result)`): the report marks those figures, shows their spread, and draws no
+summary line or verdict from them (`timing_issue` says why two rows' timings cannot be compared).
 `baseline` (default "baseline") names the strategy the ratios are taken against.
 """
 from __future__ import annotations
@@ -42,6 +45,7 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, 
 
 from pilotlab.columns import BY_NAME
 from pilotlab.errors import PilotlabError
+from pilotlab.timing import comparable
 from matrix.errors import did_you_mean
 
 Kind = Literal["offline", "online"]
@@ -50,6 +54,8 @@ MetricValue = StrictBool | int | float
 DEFAULT_PACKAGES = ("pilotlab", "torch", "torchao", "onnxruntime", "onnx", "numpy", "pybullet",
                     "opencv-python-headless")
 ROW_FIELDS = ("model", "strategy", "hardware", "circuit", "direction", "test_set", "kind", "status", "reason")
+TIMED = ("latency_ms", "throughput_ips")    # the figures an offline job may mark unstable
+UNSTABLE_COLUMNS = tuple(f"{name}_unstable" for name in TIMED)
 
 
 class ReportDataError(PilotlabError):
@@ -121,6 +127,7 @@ class ReportRow(_Frozen):
     metrics: dict[str, MetricValue] = Field(default_factory=dict)
     trajectory: Path | None = None           # online rows: PNG of the path over the red line
     spread: dict[str, Spread] = Field(default_factory=dict)  # online rows: metric -> its spread over runs
+    unstable: dict[str, str] = Field(default_factory=dict)   # offline rows: timed metric -> why it is unstable
 
     @model_validator(mode="before")
     @classmethod
@@ -153,6 +160,14 @@ class ReportRow(_Frozen):
                                  f"metric names are those of pilotlab/columns.py")
         return dict(spread or {})
 
+    @field_validator("unstable", mode="before")
+    @classmethod
+    def _known_unstable_metrics(cls, unstable: Mapping[str, Any] | None) -> dict[str, Any]:
+        for name in unstable or {}:
+            if name not in TIMED:
+                raise ValueError(f"unstable: {name!r} is not a timed metric{did_you_mean(name, list(TIMED))}")
+        return {name: " ".join(str(reason).split()) for name, reason in (unstable or {}).items()}
+
     @field_validator("reason")
     @classmethod
     def _one_line(cls, reason: str) -> str:
@@ -167,6 +182,10 @@ class ReportRow(_Frozen):
     def get(self, name: str) -> MetricValue | None:
         """The metric's value, or None when it was not measured (or the cell did not run)."""
         return self.metrics.get(name) if self.status == "ok" else None
+
+    def unstable_reason(self, name: str) -> str | None:
+        """Why the timed metric `name` is unstable (its timing stayed disturbed), or None."""
+        return self.unstable.get(name) if self.status == "ok" else None
 
     def spread_of(self, name: str) -> Spread | None:
         """The metric's spread when more than one run measured it (else None: a single value)."""
@@ -199,7 +218,8 @@ class ReportRow(_Frozen):
             spread = self.spread_of(name)
             if spread is not None and name != "lap_completed":
                 repeated |= {f"{name}_std": spread.std, f"{name}_min": spread.min, f"{name}_max": spread.max}
-        return {**base, **{name: self.get(name) for name in BY_NAME}, **repeated}
+        unstable = {f"{name}_unstable": self.unstable_reason(name) for name in TIMED}
+        return {**base, **{name: self.get(name) for name in BY_NAME}, **unstable, **repeated}
 
 
 class ReportData(_Frozen):
@@ -262,6 +282,27 @@ def pick_spread(result: Mapping[str, Any]) -> dict[str, Any]:
     if not isinstance(spread, Mapping):
         return {}
     return {name: dict(value) for name, value in spread.items() if name in BY_NAME and isinstance(value, Mapping)}
+
+
+def pick_unstable(result: Mapping[str, Any]) -> dict[str, str]:
+    """The offline job's timed metrics that stayed disturbed, with the reasons ({} when none)."""
+    unstable = result.get("unstable")
+    if not isinstance(unstable, Mapping):
+        return {}
+    return {name: str(reason) for name, reason in unstable.items() if name in TIMED}
+
+
+def timing_issue(rows: Iterable[ReportRow], metric: str = "latency_ms") -> str | None:
+    """Why the timed `metric` of `rows` cannot be compared, or None: one is unstable, or two were
+    timed with the machine in another state (their reference kernels differ, pilotlab.timing)."""
+    rows = [r for r in rows if r.get(metric) is not None]
+    for row in rows:
+        if reason := row.unstable_reason(metric):
+            return f"{row.strategy} ({row.hardware}): unstable: {reason}"
+    for row in rows[1:]:
+        if reason := comparable(rows[0].get("reference_ms"), row.get("reference_ms")):
+            return f"{rows[0].strategy} and {row.strategy} ({row.hardware}): {reason}"
+    return None
 
 
 def package_versions(packages: Iterable[str] = DEFAULT_PACKAGES) -> dict[str, str]:

@@ -14,7 +14,7 @@ import matplotlib
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from pilotlab.report.data import ReportData, ReportRow
+from pilotlab.report.data import TIMED, ReportData, ReportRow, timing_issue
 
 MARKERS = "osD^vP*h"
 STYLE = {"font.size": 10, "axes.titlesize": 11, "axes.spines.top": False, "axes.spines.right": False,
@@ -95,9 +95,15 @@ def draw_pareto(data: ReportData) -> Figure | None:
     for ax, target in zip(axes, hardware):
         here = [r for r in rows if r.hardware == target]
         for r in here:
-            size = r.get("size_mb")
+            size, unstable = r.get("size_mb"), r.unstable_reason("latency_ms") is not None
+            latency, low, high = r.get("latency_ms"), r.get("latency_p10_ms"), r.get("latency_p90_ms")
+            if low is not None and high is not None:    # the 10th–90th percentile of the latency
+                ax.errorbar(latency, r.get("mse"), xerr=[[latency - low], [high - latency]], fmt="none",
+                            ecolor="0.4", elinewidth=1, capsize=3, zorder=2)
             ax.scatter(r.get("latency_ms"), r.get("mse"), s=area(size or 0), marker=markers[r.model],
-                       color=colours[r.strategy], alpha=0.75, edgecolors="black", linewidths=0.6, zorder=3)
+                       color="none" if unstable else colours[r.strategy], alpha=0.75,
+                       edgecolors=colours[r.strategy] if unstable else "black", linewidths=1.5 if unstable else 0.6,
+                       zorder=3)
         front = pareto_front([(r.get("latency_ms"), r.get("mse")) for r in here])
         ax.plot(*zip(*front), drawstyle="steps-post", color="0.35", ls="--", lw=1.2, zorder=2)
         ax.set(title=target, xlabel="Inference time, batch 1 (ms)", ylabel="MSE (normalised v, w)")
@@ -108,6 +114,9 @@ def draw_pareto(data: ReportData) -> Figure | None:
     size_handles = [Line2D([], [], ls="", marker="o", markersize=math.sqrt(area(s)), color="0.75",
                            markeredgecolor="black", label=f"{s:g} MB") for s in shown]
     front_handle = Line2D([], [], color="0.35", ls="--", label="Pareto front")
+    if any(r.unstable_reason("latency_ms") for r in rows):
+        size_handles.append(Line2D([], [], ls="", marker="o", markersize=8, markerfacecolor="none",
+                                   markeredgecolor="0.3", label="⚠ unstable timing"))
     _legend_and_title(figure, _identity_handles(data, rows) + [front_handle] + size_handles,
                       "Latency vs MSE (lower left is better; marker area ∝ model size)")
     return figure
@@ -140,6 +149,9 @@ def _ratio_bar(ax, row: ReportRow, base: ReportRow | None, metric: str, position
         label = {"not_applicable": "not applicable", "failed": "failed",
                  "not_run": "not run yet"}.get(row.status, "not measured")
         ax.text(0.05, position, label, ha="left", va="center", fontsize=8, color="0.35", style="italic")
+        return
+    if metric in TIMED and timing_issue([base, row], metric) is not None:    # no bar drawn from it
+        ax.text(0.05, position, "⚠ unstable timing", ha="left", va="center", fontsize=8, color="0.35", style="italic")
         return
     colour = matplotlib.colormaps["Set2"](index % 8)
     bar = ax.barh(position, base.get(metric) / row.get(metric), height, color=colour, edgecolor="black", lw=0.5)
@@ -219,8 +231,10 @@ PLOTS: dict[str, Callable[[ReportData], Figure | None]] = {
     "training": draw_training,
 }
 CAPTIONS = {
-    "pareto": "Latency vs MSE per hardware: the dashed line is the Pareto front, marker area is the model size.",
-    "ratios": "Size reduction and speed-up of each strategy against the baseline (n/a: not applicable).",
+    "pareto": "Latency vs MSE per hardware: the dashed line is the Pareto front, marker area is the model size, "
+              "whiskers the latency's 10th–90th percentile; a hollow marker is an unstable timing.",
+    "ratios": "Size reduction and speed-up of each strategy against the baseline (no bar where a timing was "
+              "unstable or the strategy not applicable).",
     "closed_loop": "Closed-loop laps: average speed against position deviation; a cross marks a lost lap.",
     "training": "Training and validation loss per epoch for each model.",
 }

@@ -7,8 +7,14 @@ shown job's key and stored result, and the report code), so a warm rerun stays q
 """
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -17,7 +23,8 @@ from matrix.engine import slug
 from matrix.fingerprint import code_fingerprint
 from matrix.recipe import Recipe
 from matrix.store import Store, read_json, result_token
-from pilotlab.report.data import Claim, Host, ReportData, package_versions, pick_metrics, pick_spread
+from pilotlab.errors import PilotlabError
+from pilotlab.report.data import Claim, Host, ReportData, package_versions, pick_metrics, pick_spread, pick_unstable
 from pilotlab.report.studies import compare
 
 STAMP = ".stamp"
@@ -30,15 +37,50 @@ def report_folder(recipe: Recipe) -> Path:
 
 def write_recipe_report(recipe: Recipe, store: Store, jobs: list, force: bool = True) -> Path | None:
     """Write the report of `jobs` (the recipe's plan) from the store; unless `force`, only when
-    something it shows changed. Returns the folder, or None when it was left as it was."""
+    something it shows changed. Returns the folder, or None when it was left as it was.
+
+    The report is written into a new folder beside the old one, then swapped in: a reader (or a
+    second run writing the same report) never sees half a report. Writers of one folder take turns."""
     folder = report_folder(recipe)
     stamp = _stamp(recipe, jobs, store)
     if not force and read_json(folder / STAMP) == stamp:
         return None
     from pilotlab.report.writer import write_report  # matplotlib: only when the report is rewritten
-    write_report(build_report_data(recipe, jobs, store), folder)
-    (folder / STAMP).write_text(json.dumps(stamp))
+    with _writing(folder) as staging:
+        if not force and read_json(folder / STAMP) == stamp:
+            return None                   # another run wrote this very report while we waited
+        write_report(build_report_data(recipe, jobs, store), staging)
+        (staging / STAMP).write_text(json.dumps(stamp))
+        _swap(staging, folder)
     return folder
+
+
+@contextmanager
+def _writing(folder: Path) -> Iterator[Path]:
+    """Hold `folder`'s writer lock and yield an empty staging folder beside it (removed after)."""
+    try:
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        lock = open(folder.parent / f".{folder.name}.lock", "a")
+        staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.new-", dir=folder.parent))
+    except OSError as error:
+        raise PilotlabError(f"report.folder: cannot write the report to {folder} ({error.strerror or error}); "
+                            "set report.folder in the recipe to a folder you can write") from None
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield staging
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+        lock.close()
+
+
+def _swap(staging: Path, folder: Path) -> None:
+    """Put `staging` where `folder` is: the old report moves aside first, then goes."""
+    old = folder.parent / f".{folder.name}.old-{os.getpid()}"
+    if folder.exists():
+        os.replace(folder, old)
+    os.replace(staging, folder)
+    os.chmod(folder, 0o755)          # mkdtemp makes it private; a report is for reading
+    shutil.rmtree(old, ignore_errors=True)
 
 
 def build_report_data(recipe: Recipe, jobs: list, store: Store) -> ReportData:
@@ -71,13 +113,16 @@ def _row(job, store: Store) -> dict[str, Any]:
 
 def row_from_result(result: dict[str, Any], artifacts: Path) -> dict[str, Any]:
     """The report fields of a finished job: status (and reason), its metrics, their spread over
-    repeated laps (online jobs), and the trajectory picture, a path under the job's `artifacts`."""
+    repeated laps (online jobs), the timings that stayed disturbed (offline jobs), and the
+    trajectory picture, a path under the job's `artifacts`."""
     if result["status"] != "ok":
         return {"status": result["status"], "reason": result.get("reason") or "?"}
     value = result.get("value", {})
     row = {"status": "ok", **pick_metrics(value)}
     if spread := pick_spread(value):
         row["spread"] = spread
+    if unstable := pick_unstable(value):
+        row["unstable"] = unstable
     if value.get("trajectory"):
         row["trajectory"] = str(artifacts / value["trajectory"])
     return row

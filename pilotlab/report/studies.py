@@ -2,7 +2,8 @@
 
 A recipe can ask for a comparison (`report: {compare_with: study2022}`); each claim is a function of
 the report's rows that says whether the claim holds on our setup, with our figures. The verdicts are
-computed, never written by hand, so a rerun on other hardware updates them.
+computed, never written by hand, so a rerun on other hardware updates them. A claim about speed is
+"not testable here" when a timing it rests on stayed disturbed (`timing_issue`).
 """
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from matrix.registry import Registry
-from pilotlab.report.data import ReportData, ReportRow
+from pilotlab.report.data import ReportData, ReportRow, timing_issue
 
 Verdict = Literal["holds", "does not hold", "not testable here"]
 
@@ -68,9 +69,17 @@ def _lowest(claim: str, data: ReportData, strategy: str, metric: str, label: str
     rows = {s: r for s, r in _offline(data).items() if r.get(metric) is not None}
     if strategy not in rows:
         return _untestable(claim, f"no {strategy} offline row")
+    if metric == "latency_ms" and (untrusted := _untrusted_timing(claim, rows.values())):
+        return untrusted
     best = min(rows, key=lambda s: rows[s].get(metric))
     return ClaimCheck(claim, _verdict(best == strategy), f"{label}: {best} ({style.format(rows[best].get(metric))}); "
                                                          f"{strategy} {style.format(rows[strategy].get(metric))}")
+
+
+def _untrusted_timing(claim: str, rows) -> ClaimCheck | None:
+    """A "not testable here" verdict when the latencies of `rows` cannot be compared, else None."""
+    issue = timing_issue([r for r in rows if r is not None])
+    return _untestable(claim, f"timings not to be trusted: {issue}") if issue else None
 
 
 def _untestable(claim: str, missing: str) -> ClaimCheck:
@@ -126,6 +135,8 @@ def unstructured_pruning_no_speedup(data: ReportData) -> ClaimCheck:
     speedups = {s: v for s, v in speedups.items() if v is not None}
     if not speedups:
         return _untestable(claim, "no local_prune / global_prune offline rows")
+    if untrusted := _untrusted_timing(claim, [rows["baseline"], *(rows[s] for s in speedups)]):
+        return untrusted
     faster = [s for s in speedups if _clearly_faster(rows, s)]
     found = ", ".join(f"{s} {v:.2f}× the baseline's speed" for s, v in speedups.items())
     noise = "; faster beyond the timing noise (p90 below the baseline's median): " + (", ".join(faster) or "neither")
@@ -134,9 +145,12 @@ def unstructured_pruning_no_speedup(data: ReportData) -> ClaimCheck:
 
 def dynamic_quant_slower_in_pytorch(data: ReportData) -> ClaimCheck:
     claim = "PyTorch dynamic-range quantization was slower than the baseline (3.17 ms vs 2.18 ms)."
-    speedup = _ratio(_offline(data), "dynamic_quant", "latency_ms")
+    rows = _offline(data)
+    speedup = _ratio(rows, "dynamic_quant", "latency_ms")
     if speedup is None:
         return _untestable(claim, "no dynamic_quant and baseline offline rows")
+    if untrusted := _untrusted_timing(claim, [rows["baseline"], rows["dynamic_quant"]]):
+        return untrusted
     return ClaimCheck(claim, _verdict(speedup < 1.0),
                       f"dynamic_quant runs at {speedup:.2f}× the baseline's speed (ONNX Runtime, MatMul/Gemm only)")
 
@@ -161,6 +175,8 @@ def fastest_drives_as_well(data: ReportData) -> ClaimCheck:
     base = laps.get("baseline")
     if not timed or base is None or base.get("position_deviation_mae_m") is None:
         return _untestable(claim, "no offline latency and laps of the same strategies on simple_circuit")
+    if untrusted := _untrusted_timing(claim, [offline[s] for s in timed]):
+        return untrusted
     fastest = min(timed, key=timed.get)
     row = laps[fastest]
     deviation, base_deviation = row.get("position_deviation_mae_m"), base.get("position_deviation_mae_m")
@@ -194,6 +210,8 @@ def tensorrt_fastest(data: ReportData) -> ClaimCheck:
                  and r.status == "ok" and r.get("latency_ms")), None)
     if base is None or not rows[0].get("latency_ms"):
         return _untestable(claim, f"no baseline latency on {gpu} to compare tensorrt with")
+    if untrusted := _untrusted_timing(claim, [base, rows[0]]):
+        return untrusted
     speedup = base.get("latency_ms") / rows[0].get("latency_ms")
     return ClaimCheck(claim, _verdict(speedup >= 16.0),    # "about 33×": at least half of it
                       f"tensorrt on {gpu}: {rows[0].get('latency_ms'):.3g} ms, {speedup:.1f}× the baseline's speed")

@@ -1,5 +1,8 @@
 """A short generated summary of the findings: the best strategy per criterion, and who loses the lap.
 
+No line is drawn from a timing that stayed disturbed (or from two taken with the machine in another
+state): where one is, the line says so instead of naming a fastest method.
+
 Findings are (label, text) pairs of plain text; the templates escape them.
 """
 from __future__ import annotations
@@ -8,7 +11,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from pilotlab.columns import BY_NAME
-from pilotlab.report.data import ReportData, ReportRow
+from pilotlab.report.data import ReportData, ReportRow, timing_issue
 from pilotlab.report.tables import format_value, method_label
 
 
@@ -69,14 +72,18 @@ def _fastest(data: ReportData, rows: list[ReportRow]) -> list[Finding]:
     findings = []
     for hardware in dict.fromkeys(r.hardware for r in rows):
         here = [r for r in rows if r.hardware == hardware]
-        row = best(here, "latency_ms")
-        if row is not None:
-            text = f"{method_label(row, data)} — {format_value('latency_ms', row.get('latency_ms'))} ms per image"
-            findings.append(Finding(f"Fastest on {hardware}", text + _versus(data, row, "latency_ms", "faster")))
-        row = best(here, "throughput_ips")
-        if row is not None:
-            text = f"{method_label(row, data)} — {format_value('throughput_ips', row.get('throughput_ips'))} images/s"
-            findings.append(Finding(f"Highest throughput on {hardware}", text))
+        for metric, label, unit in (("latency_ms", "Fastest", "ms per image"),
+                                    ("throughput_ips", "Highest throughput", "images/s")):
+            row = best(here, metric)
+            if row is None:
+                continue
+            if issue := timing_issue(here, metric):
+                findings.append(Finding(f"{label} on {hardware}", f"not drawn: {issue}; rerun "
+                                        "`pilotlab run --force offline` when the machine is quieter"))
+                continue
+            text = f"{method_label(row, data)} — {format_value(metric, row.get(metric))} {unit}"
+            versus = _versus(data, row, metric, "faster") if metric == "latency_ms" else ""
+            findings.append(Finding(f"{label} on {hardware}", text + versus))
     return findings
 
 

@@ -6,7 +6,10 @@ Brain iteration frequency | Mean inference time | Real-time factor, one table pe
 Ratios are taken against the baseline strategy of the same model in the same table. Where a lap
 was repeated from several start points, a cell shows the mean ± the sample standard deviation over
 the runs (`8.95 ± 0.12`) and the lap cell how many laps were completed (`✓ 3/3, 47.8 ± 0.4 s`,
-`✗ 2/3, 87 %`); a single run shows its value alone, as before.
+`✗ 2/3, 87 %`); a single run shows its value alone, as before. Inference time and throughput show
+their 10th–90th percentiles in brackets; a timing that stayed disturbed is marked ⚠ (as is a speed-up
+drawn from one, or from two timings taken with the machine in another state), with the reason in a
+note under the table, and each offline table says in one line how its timings were taken.
 """
 from __future__ import annotations
 
@@ -15,9 +18,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from pilotlab.columns import BY_NAME
-from pilotlab.report.data import ReportData, ReportRow
+from pilotlab.report.data import ReportData, ReportRow, timing_issue
 
 MISSING = "—"
+UNSTABLE = "⚠"
+PERCENTILES = {"latency_ms": ("latency_p10_ms", "latency_p90_ms"),
+               "throughput_ips": ("throughput_p10_ips", "throughput_p90_ips")}
 COUNT_COLUMNS = {"params", "nonzero_params", "throughput_batch", "threads", "test_frames", "off_road_events"}
 
 
@@ -46,6 +52,7 @@ class Table:
     headers: tuple[str, ...]        # after the Method column
     rows: tuple[TableRow, ...]
     notes: tuple[str, ...] = field(default=())
+    method: str = ""                # how the figures were measured, one line
 
 
 def format_value(name: str, value: object) -> str:
@@ -100,6 +107,29 @@ def metric_cell(row: ReportRow, name: str) -> Cell:
                 f"{title}: mean ± standard deviation of {spread.runs} runs{extent}")
 
 
+def timed_cell(row: ReportRow, name: str) -> Cell:
+    """A timing: `2.31 (2.25–2.60)` with its 10th–90th percentiles, and ⚠ where it stayed disturbed."""
+    cell = metric_cell(row, name)
+    if cell.missing:
+        return cell
+    text, title = cell.text, cell.title
+    low, high = (row.get(p) for p in PERCENTILES[name])
+    if low is not None and high is not None:
+        text += f" ({format_value(name, low)}–{format_value(name, high)})"
+        title += "; 10th–90th percentile in brackets"
+    if reason := row.unstable_reason(name):
+        text, title = f"{text} {UNSTABLE}", f"{title}; UNSTABLE: {reason}"
+    return Cell(text, cell.sort, title)
+
+
+def speedup_cell(row: ReportRow, baseline: ReportRow | None) -> Cell:
+    cell = ratio_cell(row.get("latency_ms"), baseline.get("latency_ms") if baseline else None, "faster")
+    issue = None if cell.missing else timing_issue([baseline, row])
+    if issue is None:
+        return cell
+    return Cell(f"{cell.text} {UNSTABLE}", cell.sort, f"{cell.title}; not to be trusted: {issue}")
+
+
 def lap_cell(row: ReportRow) -> Cell:
     done, seconds, share = row.get("lap_completed"), row.get("lap_seconds"), row.get("percentage_completed")
     if done is None:
@@ -152,9 +182,10 @@ ONLINE_HEADERS = ("Lap",) + tuple(h for h, _ in ONLINE_COLUMNS)
 
 def offline_cells(row: ReportRow, baseline: ReportRow | None) -> tuple[Cell, ...]:
     base = baseline.get if baseline else (lambda _name: None)
-    return tuple(metric_cell(row, name) for _, name in OFFLINE_COLUMNS) + (
+    return tuple(timed_cell(row, name) if name in PERCENTILES else metric_cell(row, name)
+                 for _, name in OFFLINE_COLUMNS) + (
         ratio_cell(row.get("size_mb"), base("size_mb"), "smaller"),
-        ratio_cell(row.get("latency_ms"), base("latency_ms"), "faster"),
+        speedup_cell(row, baseline),
         ratio_cell(row.get("mse"), base("mse"), "delta"),
     )
 
@@ -187,7 +218,52 @@ def _table(data: ReportData, kind: str, hardware: str, place: str, rows: list[Re
     notes = tuple(f"No usable {data.baseline!r} row for {model} here: ratios are not shown."
                   for model in _unique(r.model for r in rows) if model not in baselines) if kind == "offline" else ()
     table_rows = tuple(TableRow(method_label(r, data), r, cells_of(r, baselines.get(r.model)), _note(r)) for r in rows)
-    return Table(title, kind, hardware, place, headers, table_rows, notes)
+    if kind != "offline":
+        return Table(title, kind, hardware, place, headers, table_rows, notes)
+    notes += tuple(_timing_notes(data, rows, baselines))
+    return Table(title, kind, hardware, place, headers, table_rows, notes, timing_method(rows))
+
+
+def _timing_notes(data: ReportData, rows: list[ReportRow], baselines: dict[str, ReportRow]) -> list[str]:
+    """One note per timing marked ⚠: the figure that stayed disturbed, or the speed-up that cannot be trusted."""
+    notes = []
+    for row in rows:
+        for name, label in (("latency_ms", "inference time"), ("throughput_ips", "throughput")):
+            if reason := row.unstable_reason(name):
+                notes.append(f"{UNSTABLE} {method_label(row, data)}: {label} unstable: {reason}.")
+        base = baselines.get(row.model)
+        if base is not None and base is not row and not row.unstable_reason("latency_ms") \
+                and not base.unstable_reason("latency_ms") and (issue := timing_issue([base, row])):
+            notes.append(f"{UNSTABLE} {method_label(row, data)}: speed-up not to be trusted: {issue}.")
+    return notes
+
+
+def timing_method(rows: list[ReportRow]) -> str:
+    """How the table's timings were taken, in one line: threads, repetitions, statistic, interference."""
+    timed = [r for r in rows if r.get("latency_ms") is not None]
+    if not timed:
+        return ""
+    threads = "/".join(str(t) for t in sorted({int(r.get("threads")) for r in timed if r.get("threads")}))
+    line = f"Timings on {threads or '?'} thread(s), one method at a time: inference time is the median of " \
+           f"{_extent(timed, 'latency_runs')} timed batch-1 calls per method"
+    batches = sorted({int(r.get("throughput_batch")) for r in timed if r.get("throughput_batch")})
+    if batches:
+        line += f", throughput the batch of {'/'.join(map(str, batches))} over the median time of its calls"
+    line += ", each with its 10th–90th percentile; calls that a wait of this process's threads for a CPU may " \
+            "have overlapped were set aside and re-measured"
+    discarded = sum(int(r.get("timing_calls_discarded") or 0) for r in timed)
+    others = [r.get("timing_other_cores") for r in timed if r.get("timing_other_cores") is not None]
+    if others:
+        line += f" ({discarded:,} calls; other processes used {min(others):.2f}–{max(others):.2f} cores meanwhile)"
+    return line + f"; {UNSTABLE} marks a timing that stayed disturbed: no conclusion is drawn from it."
+
+
+def _extent(rows: list[ReportRow], name: str) -> str:
+    values = [int(r.get(name)) for r in rows if r.get(name) is not None]
+    if not values:
+        return "the"
+    low, high = min(values), max(values)
+    return f"{low:,}" if low == high else f"{low:,}–{high:,}"
 
 
 def _all_alike_and_not_measured(rows: list[ReportRow]) -> bool:

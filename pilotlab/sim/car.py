@@ -15,7 +15,7 @@ import os
 import tempfile
 from dataclasses import dataclass
 
-import pybullet as p
+from pilotlab.sim.bullet import p
 
 REVERSE_SPEED = 5.0  # m/s: the fastest a command may drive backwards
 

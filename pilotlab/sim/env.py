@@ -88,6 +88,16 @@ INFO_KEYS = {
 }
 
 
+def describe_end(termination: str | None, laps: float) -> str:
+    """How a drive ended, in words for a person ("lap_completed" after 0.1 lap reads wrong)."""
+    if termination == "lap_completed":
+        if laps < 1:
+            return f"drove the {laps:g} lap asked for"
+        return f"{laps:g} lap{'' if laps == 1 else 's'} completed"
+    words = {"off_road": "left the road", "trapped": "trapped: no progress", "timeout": "timed out"}
+    return words.get(termination or "", "stopped")
+
+
 class DrivingEnv(gymnasium.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
 

@@ -13,10 +13,10 @@ import math
 
 import cv2
 import numpy as np
-import pybullet as p
 
 from pilotlab.circuits import Circuit
 from pilotlab.errors import PilotlabError
+from pilotlab.sim.bullet import p
 from pilotlab.sim.camera import GROUND, LINE, LINE_WIDTH_M, ROAD, SKY, CameraSpec, sky_polygon
 
 RENDERERS = ("pybullet", "ground")

@@ -9,9 +9,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pybullet as p
 
 from pilotlab.circuits import Circuit
+from pilotlab.sim.bullet import p
 from pilotlab.sim.camera import LINE, LINE_WIDTH_M, ROAD, WALL
 
 GROUND_FRICTION = 1.0

@@ -83,11 +83,29 @@ def read_meta(artifact_dir: Path) -> ArtifactMeta:
     if not path.exists():
         raise PilotlabError(f"{artifact_dir}: not a pilotlab artifact (no {META_FILE}); "
                             "give the folder an optimize job wrote (or `pilotlab export` copied)")
-    data = json.loads(path.read_text())
-    if data.get("artifact_format") != ARTIFACT_FORMAT:
-        raise PilotlabError(f"{path}: artifact format {data.get('artifact_format')!r} is not "
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:   # UnicodeDecodeError and JSONDecodeError are ValueErrors
+        raise PilotlabError(f"{path}: not readable JSON ({type(error).__name__}: {error}); "
+                            "rerun the optimize job that wrote it (or export it again)") from None
+    if not isinstance(data, dict) or data.get("artifact_format") != ARTIFACT_FORMAT:
+        found = data.get("artifact_format") if isinstance(data, dict) else type(data).__name__
+        raise PilotlabError(f"{path}: artifact format {found!r} is not "
                             f"{ARTIFACT_FORMAT!r}; rerun the optimize job with this pilotlab")
-    return ArtifactMeta.from_json(data)
+    try:
+        meta = ArtifactMeta.from_json(data)
+    except (KeyError, TypeError) as error:
+        raise PilotlabError(f"{path}: a damaged artifact.json ({type(error).__name__}: {error} missing or "
+                            "of the wrong type); rerun the optimize job that wrote it") from None
+    _check_file_name(path, meta.file)
+    return meta
+
+
+def _check_file_name(path: Path, name: Any) -> None:
+    """The model file is a plain name inside the artifact's folder, never a path out of it."""
+    if not isinstance(name, str) or not name or Path(name).name != name or name in (".", ".."):
+        raise PilotlabError(f"{path}: \"file\": {name!r} is not a file name in the artifact's folder; "
+                            "rerun the optimize job that wrote it")
 
 
 def artifact_size_mb(artifact_dir: Path) -> float:

@@ -70,3 +70,20 @@ def test_a_failed_run_exits_non_zero_and_show_explains(recipe, tmp_path, capsys)
 def test_unknown_key_prefix(recipe, tmp_path, capsys):
     code, _, err = cli(capsys, "show", "abcdef", "--store", str(tmp_path / "s"))
     assert code == 2 and "no job 'abcdef'" in err
+
+
+@pytest.mark.parametrize("key", ["../../x_marker", "[a-f]*", "/etc/passwd", "ab*", "abcd/../..", "g" * 8,
+                                 "a" * 65])
+def test_a_key_is_hex_digits_never_a_path_or_pattern(recipe, tmp_path, capsys, key):
+    store = tmp_path / "s"
+    cli(capsys, "run", str(recipe), "--store", str(store))
+    (tmp_path / "x_marker.json").write_text("{}")                     # what `../../x` once matched
+    code, out, err = cli(capsys, "show", key, "--store", str(store))
+    assert code == 2 and "is not a job key" in err and len(err.strip().splitlines()) == 1 and out == ""
+
+
+def test_a_key_prefix_in_capitals_is_found(recipe, tmp_path, capsys):
+    store = str(tmp_path / "s")
+    cli(capsys, "run", str(recipe), "--store", store)
+    key = json.loads(cli(capsys, "plan", str(recipe), "--json", "--store", store)[1])[0]["key"]
+    assert cli(capsys, "show", key[:8].upper(), "--store", store)[0] == 0

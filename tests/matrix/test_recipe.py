@@ -118,7 +118,7 @@ def test_not_a_mapping(tmp_path):
 
 
 def test_missing_file(tmp_path):
-    with pytest.raises(RecipeError, match="cannot read the recipe"):
+    with pytest.raises(RecipeError, match="nope.yaml: no such file"):
         load_recipe(tmp_path / "nope.yaml", TOY)
 
 

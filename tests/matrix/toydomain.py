@@ -8,6 +8,7 @@ one `total` job over all of them.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import time
@@ -35,12 +36,22 @@ def count_execution(ctx) -> None:
         log.write(ctx.name + "\n")
 
 
+@contextlib.contextmanager
+def timed(ctx):
+    """Append "kind key start end" to the store-wide intervals.log once the job's work is done."""
+    started = time.time()
+    yield
+    with open(ctx.cache / "intervals.log", "a") as log:
+        log.write(f"{ctx.kind} {ctx.key} {started:.6f} {time.time():.6f}\n")
+
+
 @job_kind("source")
 def run_source(ctx) -> dict[str, Any]:
     count_execution(ctx)
     if ctx.params["noise"]:
         os.write(2, b"C-level noise\n")
-    time.sleep(ctx.params["sleep"])
+    with timed(ctx):
+        time.sleep(ctx.params["sleep"])
     if ctx.params["fail"]:
         raise RuntimeError(f"source {ctx.name} was told to fail")
     if ctx.params["not_applicable"]:
@@ -55,13 +66,16 @@ def run_power(ctx) -> dict[str, Any]:
     count_execution(ctx)
     source = ctx.dep("source")
     value = json.loads((source.artifacts / "value.json").read_text())
-    time.sleep(ctx.params.get("sleep", 0.0))
+    with timed(ctx):
+        time.sleep(ctx.params.get("sleep", 0.0))
     return {"value": value ** ctx.params["power"]}
 
 
 @job_kind("total", exclusive=True)
 def run_total(ctx) -> dict[str, Any]:
     count_execution(ctx)
+    with timed(ctx):
+        time.sleep(ctx.params.get("sleep", 0.0))
     return {"value": sum(dep.result["value"] for dep in ctx.dep_group("parts"))}
 
 
@@ -70,12 +84,13 @@ def plan(recipe: Recipe) -> list[Job]:
                for name, cfg in recipe.config.sources.items()}
     powers = [Job("power", f"power {c['source']}^{c['power']}", {"power": c["power"], "sleep": recipe.config.sleep},
                   deps={"source": sources[c["source"]]}) for c in recipe.combinations]
-    return powers + [Job("total", "total", {}, deps={"parts": tuple(powers)})]
+    total = {"sleep": recipe.config.total_sleep} if recipe.config.total_sleep else {}
+    return powers + [Job("total", "total", total, deps={"parts": tuple(powers)})]
 
 
 TOY = Domain(
     name="toy",
-    sections={"sources": (dict[str, SourceConfig], ...), "sleep": (float, 0.0)},
+    sections={"sources": (dict[str, SourceConfig], ...), "sleep": (float, 0.0), "total_sleep": (float, 0.0)},
     axes={"source": lambda config: list(config.sources), "power": lambda config: None},
     plan=plan,
     kind_modules=("tests.matrix.toydomain",),

@@ -42,7 +42,7 @@ def recordings(tmp_path_factory) -> dict[str, Path]:
     csv = write_csv(root / "stadium.csv", stadium())
     found = {}
     for name, (fmt, compressed) in RECORDINGS.items():
-        job = Job("record", f"record {name}", {"circuit": str(csv), "laps": 0.15, "width": 64, "height": 48,
+        job = Job("record", f"record {name}", {"circuit": str(csv), "laps": 0.15, "camera": {"width": 64, "height": 48},
                                                "format": fmt, "compressed": compressed},
                   inputs={"circuit_csv": input_file(str(csv))})
         status, result = run_job(root / "store", job)
@@ -169,7 +169,7 @@ def test_a_damaged_circuit_csv_is_refused_by_the_record_job(tmp_path, how):
         csv.write_bytes(random.Random(3).randbytes(3000))
     else:
         write_csv(csv, BAD_CIRCUITS[how](stadium()))
-    job = Job("record", f"record {how}", {"circuit": str(csv), "laps": 0.1, "width": 32, "height": 24},
+    job = Job("record", f"record {how}", {"circuit": str(csv), "laps": 0.1, "camera": {"width": 32, "height": 24}},
               inputs={"circuit_csv": input_file(str(csv))})
     status, failure = run_job(tmp_path / "store", job)
     assert status == "refused" and str(csv) in failure["error"]

@@ -58,5 +58,45 @@ def test_the_readme_turns_a_camera_image_into_the_input_as_pilotlab_does(trained
 def test_export_errors_say_what_to_do(store, tmp_path, capsys):
     assert main(["export", "ffff", "--out", str(tmp_path / "x"), "--store", str(store)]) == 2
     assert "no job 'ffff'" in capsys.readouterr().err
+    for key in ("[a-f]*", "/etc/passwd", "../../x", "ab1*"):
+        assert main(["export", key, "--out", str(tmp_path / "x"), "--store", str(store)]) == 2
+        err = capsys.readouterr().err
+        assert "is not a job key" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x").exists()
+    other = Store(tmp_path / "other")
+    key = "cd34" + "0" * 60
+    other.commit(key, other.new_workdir(key), {"key": key, "kind": "offline", "name": "offline x"},
+                 {"status": "ok", "reason": "", "value": {}})
+    assert main(["export", key[:6], "--out", str(tmp_path / "x"), "--store", str(other.root)]) == 2
+    assert "is an 'offline' job" in capsys.readouterr().err
     with pytest.raises(PilotlabError, match="not a pilotlab artifact"):
         export_artifact(tmp_path, {}, tmp_path / "y")
+
+
+@pytest.mark.parametrize("kind, encoding", [("ros1", "rgb8"), ("ros1", "bgr8"), ("sqlite3", "rgb8"),
+                                            ("sqlite3", "png")])
+def test_the_readme_reads_camera_images_from_a_bag(store, tmp_path, kind, encoding):
+    from pilotlab.export import FROM_A_BAG
+    from tests.pilotlab.data.bagfiles import IMAGE_TOPIC, bag_path, drive_bag, images
+    frames = images(3, height=48, width=64)
+    path = bag_path(tmp_path, kind)
+    drive_bag(path, kind, frames, encoding=encoding)
+    namespace = {}
+    exec(FROM_A_BAG.split("```python")[1].split("```")[0], namespace)   # the README's own code
+    topic = IMAGE_TOPIC + ("/compressed" if encoding == "png" else "")
+    read = [rgb for _, rgb in namespace["camera_images"](path, topic)]
+    assert len(read) == 3 and all(np.array_equal(a, b) for a, b in zip(read, frames))
+
+
+def test_the_readme_says_predict_is_normalised_and_how_to_get_v_and_w(store, tmp_path):
+    from pilotlab.data.frames import LabelRanges
+    out = tmp_path / "deploy"
+    assert main(["export", "ab12", "--out", str(out), "--store", str(store)]) == 0
+    text = " ".join((out / "README.md").read_text().split())
+    assert "the same normalised `vw`" in text and "not speeds" in text and "## Camera images from a recorded bag" in text
+    predictor = load_predictor(out, "cpu1")
+    vw = predictor.predict(np.random.default_rng(1).random((1, 3, 66, 200), dtype=np.float32))
+    v, w = LabelRanges.from_dict(predictor.meta.labels).denormalise(vw)[0]
+    (v_lo, v_hi), (w_lo, w_hi) = predictor.meta.labels["v"], predictor.meta.labels["w"]
+    assert v == pytest.approx(vw[0, 0] * (v_hi - v_lo) + v_lo, rel=1e-5)
+    assert w == pytest.approx(vw[0, 1] * (w_hi - w_lo) + w_lo, rel=1e-5)

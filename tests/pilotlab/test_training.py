@@ -97,4 +97,4 @@ def test_non_finite_labels_are_refused_before_training():
     data = stripe_frameset(recordings=2, per_recording=16)
     data.labels[5, 1] = np.inf
     with pytest.raises(PilotlabError, match=r"training data: 1 of 32 labels are not finite numbers \(first: frame 5 of recording 0"):
-        fit(build_model("pilotnet"), data, LabelRanges((0, 1), (-1, 1)), FitConfig(epochs=1, batch_size=8))
+        fit(build_model("pilotnet"), data, LabelRanges((0, 1), (-1, 1)), FitConfig(epochs=1, batch_size=8, lr=1e-3))

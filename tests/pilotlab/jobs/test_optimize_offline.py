@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import logging
 
+import numpy as np
 import pytest
 
 import pilotlab.jobs.offline  # noqa: F401  (registers the kind)
@@ -14,8 +15,8 @@ from pilotlab.columns import BY_NAME
 from pilotlab.errors import PilotlabError
 from pilotlab.hardware import host_fingerprint, make_profile
 
-QUICK = {"warmup_runs": 5, "warmup_seconds": 0.0, "min_runs": 30, "max_seconds": 0.5, "block": 10,
-         "throughput_seconds": 0.1}
+QUICK = {"warmup_runs": 5, "warmup_seconds": 0.0, "min_runs": 30, "max_seconds": 0.5, "block_seconds": 0.05,
+         "min_blocks": 2, "throughput_seconds": 0.1, "throughput_min_runs": 3}
 
 
 def context(tmp_path, kind, params, deps) -> JobContext:
@@ -47,8 +48,11 @@ def test_optimize_then_offline(tmp_path, trained, frames, test_frames):
                       {"artifact": dep("optimize", ctx.out, result), "test": (dep("frames", test_frames),)})
     metrics = KINDS.get("offline").handler(offline)
     assert {"mse", "mse_v", "mse_w", "latency_ms", "throughput_ips", "size_mb", "peak_mem_mb"} <= set(metrics)
-    assert set(metrics) - {"strategy", "hardware", "host"} <= set(BY_NAME)
+    assert set(metrics) - {"strategy", "hardware", "host", "latency_samples", "unstable"} <= set(BY_NAME)
     assert metrics["host"] == host_fingerprint() and metrics["threads"] == 1 and json.dumps(metrics)
+    samples = np.load(offline.out / metrics["latency_samples"])
+    assert samples.dtype == np.float64 and samples.shape == (metrics["latency_runs"],)
+    assert np.median(samples) == pytest.approx(metrics["latency_ms"])
 
 
 def test_offline_refuses_to_time_for_another_host(tmp_path, trained, frames, test_frames):

@@ -28,3 +28,14 @@ def test_plots_show_every_strategy_and_hardware(study):
     assert "not applicable" in labels and "failed" in labels                     # shown as such, not as 0
     titles = [ax.get_title() for ax in draw_closed_loop(study).axes if ax.get_visible()]
     assert titles == ["simple_circuit cw · cpu1", "montreal cw · cpu1"]
+
+
+def test_no_speed_up_bar_is_drawn_from_an_unstable_timing():
+    rows = [offline_row("baseline", size_mb=6.1, mse=0.07, latency_ms=2.3, latency_p10_ms=2.2, latency_p90_ms=9.0,
+                        unstable={"latency_ms": "only 4 of 24 calls ran with no thread of this process waiting"}),
+            offline_row("static_quant", size_mb=1.6, mse=0.07, latency_ms=0.4)]
+    data = ReportData.from_dict(small_dict(rows))
+    speed = draw_ratios(data).axes[1]
+    assert [t.get_text() for t in speed.texts] == ["⚠ unstable timing", "⚠ unstable timing"] and not speed.patches
+    legend = [t.get_text() for t in draw_pareto(data).legends[0].get_texts()]
+    assert "⚠ unstable timing" in legend

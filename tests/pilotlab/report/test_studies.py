@@ -56,3 +56,15 @@ def test_tensorrt_is_judged_by_its_speed_up_on_the_same_gpu():
     assert verdicts(fast)[claim][0] == "holds"
     missing = [offline_row("tensorrt", "cuda", status="not_applicable", reason="needs a CUDA GPU")]
     assert verdicts(missing)[claim] == ("not testable here", "needs a CUDA GPU")
+
+
+def test_no_verdict_is_drawn_from_an_unstable_timing():
+    claim = "PyTorch dynamic-range quantization was slower than the baseline"
+    disturbed = "only 4 of 24 calls (17 %) ran with no thread of this process waiting for a CPU"
+    rows = [offline_row("baseline", latency_ms=2.6, unstable={"latency_ms": disturbed}),
+            offline_row("dynamic_quant", latency_ms=0.5)]
+    verdict, found = verdicts(rows)[claim]
+    assert verdict == "not testable here"
+    assert found == f"timings not to be trusted: baseline (cpu1): unstable: {disturbed}"
+    rows[0].pop("unstable")
+    assert verdicts(rows)[claim][0] == "does not hold"

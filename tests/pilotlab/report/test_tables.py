@@ -88,3 +88,51 @@ def test_the_summary_groups_cells_that_were_not_run_by_reason():
     assert finding.label == "Not applicable (3)"
     assert finding.text == ("no GPU — 2 cells: baseline, qat on cuda; "
                             "static_quant on cpu1, simple_circuit (offline): no fbgemm")
+
+
+DISTURBED = "only 4 of 24 calls (17 %) ran with no thread of this process waiting for a CPU in 4.2 s of measuring and re-measuring"
+
+
+def timed_rows(**baseline_fields) -> list[dict]:
+    baseline = {"latency_ms": 2.3, "latency_p10_ms": 2.2, "latency_p90_ms": 2.6, "reference_ms": 0.5, "threads": 2,
+                "latency_runs": 1200, "throughput_ips": 900.0, **baseline_fields}
+    return [offline_row("baseline", **baseline),
+            offline_row("static_quant", latency_ms=0.4, latency_p10_ms=0.38, latency_p90_ms=0.45, reference_ms=0.52,
+                        threads=2, latency_runs=5000, timing_other_cores=0.2, timing_calls_discarded=40)]
+
+
+def test_timings_show_their_spread_and_how_they_were_measured():
+    [table] = build_tables(ReportData.from_dict(small_dict(timed_rows())), "offline")
+    base, quant = table.rows
+    assert base.cells[2].text == "2.30 (2.20–2.60)" and quant.cells[-2].text == "5.75×"
+    assert table.notes == ()
+    assert table.method.startswith("Timings on 2 thread(s), one method at a time: inference time is the median of "
+                                   "1,200–5,000 timed batch-1 calls per method")
+    assert "(40 calls; other processes used 0.20–0.20 cores meanwhile)" in table.method
+
+
+def test_an_unstable_timing_and_the_speed_ups_drawn_from_it_are_marked_with_the_reason():
+    rows = timed_rows(unstable={"latency_ms": DISTURBED})
+    [table] = build_tables(ReportData.from_dict(small_dict(rows)), "offline")
+    base, quant = table.rows
+    assert base.cells[2].text == "2.30 (2.20–2.60) ⚠" and DISTURBED in base.cells[2].title
+    assert quant.cells[-2].text == "5.75× ⚠" and "baseline (cpu1): unstable" in quant.cells[-2].title
+    assert table.notes == (f"⚠ baseline: inference time unstable: {DISTURBED}.",)
+
+
+def test_a_speed_up_between_timings_taken_in_another_machine_state_is_marked():
+    rows = timed_rows(reference_ms=0.8)                 # the reference kernel ran 1.5× slower beside the baseline
+    [table] = build_tables(ReportData.from_dict(small_dict(rows)), "offline")
+    assert table.rows[1].cells[-2].text == "5.75× ⚠"
+    assert table.notes[0].startswith("⚠ static_quant: speed-up not to be trusted: baseline and static_quant (cpu1): "
+                                     "the reference kernel timed beside them ran 1.54× slower")
+
+
+def test_no_summary_line_is_drawn_from_an_unstable_timing():
+    from pilotlab.report.summary import summarise
+    stable = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(timed_rows())))}
+    assert stable["Fastest on cpu1"] == "static_quant — 0.400 ms per image, 5.75× faster than baseline"
+    rows = timed_rows(unstable={"latency_ms": DISTURBED})
+    found = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(rows)))}
+    assert found["Fastest on cpu1"].startswith(f"not drawn: baseline (cpu1): unstable: {DISTURBED}; rerun")
+    assert found["Highest throughput on cpu1"].startswith("baseline — 900")     # throughput was not disturbed

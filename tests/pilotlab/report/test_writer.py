@@ -82,6 +82,8 @@ def test_readme_has_the_study_shaped_tables_summary_and_plots(study_report):
     for name in ("pareto", "ratios", "closed_loop", "training"):
         assert f"](plots/{name}.png)" in readme
     assert "- **Host**: AMD EPYC 7B13, 2 cores; GPU: none" in readme
+    summary = [line for line in readme.splitlines() if line.startswith("- **")][:5]
+    assert [line.split("**")[1] for line in summary] == ["Date", "Host", "Versions", "Cells", "Baseline"], summary
     assert "pilotlab 0.1.0, torch 2.13.0, onnxruntime 1.22.0" in readme
     assert "```yaml\nname: study-2022\n" in readme
     assert "![trajectory of local_prune](trajectories/pilotnet_local_prune_cpu1_montreal_cw.png)" in readme
@@ -96,6 +98,8 @@ def test_html_is_self_contained(study_report):
     assert "Content-Security-Policy" in page and "default-src 'none'" in page
     assert not re.search(r"""(src|href)=["']?(https?:)?//""", page)                # nothing from the network
     assert page.count("<img src=\"data:image/png;base64,") == 4 + 8
+    links = re.findall(r'<a href="(trajectories/[^"]+\.png)" target="_blank"[^>]*><img src="data:', page)
+    assert len(links) == 8 and all((paths.folder / link).is_file() for link in links)   # thumbnails open full size
     assert page.count("<table class=\"sortable") == 2 + 2 + 1
     assert "not applicable: static quantization kernels need 1 thread here" in page
 
@@ -187,3 +191,20 @@ def test_a_report_without_repeated_laps_has_no_spread_legend_or_columns(study_re
     assert "standard deviation" not in paths.readme.read_text()
     assert not [name for name in read_csv(paths.csv)[0] if name.endswith("_std")]
     assert {row["repetitions"] for row in read_csv(paths.csv)} == {""}
+
+
+def test_an_unstable_timing_is_marked_in_the_results_files_and_both_pages(tmp_path):
+    reason = "only 4 of 24 calls (17 %) ran with no thread of this process waiting for a CPU"
+    rows = [offline_row("baseline", latency_ms=2.3, latency_p10_ms=2.2, latency_p90_ms=9.5, threads=2,
+                        latency_runs=24, unstable={"latency_ms": reason}),
+            offline_row("static_quant", latency_ms=0.4, threads=2, latency_runs=900)]
+    paths = write_report(ReportData.from_dict(small_dict(rows)), tmp_path)
+    csv_rows = read_csv(paths.csv)
+    assert [r["latency_ms_unstable"] for r in csv_rows] == [reason, ""] and csv_rows[0]["throughput_ips_unstable"] == ""
+    assert json.loads(paths.json.read_text())["rows"][0]["latency_ms_unstable"] == reason
+    readme = paths.readme.read_text()
+    assert "| baseline | — | — | 2.30 (2.20–9.50) ⚠ |" in readme
+    assert f"⚠ baseline: inference time unstable: {reason}." in readme
+    assert "Timings on 2 thread(s), one method at a time: inference time is the median of 24–900" in readme
+    assert "**Fastest on cpu1**: not drawn: baseline (cpu1): unstable" in readme
+    assert "2.30 (2.20–9.50) ⚠" in paths.html.read_text()

@@ -32,7 +32,8 @@ from tests.pilotlab.conftest import random_frames
 
 ROUNDS = int(os.environ.get("PILOTLAB_BENCH_ROUNDS", "5"))
 ROUND_TIMING = TimingSettings(warmup_runs=20, warmup_seconds=0.1, min_runs=200, max_seconds=0.6,
-                              block=100, stable_within=0.0, throughput_batch=64, throughput_seconds=0.4)
+                              block_seconds=0.1, min_blocks=3, stable_within=0.0, throughput_batch=64,
+                              throughput_seconds=0.4)
 NO_FINETUNE = {name: {"finetune_epochs": 0} for name in
                ("local_prune", "global_prune", "structured_prune", "structured_prune_int8", "cluster", "qat",
                 "prune_quant")}
@@ -187,7 +188,8 @@ def overhead(predictors, profile, one) -> None:
     """pilotlab's latency (Predictor.predict timed by offline.measure_latency) against a bare loop
     timing the runtime call of the same artifact; alternating blocks, medians compared."""
     print(f"\n-- pilotlab timing vs a bare loop ({profile.name}), {2 * ROUNDS} alternating blocks --")
-    settings = TimingSettings(warmup_runs=30, warmup_seconds=0.0, min_runs=300, max_runs=300, block=300)
+    settings = TimingSettings(warmup_runs=30, warmup_seconds=0.0, min_runs=300, max_runs=300, block_seconds=0.05,
+                              min_blocks=1)
     for name in ("baseline", "torchscript", "onnxruntime", "onnxruntime_int8"):
         apply_profile(profile)
         call, ours, bare = bare_call(predictors[name], one), [], []

@@ -1,0 +1,56 @@
+"""One host, many runs: a job of an `exclusive` kind (a timing) has the host to itself, whichever
+process runs it. The scheduler of one run keeps its own jobs apart; this lock keeps runs apart.
+
+Every job holds this host's lock while it runs: shared for an ordinary job, exclusive for a timing
+job. A waiting exclusive job goes first: it holds a turnstile that new shared holders pass through,
+so a busy run with many short jobs cannot starve another run's timing job.
+
+The lock is a file in the user's cache folder named after the host (`$MATRIX_HOST_LOCK` moves it),
+so two runs on one host meet there even when their stores differ, and hosts sharing a home folder
+over the network do not lock each other out.
+"""
+from __future__ import annotations
+
+import fcntl
+import os
+import socket
+import tempfile
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
+from pathlib import Path
+
+
+def lock_path() -> Path:
+    if os.environ.get("MATRIX_HOST_LOCK"):
+        return Path(os.environ["MATRIX_HOST_LOCK"])
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return cache / "matrix" / f"host-{socket.gethostname() or 'localhost'}.lock"
+
+
+@contextmanager
+def host_slot(exclusive: bool) -> Iterator[None]:
+    """Hold the host's job lock (shared, or exclusive for a timing job) while the block runs."""
+    with ExitStack() as stack:
+        main, turnstile = _open(lock_path(), stack), _open(lock_path().with_suffix(".turnstile"), stack)
+        if main is None or turnstile is None:
+            yield                        # nowhere to keep a lock (a read-only home): run unguarded
+            return
+        fcntl.flock(turnstile, fcntl.LOCK_EX)
+        try:
+            fcntl.flock(main, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+        finally:
+            fcntl.flock(turnstile, fcntl.LOCK_UN)
+        try:
+            yield
+        finally:
+            fcntl.flock(main, fcntl.LOCK_UN)
+
+
+def _open(path: Path, stack: ExitStack):
+    for candidate in (path, Path(tempfile.gettempdir()) / f"matrix-{os.getuid()}-{path.name}"):
+        try:
+            candidate.parent.mkdir(parents=True, exist_ok=True)
+            return stack.enter_context(open(candidate, "a"))
+        except OSError:
+            continue
+    return None

@@ -1,0 +1,78 @@
+"""The store records each output's sha256: a stored file replaced by another of the same size is
+never read as the job's output; the job is stale ("output changed") and the next run rebuilds it."""
+import os
+
+from matrix import engine
+from matrix.recipe import load_recipe
+from matrix.store import Store
+from tests.matrix.toydomain import TOY
+
+RECIPE = """\
+name: toy
+sources:
+  a: {value: 2}
+  b: {value: 3}
+matrix:
+  source: [a, b]
+  power: [2]
+"""
+
+
+def plan_and_run(path, store, force=()):
+    plan = engine.make_plan(load_recipe(path, TOY), TOY, store, force)
+    return plan, engine.run_plan(plan, TOY, store)
+
+
+def executions(store):
+    return (store.cache / "executions.log").read_text().splitlines()
+
+
+def setup(tmp_path):
+    path, store = tmp_path / "recipe.yaml", Store(tmp_path / "store")
+    path.write_text(RECIPE)
+    plan, _ = plan_and_run(path, store)
+    source_a = next(s.job.key for s in plan.statuses if s.job.name == "source a")
+    return path, store, source_a
+
+
+def status_of(path, store, name):
+    plan = engine.make_plan(load_recipe(path, TOY), TOY, store)
+    return next(s for s in plan.statuses if s.job.name == name)
+
+
+def test_result_records_each_outputs_sha256(tmp_path):
+    _, store, key = setup(tmp_path)
+    entry = store.result(key)["manifest"]["value.json"]
+    assert entry["size"] == 1 and len(entry["sha256"]) == 64
+
+
+def test_a_same_size_replacement_makes_the_job_stale_and_the_run_rebuilds_it(tmp_path):
+    path, store, key = setup(tmp_path)
+    (store.artifacts(key) / "value.json").write_text("7")           # same size, other content
+    status = status_of(path, store, "source a")
+    assert (status.state, status.reason) == ("stale", "output changed")
+    _, summary = plan_and_run(path, store)
+    assert [o.name for o in summary.outcomes] == ["source a"] and summary.counts() == {"ok": 1}
+    assert (store.artifacts(key) / "value.json").read_text() == "2"
+    assert status_of(path, store, "source a").state == "fresh"
+
+
+def test_a_replacement_that_keeps_the_stat_is_caught_before_a_job_reads_it(tmp_path):
+    path, store, key = setup(tmp_path)
+    target = store.artifacts(key) / "value.json"
+    before = target.stat()
+    target.write_text("7")
+    os.utime(target, ns=(before.st_atime_ns, before.st_mtime_ns))    # same size, mtime and inode
+    assert status_of(path, store, "source a").state == "fresh"       # the cheap check cannot tell
+    _, summary = plan_and_run(path, store, force=["power"])
+    failed = {o.name: o.reason for o in summary.outcomes if o.status == "failed"}
+    assert "output changed" in failed["power a^2"] and executions(store).count("power a^2") == 1
+    status = status_of(path, store, "source a")
+    assert (status.state, status.reason) == ("stale", "output changed")
+
+
+def test_a_manifest_of_sizes_only_still_reads_as_intact(tmp_path):
+    _, store, key = setup(tmp_path)
+    result = dict(store.result(key), manifest={"value.json": 1})
+    assert store.outputs_intact(key, result)
+    assert not store.outputs_intact(key, dict(result, manifest={"value.json": 2}))

@@ -1,0 +1,67 @@
+"""Hostile YAML: nested aliases ("billion laughs"), merge-key bombs, self-reference, huge text."""
+import time
+
+import pytest
+
+from matrix.errors import RecipeError
+from matrix.yamlfile import MAX_VALUES, load_yaml
+
+
+def laughs(levels: int = 9, width: int = 9) -> str:
+    lines = [f"l0: &l0 [{', '.join(['lol'] * width)}]"]
+    for n in range(1, levels):
+        lines.append(f"l{n}: &l{n} [{', '.join([f'*l{n - 1}'] * width)}]")
+    return "\n".join(lines) + "\n"
+
+
+def merge_bomb(levels: int = 40) -> str:
+    lines = ["m0: &m0 {x: 1}"]
+    for n in range(1, levels):
+        lines.append(f"m{n}: &m{n} {{<<: [*m{n - 1}, *m{n - 1}]}}")
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("text", [laughs(), merge_bomb()], ids=["billion laughs", "merge keys"])
+def test_nested_aliases_are_refused_at_once_with_one_line(text):
+    started = time.monotonic()
+    with pytest.raises(RecipeError) as error:
+        load_yaml(text, "bomb.yaml")
+    assert time.monotonic() - started < 2.0
+    message = str(error.value)
+    assert "aliases" in message and "bomb.yaml" in message and "\n" not in message
+
+
+def test_aliases_within_the_bound_still_work():
+    data, _ = load_yaml(laughs(levels=3, width=4))
+    assert len(data["l2"]) == 4 and data["l2"][0][0] == ["lol"] * 4
+    assert MAX_VALUES >= 10_000
+
+
+def test_an_alias_to_itself_is_one_line():
+    with pytest.raises(RecipeError, match="refers to itself"):
+        load_yaml("a: &a\n  b: *a\n")
+
+
+def test_a_huge_document_is_refused_before_parsing():
+    started = time.monotonic()
+    with pytest.raises(RecipeError, match="too large for a recipe"):
+        load_yaml("x: " + "a" * (5 * 2**20))
+    assert time.monotonic() - started < 2.0
+
+
+def test_a_missing_recipe_suggests_the_ones_nearby(tmp_path, monkeypatch):
+    from matrix.yamlfile import read_yaml
+    (tmp_path / "recipes").mkdir()
+    for name in ("quickstart.yaml", "study2022.yaml"):
+        (tmp_path / "recipes" / name).write_text("name: x\n")
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(RecipeError, match=r"no such file; did you mean recipes/quickstart.yaml\?"):
+        read_yaml("quickstrat.yaml")
+    with pytest.raises(RecipeError, match=r"did you mean recipes/study2022.yaml\?"):
+        read_yaml("recipes/studdy2022.yaml")
+    with pytest.raises(RecipeError, match="recipes nearby: recipes/quickstart.yaml, recipes/study2022.yaml"):
+        read_yaml("zzz.yaml")
+    (tmp_path / "empty").mkdir()
+    monkeypatch.chdir(tmp_path / "empty")
+    with pytest.raises(RecipeError, match=r"no such file$"):
+        read_yaml(str(tmp_path / "nowhere" / "x.yaml"))

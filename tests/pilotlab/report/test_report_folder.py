@@ -1,0 +1,63 @@
+"""Where the report goes: a folder that cannot be written is a one-line error; the report is written
+beside the old one and swapped in, so two writers at once both succeed and leave one whole report."""
+import subprocess
+import sys
+from pathlib import Path
+
+from matrix.engine import make_plan
+from matrix.recipe import load_recipe
+from matrix.store import Store
+from pilotlab.cli import main
+from pilotlab.domain import DOMAIN
+
+ROOT = Path(__file__).resolve().parents[3]
+QUICKSTART = ROOT / "recipes" / "quickstart.yaml"
+
+
+def recipe_with_a_result(tmp_path, folder) -> tuple[Path, Path]:
+    """The quickstart recipe writing its report to `folder`, and a store holding one failed job."""
+    recipe = tmp_path / "quickstart.yaml"
+    recipe.write_text(QUICKSTART.read_text() + f"\nreport: {{folder: {folder}}}\n")
+    store = Store(tmp_path / "store")
+    train = next(s.job for s in make_plan(load_recipe(recipe, DOMAIN), DOMAIN, store).statuses if s.job.kind == "train")
+    store.record_failure(train.key, {"error": "RuntimeError: loss is nan"})
+    return recipe, store.root
+
+
+def test_a_report_folder_that_cannot_be_written_is_one_line(tmp_path, capsys):
+    for folder in ("/dev/null", "/proc/version/x"):
+        recipe, store = recipe_with_a_result(tmp_path, folder)
+        assert main(["report", str(recipe), "--store", str(store)]) == 2
+        err = capsys.readouterr().err
+        assert "report.folder" in err and "cannot write" in err and len(err.strip().splitlines()) == 1
+
+
+def test_two_writers_of_one_report_both_succeed_and_leave_one_whole_report(tmp_path):
+    recipe, store = recipe_with_a_result(tmp_path, tmp_path / "reports")
+    command = [sys.executable, "-m", "pilotlab", "report", str(recipe), "--store", str(store)]
+    writers = [subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+               for _ in range(3)]
+    for writer in writers:
+        out, err = writer.communicate(timeout=300)
+        assert writer.returncode == 0, err
+    folder = tmp_path / "reports" / "quickstart"
+    assert {p.name for p in folder.iterdir()} >= {"README.md", "index.html", "results.csv", "plots", ".stamp"}
+    assert [p.name for p in folder.parent.iterdir() if p.name.startswith(".quickstart.") and
+            not p.name.endswith(".lock")] == []
+    assert "not run yet" in (folder / "README.md").read_text() or "failed" in (folder / "README.md").read_text()
+
+
+def test_a_run_writes_where_git_ignores_and_showcases_live_elsewhere():
+    """Running the quickstart in a clone must not turn it dirty: reports/ is ignored, the committed
+    showcase reports live in docs/reports/, which no recipe writes."""
+    import shutil
+
+    import pytest
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    from pilotlab.report.recipe import report_folder
+    folder = report_folder(load_recipe(QUICKSTART, DOMAIN))
+    assert folder == Path("reports") / "quickstart"
+    ignored = subprocess.run(["git", "check-ignore", "-q", str(folder / "README.md")], cwd=ROOT)
+    assert ignored.returncode == 0
+    assert (ROOT / "docs" / "reports" / "quickstart" / "README.md").is_file()
