@@ -22,7 +22,8 @@ from tests.pilotlab.jobs.context import context, finished
 from tests.pilotlab.models.user_networks import DLS_OPTIONS, DLS_PILOTNET, load_class, write
 
 LABELS = {"v": [0.0, 12.0], "w": [-1.5, 1.5]}
-QUICK = offline.TimingSettings(warmup_runs=1, warmup_seconds=0.0, min_runs=3, max_runs=3, max_seconds=0.1, block=3,
+QUICK = offline.TimingSettings(warmup_runs=1, warmup_seconds=0.0, min_runs=3, max_runs=3, max_seconds=0.1,
+                               block_seconds=0.01, min_blocks=1, attempts=1, throughput_min_runs=1,
                                throughput_seconds=0.05)
 
 
