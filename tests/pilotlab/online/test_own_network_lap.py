@@ -24,11 +24,11 @@ datasets:
 models:
   dls: {network: nets/pilotnet.py:PilotNet, options: {image_shape: [200, 66, 3], num_labels: 2},
         weights: pilot_net_model_best_123.pth, train: false, preset: dls}
-online: {timeout_s: 3, references: [], timing: lockstep, camera: {width: 320, height: 240}, camera_frames: 0}
+online: {timeout_s: 2, references: [], timing: lockstep, camera: {width: 320, height: 240}, camera_frames: 0}
 offline: {batch: 8}
 matrix:
   model: [dls]
-  strategy: [baseline, dynamic_quant]
+  strategy: [baseline]
   hardware: [cpu]
   circuit: [simple_circuit]
 """
@@ -76,9 +76,8 @@ def test_dls_weights_as_they_are_go_through_a_recipe(tmp_path):
     train = results["train dls"]["value"]
     assert train["source"]["kind"] == "network" and train["trained"] is False
     assert train["labels"] == {"v": [6.5, 24.0], "w": [-7.1, 7.1]}
-    for strategy in ("baseline", "dynamic_quant"):
-        offline = results[f"offline dls/{strategy} on cpu"]
-        assert offline["status"] == "ok" and offline["value"]["mse"] >= 0
+    offline = results["offline dls/baseline on cpu"]
+    assert offline["status"] == "ok" and offline["value"]["test_frames"] > 0
     lap = results["online dls/baseline on cpu at simple_circuit cw"]
     assert lap["status"] == "ok" and lap["value"]["runs"]
     readme = (tmp_path / "reports" / "dls-quick" / "README.md").read_text()
