@@ -132,6 +132,11 @@ def test_strategies_run_on_user_models_or_say_why_not(tmp_path, dls, frames):
     assert optimize(graph, "onnxruntime").result["format"] == "onnx"
     with pytest.raises(NotApplicable, match="local_prune works on a PyTorch network, not on the ONNX graph pilotnet.onnx"):
         optimize(graph, "local_prune")
+    scripted = train(tmp_path, frames, "scripted", {"torchscript": "pilotnet.pt"}, {"torchscript": dls / "pilotnet.pt"})
+    assert optimize(scripted, "dynamic_quant").result["dtype"] == "int8"   # through the TorchScript ONNX exporter
+    with pytest.raises(NotApplicable, match="local_prune cannot work on the TorchScript model pilotnet.pt .it rewrites "
+                                            "nn.Module layers"):
+        optimize(scripted, "local_prune")
 
 
 # --- bad input: one line naming the recipe key ------------------------------------------------------
