@@ -17,12 +17,12 @@ from rich.markup import escape
 from rich.table import Table
 
 from matrix import engine
-from matrix.display import RichDisplay
+from matrix.display import RichDisplay, print_plan
+from matrix.execute import default_jobs
 from matrix.recipe import Domain, load_recipe
-from matrix.store import ARTIFACTS, LOG, read_json
+from matrix.store import ARTIFACTS, LOG, Store, read_json
 
 GetDomain = Callable[[], Domain]
-STATE_STYLE = {"fresh": "green", "stale": "yellow", "new": "cyan"}
 
 
 def add_engine_commands(subparsers, get_domain: GetDomain,
@@ -36,7 +36,9 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
 
     run = add("run", cmd_run, "run a recipe: every job that is not fresh, in dependency order")
     run.add_argument("recipe")
-    run.add_argument("-j", "--jobs", type=int, default=1, help="jobs at once (worker processes)")
+    run.add_argument("-j", "--jobs", type=int, default=None,
+                     help=f"jobs at once (worker processes; default: one per core, {default_jobs()} here); a timing "
+                          "job always runs alone")
     run.add_argument("--keep-going", action="store_true", help="after a failure, run what does not depend on it")
     run.add_argument("--force", action="append", default=[], metavar="KIND", help="rerun every job of KIND")
     run.add_argument("--executor", choices=["local", "dask", "dask-local"], default="local",
@@ -46,9 +48,14 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
                      help="with Dask: run timing jobs only on workers started with --resources NAME=1")
     plan = add("plan", cmd_plan, "show what `run` would do: each job fresh / stale / new, and why")
     plan.add_argument("recipe")
-    plan.add_argument("--json", action="store_true", help="print a JSON list instead of a table")
+    plan.add_argument("--json", action="store_true", help="print a JSON list of every job instead of a table")
+    plan.add_argument("--all", action="store_true",
+                      help="a row for every job (by default a large plan shows a summary per kind and its first rows)")
     plan.add_argument("--force", action="append", default=[], metavar="KIND", help="show every job of KIND as stale")
-    add("status", cmd_status, "summarise the job store")
+    status = add("status", cmd_status, "summarise the job store")
+    status.add_argument("--times", action="store_true",
+                        help="how long the stored jobs took, per kind (where a recipe's minutes go)")
+    status.add_argument("--recipe", metavar="NAME", help="with --times: only the jobs of this recipe's last run")
     show = add("show", cmd_show, "show one stored job: spec, result, log and artifacts")
     show.add_argument("key", help="a job key or its first characters")
     gc = add("gc", cmd_gc, "remove stored jobs that none of the given recipes reaches")
@@ -68,29 +75,14 @@ def cmd_plan(args, domain: Domain) -> int:
                  "reason": s.reason} for s in plan.statuses]
         print(json.dumps(rows, indent=1))
         return 0
-    out = console()
-    table = Table("status", "kind", "job", "reason", "key", box=None, pad_edge=False)
-    for s in plan.statuses:
-        style = STATE_STYLE[s.state]
-        table.add_row(f"[{style}]{s.state}[/]", s.job.kind, escape(s.job.name), escape(s.reason), s.job.key[:10])
-    out.print(table)
-    out.print(_counts_line(plan))
+    print_plan(console(), plan.statuses, plan.counts(), every_row=args.all, tool=args.tool)
     return 0
-
-
-def _counts_line(plan: engine.Plan) -> str:
-    parts = []
-    for kind, counts in plan.counts().items():
-        states = ", ".join(f"{n} {state}" for state, n in sorted(counts.items()))
-        parts.append(f"{kind}: {states}")
-    total = Counter(s.state for s in plan.statuses)
-    summary = ", ".join(f"{n} {state}" for state, n in sorted(total.items()))
-    return f"[bold]{len(plan.statuses)} jobs[/] ({summary}) — " + "; ".join(parts)
 
 
 def cmd_run(args, domain: Domain) -> int:
     store = engine.open_store(domain, args.store)
     recipe = load_recipe(args.recipe, domain)
+    args.jobs = default_jobs() if args.jobs is None else args.jobs
     executor = engine.Executor(args.executor, args.jobs, args.scheduler, args.timing_resource)
     plan = engine.make_plan(recipe, domain, store, args.force)
     out = console()
@@ -124,6 +116,8 @@ def _summary_line(summary: engine.RunSummary, tool: str) -> str:
 def cmd_status(args, domain: Domain) -> int:
     store = engine.open_store(domain, args.store)
     out = console()
+    if args.times or args.recipe:
+        return _print_times(out, store, args.recipe)
     out.print(f"store: {store.root.resolve()}")
     kinds: dict[str, Counter] = {}
     for key in store.keys():
@@ -140,6 +134,26 @@ def cmd_status(args, domain: Domain) -> int:
         data = read_json(index) or {}
         out.print(f"recipe {escape(data.get('recipe', index.stem))}: {len(data.get('jobs', {}))} jobs "
                   f"({escape(str(data.get('file', '?')))})")
+    return 0
+
+
+def _print_times(out: Console, store: Store, recipe: str | None) -> int:
+    from matrix.errors import MatrixError
+    from matrix.times import kind_times, recipe_keys
+    keys = None if recipe is None else recipe_keys(store, recipe)
+    if recipe is not None and keys is None:
+        raise MatrixError(f"recipe {recipe!r} never ran on the store {store.root}; give the `name:` of a recipe "
+                          "that ran here, or leave --recipe out for every stored job")
+    rows = kind_times(store, keys)
+    total = sum(row.total_s for row in rows)
+    table = Table("kind", "jobs", "total s", "share", "mean s", "max s", "slowest job", box=None)
+    for row in rows:
+        table.add_row(row.kind, str(row.jobs), f"{row.total_s:.1f}", f"{100 * row.total_s / (total or 1):.0f} %",
+                      f"{row.mean_s:.1f}", f"{row.max_s:.1f}", escape(row.slowest))
+    out.print(table if rows else "no finished jobs yet")
+    what = f"recipe {escape(recipe)}" if recipe else "every stored job"
+    out.print(f"{what}: {sum(r.jobs for r in rows)} jobs, {total:.1f} s of job time "
+              "(jobs run at once overlap: a run's wall time can be less)")
     return 0
 
 

@@ -1,8 +1,9 @@
 """Running the stale part of a plan on a Dask cluster that shares the job store.
 
-Each stale job becomes one Dask future whose arguments include the futures of its dependencies, so
-Dask orders the work and places it; each task runs the same `matrix.worker.execute_job` as the
-local executor, writing to the shared store. The store stays the source of truth: a driver
+The driver keeps the same schedule as the local executor (`matrix.execute.Schedule`): each stale job
+becomes one Dask future when its dependencies are done (Dask places it), a failed job's dependents
+are skipped, and a timing (exclusive) job runs with nothing else submitted beside it. Each task runs
+the same `matrix.worker.execute_job` as the local executor, writing to the shared store. The store stays the source of truth: a driver
 restarted later plans from it, and a worker that dies mid-job leaves only a temporary folder behind
 (Dask reruns the task elsewhere; the lock dies with the process).
 
@@ -16,8 +17,9 @@ import time
 import uuid
 from collections.abc import Iterable
 
+from matrix.display import NullDisplay
 from matrix.errors import MatrixError
-from matrix.execute import NOT_STARTED, SKIPPED, Outcome, RunSummary
+from matrix.execute import NOT_STARTED, Outcome, RunSummary, Schedule, record_outcome
 from matrix.jobs import Job
 from matrix.kinds import KINDS
 from matrix.stale import FRESH, JobStatus, results_to_replace
@@ -25,7 +27,6 @@ from matrix.store import Store
 from matrix.worker import FAILED, execute_job
 
 INSTALL_HINT = "the Dask executor needs Dask distributed: pip install distributed"
-BLOCKING = (FAILED, SKIPPED, NOT_STARTED)
 
 
 def import_distributed():
@@ -49,11 +50,8 @@ def connect(scheduler: str | None, workers: int = 2):
     return distributed.Client(cluster)
 
 
-def run_task(store_root: str, spec: dict, kind_modules: tuple, replaces: str | None, *deps: dict) -> dict:
-    """The Dask task: skip when a dependency failed, else run the job (locked, atomic)."""
-    for dep in deps:
-        if dep["status"] in BLOCKING:
-            return {"status": SKIPPED, "reason": f"dependency failed: {dep['name']}", "name": spec["name"]}
+def run_task(store_root: str, spec: dict, kind_modules: tuple, replaces: str | None) -> dict:
+    """The Dask task: run the job (locked, atomic); wait while another run holds it."""
     while True:
         answer = execute_job(store_root, spec, kind_modules, replaces)
         if answer["status"] != "busy":  # another run holds the job: wait for it, then read its result
@@ -64,37 +62,51 @@ def run_task(store_root: str, spec: dict, kind_modules: tuple, replaces: str | N
 def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: bool = False,
              kind_modules: Iterable[str] = (), timing_resource: str | None = None,
              display=None) -> RunSummary:
+    """Submit each stale job once its dependencies are done, as the local executor starts them: a
+    timing (exclusive) job is submitted only when nothing else runs, and nothing else is submitted
+    until it is done, so it measures on a quiet cluster; with `timing_resource` it also runs only on
+    the workers that declare it."""
     distributed = import_distributed()
     stale = [s.job for s in statuses if s.state != FRESH]
     summary = RunSummary(fresh=len(statuses) - len(stale))
     started = time.monotonic()
-    replacing = results_to_replace(statuses)
-    futures = _submit(client, stale, store, tuple(kind_modules), timing_resource, replacing)
-    jobs = {future.key: job for job, future in zip(stale, futures.values())}
+    submit = _Submitter(client, store, tuple(kind_modules), timing_resource, results_to_replace(statuses))
+    schedule, running = Schedule(stale), {}
+    finished = distributed.as_completed()
     stopping = False
-    for future in distributed.as_completed(list(futures.values())):
-        job = jobs[future.key]
+    while running or (schedule.has_work() and not stopping):
+        exclusive = any(KINDS.get(job.kind).exclusive for job in running.values())
+        while not stopping and (job := schedule.take(exclusive, len(running), UNLIMITED)):
+            future = submit(job)
+            running[future.key] = job
+            finished.add(future)
+            exclusive = exclusive or KINDS.get(job.kind).exclusive
+        future = next(finished)
+        job = running.pop(future.key)
         outcome = _outcome(job, future)
-        summary.outcomes.append(outcome)
-        if display is not None:
-            display.job_finished(outcome)
-        if outcome.status == FAILED and not keep_going and not stopping:
-            stopping = True
-            client.cancel([f for f in futures.values() if not f.done()])
+        record_outcome(outcome, schedule, summary, display or NullDisplay())
+        stopping = stopping or (outcome.status == FAILED and not keep_going)
+    for job in schedule.pending():
+        record_outcome(Outcome(job.key, job.name, job.kind, NOT_STARTED,
+                        "not started: the run stopped at the first failure (use --keep-going)"),
+                schedule, summary, display or NullDisplay())
     summary.wall_s = time.monotonic() - started
     return summary
 
 
-def _submit(client, stale: list[Job], store: Store, kind_modules: tuple, timing_resource: str | None,
-            replacing: dict[str, str]) -> dict:
-    futures: dict[str, object] = {}
-    root, run = str(store.root.resolve()), uuid.uuid4().hex[:12]
-    for job in stale:  # dependencies first, so their futures exist
-        deps = [futures[d.key] for d in job.dep_jobs() if d.key in futures]
-        futures[job.key] = client.submit(run_task, root, job.spec(), kind_modules, replacing.get(job.key), *deps,
-                                         key=_task_key(job, run),
-                                         pure=False, resources=_resources(job, timing_resource) or None)
-    return futures
+UNLIMITED = 1 << 30   # Dask queues what its workers cannot start yet
+
+
+class _Submitter:
+    def __init__(self, client, store: Store, kind_modules: tuple, timing_resource: str | None,
+                 replacing: dict[str, str]):
+        self.client, self.kind_modules, self.timing_resource = client, kind_modules, timing_resource
+        self.root, self.run, self.replacing = str(store.root.resolve()), uuid.uuid4().hex[:12], replacing
+
+    def __call__(self, job: Job):
+        return self.client.submit(run_task, self.root, job.spec(), self.kind_modules, self.replacing.get(job.key),
+                                  key=_task_key(job, self.run), pure=False,
+                                  resources=_resources(job, self.timing_resource) or None)
 
 
 def _task_key(job: Job, run: str) -> str:

@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterable
+from collections import Counter
+from collections.abc import Iterable, Mapping, Sequence
 
 from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, Progress, TaskID, TextColumn
+from rich.table import Table
 
 from matrix.store import Store, read_json, write_json_atomic
 
@@ -24,6 +26,50 @@ DEFAULT_ESTIMATE_S = 5.0
 NAME_WIDTH = 44           # longer job names are cut, so the times stay on the line
 PLAIN_INTERVAL_S = 10.0   # a status line this often when the output is not a terminal
 SMOOTHING = 0.2           # weight of a new estimate against the shown one, per update
+STATE_STYLE = {"fresh": "green", "stale": "yellow", "new": "cyan"}
+PLAN_ROWS = 50   # a plan with more jobs than this is summarised per kind, then its first rows
+
+
+def print_plan(console: Console, statuses: Sequence, counts: Mapping[str, Counter], every_row: bool = False,
+               tool: str = "matrix") -> None:
+    """The plan as a table of jobs (status, kind, name, reason, key) and a line of counts. A large plan
+    (rich takes about a millisecond a row) gets a table of counts per kind and the first PLAN_ROWS
+    jobs that would run instead; `every_row` shows them all (`plan --json` lists them too)."""
+    if every_row or len(statuses) <= PLAN_ROWS:
+        console.print(_jobs_table(statuses))
+    else:
+        console.print(_kinds_table(counts))
+        shown = [s for s in statuses if s.state != "fresh"][:PLAN_ROWS] or list(statuses[:PLAN_ROWS])
+        console.print(_jobs_table(shown))
+        console.print(f"[dim]… the first {len(shown)} of {len(statuses)} jobs; every one: "
+                      f"{tool} plan --all, or --json[/]")
+    console.print(_counts_line(statuses, counts))
+
+
+def _jobs_table(statuses: Iterable) -> Table:
+    table = Table("status", "kind", "job", "reason", "key", box=None, pad_edge=False)
+    for s in statuses:
+        style = STATE_STYLE[s.state]
+        table.add_row(f"[{style}]{s.state}[/]", s.job.kind, escape(s.job.name), escape(s.reason), s.job.key[:10])
+    return table
+
+
+def _kinds_table(counts: Mapping[str, Counter]) -> Table:
+    table = Table("kind", *STATE_STYLE, "jobs", box=None, pad_edge=False)
+    for kind, by_state in counts.items():
+        table.add_row(kind, *(f"[{style}]{by_state[state]}[/]" if by_state[state] else "·"
+                              for state, style in STATE_STYLE.items()), str(sum(by_state.values())))
+    return table
+
+
+def _counts_line(statuses: Sequence, counts: Mapping[str, Counter]) -> str:
+    parts = []
+    for kind, by_state in counts.items():
+        states = ", ".join(f"{n} {state}" for state, n in sorted(by_state.items()))
+        parts.append(f"{kind}: {states}")
+    total = Counter(s.state for s in statuses)
+    summary = ", ".join(f"{n} {state}" for state, n in sorted(total.items()))
+    return f"[bold]{len(statuses)} jobs[/] ({summary}) — " + "; ".join(parts)
 
 
 class NullDisplay:

@@ -16,7 +16,7 @@ from matrix.errors import MatrixError, did_you_mean
 from matrix.execute import RunSummary, run_local
 from matrix.kinds import KINDS
 from matrix.recipe import Domain, Recipe
-from matrix.stale import FRESH, JobStatus, job_status
+from matrix.stale import FRESH, JobStatus, StoreListing, job_status
 from matrix.store import Store, read_json, write_json_atomic
 
 
@@ -71,7 +71,8 @@ def make_plan(recipe: Recipe, domain: Domain, store: Store, force: Iterable[str]
     jobs = plan_jobs(recipe, domain)
     forced = _check_forced(force)
     previous = (read_json(store.recipe_path(slug(recipe.name))) or {}).get("jobs", {})
-    return Plan(recipe, [job_status(job, store, previous, forced) for job in jobs])
+    listing = StoreListing.of(store)
+    return Plan(recipe, [job_status(job, store, previous, forced, listing) for job in jobs])
 
 
 def _check_forced(kinds: Iterable[str]) -> set[str]:

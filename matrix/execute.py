@@ -2,12 +2,14 @@
 
 The driver keeps the schedule (which jobs are ready, which are blocked by a failure); workers run
 `matrix.worker.execute_job`, which does the locking and the atomic commit. Jobs of an `exclusive`
-kind (timings) run alone. A failed job's dependents are skipped; without `keep_going` nothing new
+kind (timings) run alone: one waits until the running jobs are done, and nothing starts beside it
+(`Schedule.take`), so its figures come from a quiet host whatever `-j` is. A failed job's dependents are skipped; without `keep_going` nothing new
 starts after the first failure.
 """
 from __future__ import annotations
 
 import multiprocessing
+import os
 import time
 from collections import deque
 from collections.abc import Iterable
@@ -59,7 +61,9 @@ class Schedule:
 
     def __init__(self, stale: list[Job]):
         self.jobs = {job.key: job for job in stale}
-        self.graph = {job.key: [d.key for d in job.dep_jobs() if d.key in self.jobs] for job in stale}
+        # one entry per dependency, even one a job needs under two roles (else it would be made ready twice)
+        self.graph = {job.key: list(dict.fromkeys(d.key for d in job.dep_jobs() if d.key in self.jobs))
+                      for job in stale}
         self.waiting = {key: set(deps) for key, deps in self.graph.items()}
         self.needed_by: dict[str, list[str]] = {}
         for key, deps in self.graph.items():
@@ -78,9 +82,15 @@ class Schedule:
         self.later = [(at, key) for at, key in self.later if at > now]
         if not self.ready or exclusive_running or running >= slots:
             return None
-        if KINDS.get(self.jobs[self.ready[0]].kind).exclusive and running:
-            return None  # an exclusive job waits until the others finish, then runs alone
-        return self.jobs[self.ready.popleft()]
+        if not running:  # an idle host: the next job, exclusive or not
+            return self.jobs[self.ready.popleft()]
+        # Others run: the first ready job that may run beside them. An exclusive job waits until the
+        # host is idle (it then runs alone); the work it would have held up goes on meanwhile.
+        for position, key in enumerate(self.ready):
+            if not KINDS.get(self.jobs[key].kind).exclusive:
+                del self.ready[position]
+                return self.jobs[key]
+        return None
 
     def done(self, key: str) -> None:
         self.settled.add(key)
@@ -103,6 +113,14 @@ class Schedule:
     def pending(self) -> list[Job]:
         """Jobs that never started."""
         return [job for key, job in self.jobs.items() if key not in self.settled]
+
+
+def default_jobs() -> int:
+    """Jobs at once by default: one per core this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 def run_local(statuses: list[JobStatus], store: Store, *, jobs: int = 1, keep_going: bool = False,
@@ -140,15 +158,15 @@ def _drive(schedule: Schedule, pool: _Pool, summary: RunSummary, keep_going: boo
                 display.job_waiting(job)
                 schedule.retry_later(job.key)
                 continue
-            _record(outcome, schedule, summary, display)
+            record_outcome(outcome, schedule, summary, display)
             stopping = stopping or (outcome.status == FAILED and not keep_going)
     for job in schedule.pending():
-        _record(Outcome(job.key, job.name, job.kind, NOT_STARTED,
+        record_outcome(Outcome(job.key, job.name, job.kind, NOT_STARTED,
                         "not started: the run stopped at the first failure (use --keep-going)"),
                 schedule, summary, display)
 
 
-def _record(outcome: Outcome, schedule: Schedule, summary: RunSummary, display: Display) -> None:
+def record_outcome(outcome: Outcome, schedule: Schedule, summary: RunSummary, display: Display) -> None:
     summary.outcomes.append(outcome)
     display.job_finished(outcome)
     if outcome.status == FAILED:

@@ -33,7 +33,47 @@ def canonical_json(value: Any) -> str:
     return json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
 
 
+_SCALARS = (str, int, bool, type(None))
+
+
 def _check_json(value: Any, where: str) -> None:
+    """Raise UnserialisableError naming where `value` is not plain JSON. The walk keeps no path (it
+    runs over every parameter of every job a plan makes); only a failure walks again to name it."""
+    if not _is_json(value):
+        _find_unserialisable(value, where)
+
+
+def _is_json(value: Any) -> bool:
+    kind = type(value)
+    if kind in _SCALARS:
+        return True
+    if kind is float:
+        return math.isfinite(value)
+    if kind is dict:
+        for key, item in value.items():
+            if type(key) is not str or (type(item) not in _SCALARS and not _is_json(item)):
+                return False
+        return True
+    if kind is list or kind is tuple:
+        for item in value:
+            if type(item) not in _SCALARS and not _is_json(item):
+                return False
+        return True
+    return _find_unserialisable(value, "", raise_error=False)   # subclasses and other Mappings
+
+
+def _find_unserialisable(value: Any, where: str, raise_error: bool = True) -> bool:
+    """The slow walk with paths: raises (or returns False) at the first value JSON cannot hold."""
+    try:
+        _walk(value, where)
+    except UnserialisableError:
+        if raise_error:
+            raise
+        return False
+    return True
+
+
+def _walk(value: Any, where: str) -> None:
     if value is None or isinstance(value, (bool, int, str)):
         return
     if isinstance(value, float):
@@ -42,13 +82,13 @@ def _check_json(value: Any, where: str) -> None:
         return
     if isinstance(value, (list, tuple)):
         for i, item in enumerate(value):
-            _check_json(item, f"{where}[{i}]")
+            _walk(item, f"{where}[{i}]")
         return
     if isinstance(value, Mapping):
         for key, item in value.items():
             if not isinstance(key, str):
                 raise UnserialisableError(f"{where or 'value'}: mapping key {key!r} is not a string")
-            _check_json(item, f"{where}.{key}" if where else key)
+            _walk(item, f"{where}.{key}" if where else key)
         return
     raise UnserialisableError(f"{where or 'value'}: {type(value).__name__} {value!r:.60} cannot be "
                               "serialised to JSON; use str, int, float, bool, None, lists and dicts")
@@ -83,7 +123,7 @@ class Job:
     labels: Mapping[str, Any] = field(default_factory=dict)   # descriptive only, not in the key
 
     def __post_init__(self):
-        canonical_json(self.params)  # fail at construction, naming nothing random
+        _check_json(self.params, "")  # fail at construction, naming nothing random (no text: the key makes it)
         deps = {role: tuple(d) if isinstance(d, (list, tuple)) else d for role, d in self.deps.items()}
         object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
         object.__setattr__(self, "deps", MappingProxyType(deps))

@@ -9,6 +9,7 @@ explains what changed.
 """
 from __future__ import annotations
 
+import os
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -32,8 +33,11 @@ class JobStatus:
 
 
 def job_status(job: Job, store: Store, previous: Mapping[str, dict],
-               forced_kinds: Collection[str] = ()) -> JobStatus:
-    result = store.result(job.key)
+               forced_kinds: Collection[str] = (), listing: StoreListing | None = None) -> JobStatus:
+    """`listing` (the store's keys read once for a whole plan) spares a job that is not stored the
+    two files it would otherwise try to read."""
+    stored = listing is None or job.key in listing.stored
+    result = store.result(job.key) if stored else None
     if job.kind in forced_kinds:
         return JobStatus(job, STALE, (f"forced (--force {job.kind})",), result and result_token(result))
     outputs = store.outputs_state(job.key, result) if result is not None else None
@@ -44,7 +48,7 @@ def job_status(job: Job, store: Store, previous: Mapping[str, dict],
     if result is not None:
         return JobStatus(job, STALE, ("output missing or corrupt",))
     before = previous.get(job.name)
-    failure = store.failure(job.key)
+    failure = store.failure(job.key) if listing is None or job.key in listing.failed else None
     if failure is not None:
         return JobStatus(job, STALE, (f"failed last time: {failure.get('error', '?')}",))
     if before is None:
@@ -53,6 +57,18 @@ def job_status(job: Job, store: Store, previous: Mapping[str, dict],
     if not reasons:   # planned as it is by the last run, which ended (or was killed) before it ran
         return JobStatus(job, NEW, ("new",))
     return JobStatus(job, STALE, tuple(reasons))
+
+
+@dataclass(frozen=True)
+class StoreListing:
+    stored: frozenset[str]      # keys with a job folder
+    failed: frozenset[str]      # keys with a failure record
+
+    @classmethod
+    def of(cls, store: Store) -> StoreListing:
+        failed = store.root / "failed"
+        names = os.listdir(failed) if failed.is_dir() else []
+        return cls(frozenset(store.keys()), frozenset(n[:-5] for n in names if n.endswith(".json")))
 
 
 def results_to_replace(statuses: list[JobStatus]) -> dict[str, str]:

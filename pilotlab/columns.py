@@ -63,4 +63,27 @@ ONLINE = (
     Column("off_road_events", "", "times the car left the road", "lower"),
 )
 
-BY_NAME = {c.name: c for c in OFFLINE + ONLINE}
+# BehaviorMetrics' own definitions (pilotlab.online.bm_metrics), against the expert's lap on the same
+# circuit and direction: set beside the 2022 study's numbers. Ours above stay the primary ones.
+BEHAVIORMETRICS = (
+    Column("bm_lap_completed", "", "BehaviorMetrics: percentage completed above 100"),
+    Column("bm_percentage_completed", "%", "BehaviorMetrics: expert-lap checkpoints reached within 5 m", "higher"),
+    Column("bm_completed_distance_m", "m", "BehaviorMetrics: path length of the car's positions", "higher"),
+    Column("bm_average_speed", "m/s", "BehaviorMetrics: path length over whole simulated seconds", "higher"),
+    Column("bm_position_deviation_mae", "", "BehaviorMetrics: mean of 1000^d, d the metres from each "
+           "expert-lap checkpoint to the run's spline (1 = perfect)", "lower"),
+    Column("bm_position_deviation_total", "", "BehaviorMetrics: sum of 1000^d over the checkpoints", "lower"),
+    Column("bm_brain_frequency_sim_hz", "Hz", "BehaviorMetrics: 1 / mean simulated iteration time", "higher"),
+    Column("bm_brain_frequency_real_hz", "Hz", "BehaviorMetrics: 1 / mean brain iteration time", "higher"),
+    Column("bm_mean_inference_ms", "ms", "BehaviorMetrics: mean inference time, first and last 10 dropped",
+           "lower"),
+    Column("bm_suddenness", "", "BehaviorMetrics: mean change between consecutive normalised outputs", "lower"),
+)
+
+# The latency tolerance search of a lap cell (pilotlab.online.tolerance).
+TOLERANCE = (
+    Column("latency_tolerance_ms", "ms", "largest injected latency (5 ms steps, 0-1000 ms) at which the lap is "
+           "still completed", "higher"),
+)
+
+BY_NAME = {c.name: c for c in OFFLINE + ONLINE + BEHAVIORMETRICS + TOLERANCE}

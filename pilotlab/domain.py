@@ -83,7 +83,7 @@ class Planner:
         optimize = self.optimize(str(combination["model"]), str(combination["strategy"]), hardware)
         jobs = [self.offline(optimize, combination, hardware)]
         if "circuit" in combination:
-            jobs += online_jobs(self, optimize, combination, hardware)
+            jobs += online_jobs(self, optimize, combination, hardware, timing=jobs[0])
         return jobs
 
     # datasets -----------------------------------------------------------------------------------
@@ -207,7 +207,14 @@ class Planner:
     def profile(self, name: str):
         from pilotlab.hardware import make_profile
         options = self.config.hardware.get(name)
-        return make_profile(name, options.model_dump(exclude_none=True) if options else None)
+        return make_profile(name, options.model_dump(exclude_none=True, exclude={"latency_file"}) if options else None)
+
+    def latency_file(self, hardware: str) -> Path | None:
+        """The device's latency file a hardware profile names (replayed in its laps), if any."""
+        options = self.config.hardware.get(hardware)
+        if options is None or options.latency_file is None:
+            return None
+        return self.path(options.latency_file, ["hardware", hardware, "latency_file"])
 
     # evaluations ----------------------------------------------------------------------------------
     def offline(self, optimize: Job, combination: dict, hardware: str) -> Job:
@@ -265,12 +272,31 @@ def model_inputs(planner: Planner, name: str, spec: ModelSpec) -> dict[str, Inpu
     return inputs
 
 
-def online_jobs(planner: Planner, optimize: Job, combination: dict, hardware: str) -> list[Job]:
+def online_jobs(planner: Planner, optimize: Job, combination: dict, hardware: str, timing: Job) -> list[Job]:
     model, strategy, circuit = combination["model"], combination["strategy"], str(combination["circuit"])
     labels = {"model": model, "strategy": strategy, "hardware": hardware}
+    brain, deps, inputs = replay_inputs(planner, combination, hardware, timing)
     return [_lap(planner, f"online {model}/{strategy} on {hardware}", labels, hardware, circuit, direction,
-                 {"brain": "network"}, {"artifact": optimize})
+                 brain, {"artifact": optimize, **deps}, inputs)
             for direction in planner.config.online.directions]
+
+
+def replay_inputs(planner: Planner, combination: dict, hardware: str, timing: Job) -> tuple[dict, dict, dict]:
+    """(params, deps, inputs) of a network lap for the latencies it replays: the offline job's samples
+    (and the baseline's, to scale them to latency_scale_to_ms), or the hardware profile's latency file."""
+    online, model = planner.config.online, str(combination["model"])
+    params: dict[str, Any] = {"brain": "network"}
+    if online.timing != "replay":
+        return params, {}, {}
+    latency_file = planner.latency_file(hardware)
+    if latency_file is not None:
+        params["latency_for"] = {"model": model, "strategy": str(combination["strategy"])}
+        return params, {}, {"latency_file": input_file(str(latency_file))}
+    deps: dict[str, Job] = {"timing": timing}
+    if online.latency_scale_to_ms is not None:
+        base = {**combination, "strategy": "baseline"}
+        deps["scale_reference"] = planner.offline(planner.optimize(model, "baseline", hardware), base, hardware)
+    return params, deps, {}
 
 
 def reference_jobs(planner: Planner) -> list[Job]:

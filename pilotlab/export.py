@@ -22,6 +22,17 @@ module = torch.jit.load("{file}").eval()
 with torch.inference_mode():
     vw = module(torch.from_numpy(images){cast}).float().numpy()   # images: float32 {shape}
 ```""",
+    "tflite": """```python
+import numpy as np
+from ai_edge_litert.interpreter import Interpreter    # pip install ai-edge-litert (no TensorFlow needed)
+interpreter = Interpreter(model_path="{file}", num_threads=1)
+inp, out = interpreter.get_input_details()[0], interpreter.get_output_details()[0]
+interpreter.resize_tensor_input(inp["index"], list(images.shape))   # images: float32 {shape}
+interpreter.allocate_tensors()
+{quantize}interpreter.set_tensor(inp["index"], x)
+interpreter.invoke()
+vw = interpreter.get_tensor(out["index"]){dequantize}
+```""",
     "pilotlab-checkpoint": """```python
 import torch
 from pilotlab.models import load_checkpoint          # needs pilotlab installed
@@ -77,7 +88,14 @@ v (m/s) and w (rad/s)."""
 
 FRAMEWORKS = {"onnx": "ONNX (run with ONNX Runtime ≥ 1.18, no Python needed in C/C++/C#/Java)",
               "torchscript": "TorchScript (run with PyTorch or libtorch in C++)",
-              "pilotlab-checkpoint": "a pilotlab checkpoint (PyTorch eager; needs pilotlab)"}
+              "pilotlab-checkpoint": "a pilotlab checkpoint (PyTorch eager; needs pilotlab)",
+              "tflite": "TF Lite (run with the LiteRT interpreter, `ai-edge-litert`, or TF Lite in C++/Java/Kotlin)"}
+QUANTIZE = """s, z = inp["quantization"]                            # integer-only: int8 in, int8 out
+x = np.clip(np.round(images / s) + z, -128, 127).astype(np.int8)
+"""
+DEQUANTIZE = """
+s, z = out["quantization"]
+vw = (vw.astype(np.float32) - z) * s                  # read raw, the int8 output is meaningless"""
 
 
 def export_artifact(artifact_dir: Path, result: dict[str, Any], out_dir: Path) -> Path:
@@ -106,7 +124,7 @@ def readme(meta: ArtifactMeta, result: dict[str, Any]) -> str:
         f"- Output `vw`: float32 [N, 2], normalised (v, w). Physical value = x × (hi − lo) + lo with "
         f"v in [{labels['v'][0]}, {labels['v'][1]}] m/s and w in [{labels['w'][0]}, {labels['w'][1]}] rad/s.",
         "", "## Load and run", "",
-        LOADERS[meta.format].format(file=meta.file, shape=shape, cast=cast), "",
+        loader(meta, shape, cast), "",
         "Denormalise:", "", "```python",
         f"v = vw[:, 0] * ({labels['v'][1]} - {labels['v'][0]}) + {labels['v'][0]}",
         f"w = vw[:, 1] * ({labels['w'][1]} - {labels['w'][0]}) + {labels['w'][0]}", "```", "",
@@ -131,6 +149,13 @@ def source_section(meta: ArtifactMeta) -> list[str]:
         return ["## Where the network came from", "",
                 f"Your {meta.arch} file `{config.get('file')}` (sha256 {str(config.get('sha256', ''))[:12]}).", ""]
     return []
+
+
+def loader(meta: ArtifactMeta, shape: str, cast: str) -> str:
+    integer_only = "input_quantization" in meta.extra
+    return LOADERS[meta.format].format(
+        file=meta.file, shape=shape, cast=cast,
+        quantize=QUANTIZE if integer_only else "x = images\n", dequantize=DEQUANTIZE if integer_only else "")
 
 
 def camera_section(meta: ArtifactMeta) -> list[str]:

@@ -78,6 +78,36 @@ class OnnxPredictor(Predictor):
         return self._run_session(self._outputs, {INPUT_NAME: batch})[0]
 
 
+class LiteRTPredictor(Predictor):
+    """A .tflite model on the LiteRT interpreter (XNNPACK on the CPU). The interpreter is resized
+    when the batch size changes. An integer-only model (int8 input and output) gets the image
+    quantized and (v, w) dequantized with the scales stored in it, as a deployment must."""
+
+    def __init__(self, meta: ArtifactMeta, hardware: HardwareProfile, interpreter):
+        super().__init__(meta, hardware)
+        self.interpreter = interpreter
+        inp, out = interpreter.get_input_details()[0], interpreter.get_output_details()[0]
+        self._input, self._output, self._batch = inp["index"], out["index"], None
+        self._quantize = inp["quantization"] if inp["dtype"] == np.int8 else None
+        self._dequantize = out["quantization"] if out["dtype"] == np.int8 else None
+
+    def _run(self, batch: np.ndarray) -> np.ndarray:
+        if len(batch) != self._batch:
+            self.interpreter.resize_tensor_input(self._input, list(batch.shape))
+            self.interpreter.allocate_tensors()
+            self._batch = len(batch)
+        if self._quantize:
+            scale, zero = self._quantize
+            batch = np.clip(np.round(batch / scale) + zero, -128, 127).astype(np.int8)
+        self.interpreter.set_tensor(self._input, batch)
+        self.interpreter.invoke()
+        output = self.interpreter.get_tensor(self._output)
+        if self._dequantize:
+            scale, zero = self._dequantize
+            return (output.astype(np.float32) - zero) * np.float32(scale)
+        return output
+
+
 def resolve_profile(hardware: HardwareProfile | dict | str | None) -> HardwareProfile:
     if hardware is None:
         return BUILTIN["cpu"]
@@ -100,13 +130,37 @@ def load_predictor(artifact_dir: Path, hardware: HardwareProfile | dict | str | 
     profile = resolve_profile(hardware)
     if meta.device == "cuda" and profile.device != "cuda":
         raise NotApplicable(f"artifact {meta.strategy} was built for CUDA; hardware {profile.name!r} is a CPU")
+    if meta.runtime in EDGE_RUNTIMES:
+        _check_edge(meta, profile)
     apply_profile(profile)
     path = artifact_dir / meta.file
     if meta.runtime == "onnxruntime":
         return OnnxPredictor(meta, profile, _ort_session(path, meta, profile, spin))
     if meta.runtime == "torch":
         return TorchPredictor(meta, profile, _torch_module(path, meta, profile))
+    if meta.runtime in EDGE_RUNTIMES:
+        return _edge_predictor(path, meta, profile)
     raise PilotlabError(f"{artifact_dir}: unknown runtime {meta.runtime!r} in artifact.json")
+
+
+EDGE_RUNTIMES = {"litert": ("ai_edge_litert", "LiteRT")}   # runtime -> (module, name)
+
+
+def _check_edge(meta: ArtifactMeta, profile: HardwareProfile) -> None:
+    """LiteRT artifacts: CPU only (XNNPACK), and only where the runtime is installed."""
+    import importlib.util
+    module, runtime = EDGE_RUNTIMES[meta.runtime]
+    if profile.device != "cpu":
+        raise NotApplicable(f"artifact {meta.strategy} runs on {runtime}'s CPU path (XNNPACK); "
+                            f"hardware {profile.name!r} is {profile.device}")
+    if importlib.util.find_spec(module) is None:
+        raise NotApplicable(f"artifact {meta.strategy} needs {runtime} ({module}), not installed here "
+                            "(pip install -e '.[edge]')")
+
+
+def _edge_predictor(path: Path, meta: ArtifactMeta, profile: HardwareProfile) -> Predictor:
+    from ai_edge_litert.interpreter import Interpreter
+    return LiteRTPredictor(meta, profile, Interpreter(model_path=str(path), num_threads=profile.cpu_threads))
 
 
 def _torch_module(path: Path, meta: ArtifactMeta, profile: HardwareProfile):

@@ -63,6 +63,7 @@ class ModelSpec(TrainSpec):
 class HardwareSpec(Spec):
     device: Literal["cpu", "cuda"] = "cpu"
     threads: int | None = Field(None, ge=1)
+    latency_file: str | None = None   # a device's measured latencies, replayed in the laps (pilotlab.online.latency)
 
 
 class OfflineSection(OfflineSettings):

@@ -7,6 +7,7 @@ start at the same point.
 """
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -63,6 +64,10 @@ class Circuit:
         self.headings = np.arctan2(self._seg_dir[:, 1], self._seg_dir[:, 0])
         turn = wrap_angle(np.roll(self.headings, -1) - np.roll(self.headings, 1))
         self.curvature = turn / (np.roll(self._seg_len, -1) + self._seg_len)  # 1/m, + turning left
+        # Per-segment steps to the next point, for the lookups the simulator makes every step.
+        self._heading_step = wrap_angle(np.roll(self.headings, -1) - self.headings)
+        self._next_curvature = np.roll(self.curvature, -1)
+        self._arc_list = self.arc.tolist()
 
     @classmethod
     def from_points(cls, name: str, raw: np.ndarray, *, road_width: float, timeout_s: float | None = None,
@@ -97,6 +102,10 @@ class Circuit:
 
     # -- lookups along the arc ----------------------------------------------------------------
     def _locate(self, s):
+        if isinstance(s, (float, int, np.floating, np.integer)):  # one point: the same numbers, without
+            s = float(s) % self.length                                # numpy's per-call overhead
+            index = min(max(bisect.bisect_right(self._arc_list, s) - 1, 0), len(self._arc_list) - 1)
+            return index, (s - self.arc[index]) / self._seg_len[index]
         s = np.mod(np.asarray(s, dtype=np.float64), self.length)
         index = np.clip(np.searchsorted(self.arc, s, side="right") - 1, 0, len(self.arc) - 1)
         return index, (s - self.arc[index]) / self._seg_len[index]
@@ -108,12 +117,11 @@ class Circuit:
 
     def heading_at(self, s):
         index, t = self._locate(s)
-        step = wrap_angle(np.roll(self.headings, -1)[index] - self.headings[index])
-        return wrap_angle(self.headings[index] + t * step)
+        return wrap_angle(self.headings[index] + t * self._heading_step[index])
 
     def curvature_at(self, s):
         index, t = self._locate(s)
-        return (1 - t) * self.curvature[index] + t * np.roll(self.curvature, -1)[index]
+        return (1 - t) * self.curvature[index] + t * self._next_curvature[index]
 
     def start_pose(self, s: float = 0.0, lateral: float = 0.0) -> tuple[float, float, float]:
         """x, y, yaw of a car on the centreline at `s`, shifted `lateral` metres to the left."""
@@ -135,24 +143,29 @@ class Circuit:
         """The nearest centreline point to (x, y). With `near_s`, only segments within `window`
         metres of it are searched (fast, and never jumps to a neighbouring stretch of road)."""
         segments = self._segment_window(near_s, window)
-        start = self.points[segments]
-        direction = self._seg_dir[segments]
-        offset = np.array([x, y]) - start
-        along = np.clip(np.einsum("ij,ij->i", offset, direction), 0.0, self._seg_len[segments])
+        start, direction = self.points[segments], self._seg_dir[segments]
+        point = np.array([x, y])
+        offset = point - start
+        # np.minimum(np.maximum()) is np.clip without its Python-level overhead (called every step)
+        along = np.minimum(np.maximum(np.einsum("ij,ij->i", offset, direction), 0.0), self._seg_len[segments])
         nearest = start + along[:, None] * direction
-        squared = np.sum((np.array([x, y]) - nearest) ** 2, axis=1)
+        squared = np.sum((point - nearest) ** 2, axis=1)
         best = int(np.argmin(squared))
         side = direction[best, 0] * offset[best, 1] - direction[best, 1] * offset[best, 0]
-        s = float((self.arc[segments[best]] + along[best]) % self.length)
+        s = float((self.arc[segments][best] + along[best]) % self.length)
         return Projection(s=s, lateral=math.copysign(math.sqrt(squared[best]), side),
                           x=float(nearest[best, 0]), y=float(nearest[best, 1]), heading=float(self.heading_at(s)))
 
-    def _segment_window(self, near_s: float | None, window: float) -> np.ndarray:
+    def _segment_window(self, near_s: float | None, window: float) -> slice | np.ndarray:
+        """The segments to search, in order: a slice where they do not wrap past the start line (views,
+        not copies: the env projects the car every step), else their indices."""
         count = len(self.points)
         if near_s is None or 2 * window >= self.length:
-            return np.arange(count)
+            return slice(0, count)
         centre = int(self._locate(near_s)[0])
         half = int(math.ceil(window / (self.length / count)))
+        if 0 <= centre - half and centre + half + 1 <= count:
+            return slice(centre - half, centre + half + 1)
         return np.arange(centre - half, centre + half + 1) % count
 
     # -- extent ---------------------------------------------------------------------------------

@@ -17,7 +17,7 @@ from pilotlab.specs.online import OnlineSpec
 
 LAP_OPTIONS = ["direction", "timing", "control_hz", "extra_latency_ms", "fixed_inference_ms", "repetitions", "laps",
                "seed", "timeout_s", "stop_off_road", "trapped_s", "renderer", "video", "video_seconds",
-               "camera_frames"]
+               "camera_frames", "latency_scale_to_ms"]
 
 
 def register(subparsers) -> None:
@@ -35,13 +35,34 @@ def register(subparsers) -> None:
     parser.add_argument("--out", type=Path, required=True, help="folder for the pictures, data and result.json")
     parser.add_argument("--hardware", default="cpu", help="hardware profile: cpu, cpu1 or cuda (default cpu)")
     add_spec_options(parser, OnlineSpec, LAP_OPTIONS, flags={"timeout_s": ["--timeout"]})
+    parser.add_argument("--latency-file", type=Path, default=None,
+                        help="replay a device's measured latencies: a CSV with a latency_ms column (optionally "
+                             "model, strategy; docs/simulator.md); without it an artifact's predict call is timed "
+                             "here once before the lap and replayed")
+    parser.add_argument("--tolerance", action="store_true",
+                        help="also search the largest injected latency at which the lap is still completed")
     parser.set_defaults(func=run)
+
+
+def replayed_samples(args: argparse.Namespace, spec: OnlineSpec, brain):
+    """The latencies the replay mode draws from: the --latency-file's rows for this brain, else the
+    network's predict call timed here once before the lap; nothing for a reference brain."""
+    import numpy as np
+
+    from pilotlab.online.latency import latency_file_samples, measure_samples
+    if spec.timing != "replay" or spec.fixed_inference_ms is not None:
+        return None
+    if args.latency_file is not None:
+        return latency_file_samples(args.latency_file, None, brain.name)
+    return measure_samples(brain) if args.artifact is not None else np.zeros(1)
 
 
 def check_arguments(args: argparse.Namespace) -> None:
     """What can be told wrong before the simulator starts (the lap settings: by the spec)."""
     if args.artifact is not None and not args.artifact.is_dir():
         raise PilotlabError(f"--artifact {args.artifact}: no such folder")
+    if args.latency_file is not None and not args.latency_file.is_file():
+        raise PilotlabError(f"--latency-file {args.latency_file}: no such file")
     if args.out.exists() and (not args.out.is_dir() or any(args.out.iterdir())):
         what = "is a file" if not args.out.is_dir() else "is a folder that is not empty"
         raise PilotlabError(f"--out {args.out} {what}; give a new folder (drive does not mix two runs' files)")
@@ -84,12 +105,14 @@ def run(args: argparse.Namespace) -> int:
 
     from pilotlab.circuits import get_circuit
     check_arguments(args)
-    spec = spec_from_args(OnlineSpec, args, circuit=args.circuit, **brain_params(args.brain))
+    spec = spec_from_args(OnlineSpec, args, circuit=args.circuit, **brain_params(args.brain),
+                          tolerance=args.tolerance)
     get_circuit(spec.circuit, spec.direction)   # an unknown or broken circuit: before the progress bar
     profile = make_profile(args.hardware)
     check_available(profile)
     brain = (NetworkBrain(load_predictor(args.artifact, profile)) if args.artifact is not None
              else make_brain(spec))
+    samples = replayed_samples(args, spec, brain)
     columns = (TextColumn("[bold]{task.description}"), BarColumn(),
                TextColumn("{task.completed:.0f}/{task.total:.0f} m"), TimeElapsedColumn())
     created = not args.out.exists()
@@ -97,7 +120,8 @@ def run(args: argparse.Namespace) -> int:
         with Progress(*columns) as progress:
             task = progress.add_task("starting", total=1.0)
             result = evaluate_online(brain, spec, args.out, lambda done, total, what: progress.update(
-                task, completed=done, total=total, description=what))
+                task, completed=done, total=total, description=what), latency_ms=samples,
+                tolerance=spec.tolerance)
     except BaseException:
         if created:   # a failed or interrupted drive leaves no half-written --out behind
             shutil.rmtree(args.out, ignore_errors=True)

@@ -12,9 +12,13 @@ result:
     wrote, its user_brain.name), hardware (profile),
     host, circuit, direction, circuit_length_m, laps, timeout_s, timing, control_hz, extra_latency_ms,
     fixed_inference_ms (if set), measured_inference_ms (the real mean, without artificial latency),
-    wall_seconds; and the files, relative to the artifacts folder: trajectory ("trajectory.png"),
-    trajectory_data ("trajectory.npz"), trajectory_csv ("trajectory.csv"), video ("camera.mp4", if
-    asked), camera_frames (["frames/camera_012.00s.jpg", ...]).
+    wall_seconds; BehaviorMetrics' metrics (pilotlab.columns.BEHAVIORMETRICS, bm_*) against the
+    expert's perfect lap, and perfect_lap_checkpoints; in replay timing latency_source,
+    replayed_latency_ms, replayed_latency_p90_ms, replayed_latency_samples (and latency_scale when
+    scaled); with tolerance: latency_tolerance_ms, tolerance_at_least, tolerance_fixed_ms,
+    tolerance_laps, tolerance_laps_driven (pilotlab.online.tolerance); and the files, relative to the
+    artifacts folder: trajectory ("trajectory.png"), trajectory_data ("trajectory.npz"), trajectory_csv
+    ("trajectory.csv"), video ("camera.mp4", if asked), camera_frames (["frames/camera_012.00s.jpg", ...]).
 """
 from __future__ import annotations
 
@@ -22,12 +26,15 @@ from pathlib import Path
 from typing import Any
 
 import cv2
+import numpy as np
 
 from matrix.kinds import JobContext
 from pilotlab import predictor
 from pilotlab.errors import PilotlabError
 from pilotlab.hardware import check_available, check_host, profile_from_dict
 from pilotlab.online import brains, evaluate
+from pilotlab.online.latency import TimingSource, describe
+from pilotlab.online.perfect_lap import perfect_lap
 from pilotlab.specs.online import OnlineSpec
 
 
@@ -52,6 +59,20 @@ def make_brain(ctx: JobContext, spec: OnlineSpec, profile) -> tuple[brains.Brain
     return brains.make_reference_brain(spec.brain, spec.brain_options), spec.brain
 
 
+def replayed_latency(ctx: JobContext, spec: OnlineSpec, brain) -> tuple[np.ndarray | None, dict[str, Any]]:
+    """The latency samples the replay timing mode draws from (None in the other modes), and what the
+    result says of them. Reference brains are charged nothing but the injected latency."""
+    if spec.timing != "replay" or spec.fixed_inference_ms is not None:
+        return None, {}
+    if "artifact" not in ctx.deps:
+        return np.zeros(1), describe(np.zeros(1), "none: a reference brain is charged only the injected latency")
+    dep = lambda role: (ctx.dep(role).artifacts, ctx.dep(role).result) if role in ctx.deps else None
+    source = TimingSource(offline=dep("timing"), latency_file=ctx.inputs.get("latency_file"),
+                          model=spec.latency_for.get("model"), strategy=spec.latency_for.get("strategy", brain.name),
+                          scale_to_ms=spec.latency_scale_to_ms, reference=dep("scale_reference"))
+    return source.samples()
+
+
 def run_online(ctx: JobContext) -> dict[str, Any]:
     spec: OnlineSpec = ctx.spec
     profile = profile_from_dict(spec.hardware)
@@ -61,8 +82,11 @@ def run_online(ctx: JobContext) -> dict[str, Any]:
     brain, strategy = make_brain(ctx, spec, profile)
     ctx.log.info("%s on %s %s: %s timing at %g Hz, %d run(s)", strategy, spec.circuit, spec.direction,
                  spec.timing, spec.control_hz, spec.runs)
+    samples, replayed = replayed_latency(ctx, spec, brain)
+    checkpoints = perfect_lap(spec.circuit, spec.direction, cache=ctx.cache / "perfect_laps")
     result = evaluate.evaluate_online(brain, spec, ctx.out, progress=lambda done, total, what: ctx.progress(
-        done, total, what))
+        done, total, what), latency_ms=samples, tolerance=spec.tolerance, checkpoints=checkpoints)
+    result |= replayed
     ctx.log.info("%s: %s", strategy, ", ".join(f"{run['termination']} after {run['sim_seconds']:.1f} s"
                                                for run in result["runs"]))
     return {**result, "strategy": strategy, "hardware": profile.as_dict(), "host": host}

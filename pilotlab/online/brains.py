@@ -7,7 +7,7 @@
     brain.reset(env.circuit); v, w = brain.act(image, info)
 
 A network brain feeds the network exactly what training saw: `pilotlab.data.preprocess` on the
-camera image with the artifact's preprocessing settings, `to_input` to the float tensor, and the
+camera image with the artifact's preprocessing settings, `to_input`'s float layout, and the
 artifact's label ranges to de-normalise the output. Temporal models get their stacked frames, picked
 `frame_interval_s` apart in simulated time (the spacing of consecutive recorded frames in training).
 
@@ -27,7 +27,7 @@ import numpy as np
 from matrix.registry import Registry
 from pilotlab.circuits import Circuit
 from pilotlab.data.frames import LabelRanges
-from pilotlab.data.preprocess import PreprocessConfig, preprocess, to_input
+from pilotlab.data.preprocess import PreprocessConfig, preprocess
 from pilotlab.errors import PilotlabError
 from pilotlab.specs.base import build_config
 from pilotlab.sim.expert import Expert, ExpertConfig
@@ -90,6 +90,7 @@ class NetworkBrain:
             raise PilotlabError(f"artifact {meta.strategy}: its artifact.json has no label ranges; "
                                 "rerun the optimize job on a checkpoint written by the train job")
         self.ranges = LabelRanges.from_dict(meta.labels)
+        self.label_ranges = self.ranges.as_dict()   # BehaviorMetrics' suddenness is on normalised outputs
         self.config = PreprocessConfig.from_params(meta.preprocess)
         self.frames = self._check_input(meta)
         interval = frame_interval_s or meta.preprocess.get("frame_interval_s") or DEFAULT_FRAME_INTERVAL_S
@@ -115,15 +116,27 @@ class NetworkBrain:
         for _ in range(runs):
             self.predictor.predict(blank)
 
-    def inputs(self, image: np.ndarray, t: float) -> np.ndarray:
-        """The network's input for the camera image seen at simulated time `t`."""
-        stack = self.stack.push(preprocess(image, self.config), t)
-        return np.ascontiguousarray(to_input(stack[None]).numpy())
+    @property
+    def view(self) -> PreprocessConfig:
+        """What the env may render instead of the camera image (DrivingEnv's `view`): the network's
+        preprocessed frame, drawn directly."""
+        return self.config
+
+    def inputs(self, image: np.ndarray, t: float, rendered_view=None) -> np.ndarray:
+        """The network's input for the camera image seen at simulated time `t`; when the env rendered
+        this brain's view (`rendered_view` is its config) the image is already the preprocessed frame."""
+        frame = image if rendered_view == self.config else preprocess(image, self.config)
+        stack = self.stack.push(frame, t)
+        # `to_input`'s layout and arithmetic (uint8 -> float32, / 255) in numpy: torch's per-call
+        # overhead on one small frame costs more than the conversion itself
+        frames, height, width, _ = stack.shape
+        channels_first = stack.transpose(0, 3, 1, 2).reshape(1, 3 * frames, height, width)
+        return channels_first.astype(np.float32) / np.float32(255.0)
 
     def act(self, image: np.ndarray | None, info: dict[str, Any]) -> tuple[float, float]:
         if image is None:
             raise PilotlabError("a network brain needs the camera image; the env was made without a camera")
-        inputs = self.inputs(image, info["sim_time"])
+        inputs = self.inputs(image, info["sim_time"], info.get("view"))
         started = time.perf_counter()
         output = self.predictor.predict(inputs)
         self.last_inference_s = time.perf_counter() - started

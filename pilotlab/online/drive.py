@@ -1,20 +1,24 @@
-"""The closed loop: a brain drives the car in a DrivingEnv under one of three timing modes.
+"""The closed loop: a brain drives the car in a DrivingEnv under one of four timing modes.
 
-    trajectory = drive(env, brain, DriveSettings(timing="latency"), start=0.0)   # pilotlab.specs.online
+    trajectory = drive(env, brain, DriveSettings(timing="replay"), start=0.0, latency_ms=samples)
 
 Each brain iteration takes the camera image at the current simulated time, asks the brain for a
 command, and advances the world. How far the world moves on, and with which command, is the timing
 mode (`physics steps` are the env's 1/120 s):
 
-- `latency` (default): an iteration costs max(control period, brain time) of simulated time, and
+- `replay` (default): an iteration costs max(control period, brain time) of simulated time, and
   the previous command stays in force for the brain time before the new one reaches the car, as on a
-  real car: a slow network sees less often and reacts later. The brain time is the measured wall-clock
-  time of the iteration (preprocessing + inference), plus `extra_latency_ms`, rounded up to whole
-  physics steps (a command ready mid-step applies from the next one). Deterministic given the brain
-  times: whenever the brain takes less than one physics step (8.3 ms) every iteration is charged the
-  same, so the run is exactly reproducible; otherwise it depends only on the measured times (kept in
-  the trajectory). `fixed_inference_ms` replaces the measurement with a constant, which makes a run
-  exactly reproducible (tests pin it so) or asks "what if this network took X ms".
+  real car: a slow network sees less often and reacts later. The brain time is a latency drawn
+  (seeded by the run's seed) from `latency_ms`, the samples measured once for the same artifact on
+  the same hardware profile (pilotlab.online.latency), plus `extra_latency_ms`, rounded up to whole
+  physics steps (a command ready mid-step applies from the next one). Nothing of this host's wall
+  clock enters the lap: the same lap on a loaded machine drives the same trajectory, and a lap can be
+  driven for a device that is not this host. `fixed_inference_ms` replaces the draws with a constant
+  ("what if this network took X ms").
+- `measured`: as `replay`, but the brain time is the measured wall-clock time of the iteration on
+  this host (preprocessing + inference), plus `extra_latency_ms`. Reproducible only while the brain
+  takes less than one physics step (8.3 ms) or `fixed_inference_ms` pins it; otherwise it depends on
+  the load (the measured times are kept in the trajectory).
 - `lockstep`: the world waits for the brain: every iteration lasts one control period and the new
   command applies at once, whatever the brain costs (BehaviorMetrics with a paused Gazebo). Fully
   deterministic; latency has no effect on the driving.
@@ -34,6 +38,7 @@ import numpy as np
 
 from pilotlab.errors import PilotlabError
 from pilotlab.online.brains import Brain
+from pilotlab.online.latency import LatencyDraws
 from pilotlab.online.trajectory import Trajectory, TrajectoryBuilder
 from pilotlab.sim.env import DrivingEnv
 from pilotlab.specs.online import DriveSettings
@@ -101,16 +106,20 @@ class RealtimeClock(LatencyClock):
         return obs, info, done, late / self.env.physics_hz
 
 
-CLOCKS = {"latency": LatencyClock, "lockstep": LockstepClock, "realtime": RealtimeClock}
+CLOCKS = {"replay": LatencyClock, "measured": LatencyClock, "lockstep": LockstepClock, "realtime": RealtimeClock}
 
 
-def think(brain: Brain, obs, info: dict[str, Any], settings: DriveSettings) -> tuple[tuple[float, float], float, float]:
-    """(command, brain_s, decision_s) of one brain iteration: the wall-clock time of the whole iteration
-    and the time of the decision the metrics report, both with the artificial latency (slept in
-    realtime mode, where the world must move on meanwhile; added otherwise)."""
+def think(brain: Brain, obs, info: dict[str, Any], settings: DriveSettings,
+          replayed_s: float | None = None) -> tuple[tuple[float, float], float, float]:
+    """(command, brain_s, decision_s) of one brain iteration: the time of the whole iteration and the
+    time of the decision the metrics report, both with the artificial latency (slept in realtime mode,
+    where the world must move on meanwhile; added otherwise). Replayed, both are the replayed latency;
+    otherwise the wall clock of this host."""
     extra_s = settings.extra_latency_ms / 1000
     started = time.perf_counter()
     command = brain.act(obs, info)
+    if replayed_s is not None:
+        return command, replayed_s + extra_s, replayed_s + extra_s
     if settings.timing == "realtime" and extra_s:
         time.sleep(extra_s)
     brain_s = time.perf_counter() - started + (0.0 if settings.timing == "realtime" else extra_s)
@@ -118,27 +127,42 @@ def think(brain: Brain, obs, info: dict[str, Any], settings: DriveSettings) -> t
     return command, brain_s, decision + extra_s
 
 
+def replay_source(settings: DriveSettings, latency_ms: np.ndarray | None, seed: int) -> Callable[[], float] | None:
+    """What the replay mode charges each iteration (seconds, before the artificial latency)."""
+    if settings.timing != "replay":
+        return None
+    if settings.fixed_inference_ms is not None:
+        return lambda: settings.fixed_inference_ms / 1000
+    if latency_ms is None:
+        raise PilotlabError("the replay timing mode needs latency samples (the offline timing job's, or a "
+                            "hardware profile's latency_file) or fixed_inference_ms; or use timing: measured")
+    return LatencyDraws(latency_ms, seed).next_s
+
+
 def drive(env: DrivingEnv, brain: Brain, settings: DriveSettings, *, start: float = 0.0, seed: int = 0,
           render: bool | None = None, on_frame: FrameFn | None = None,
-          progress: ProgressFn | None = None) -> Trajectory:
+          progress: ProgressFn | None = None, latency_ms: np.ndarray | None = None) -> Trajectory:
     """One run from `start` (metres along the lap) until the env stops it (lap completed, off the
     road, trapped, timeout). `render` (default: the brain needs the camera) renders the camera image
-    every iteration; `on_frame(image, info, command)` sees each image with the command decided on it."""
+    every iteration; `on_frame(image, info, command)` sees each image with the command decided on it;
+    `latency_ms`: the samples the replay mode draws from (seeded with `seed`)."""
     render = brain.needs_camera if render is None else render
     obs, info = env.reset(seed=seed, options={"start": start, "control_period": settings.period_s})
     if render and env.camera is None:
         raise PilotlabError(f"the {brain.name} brain needs the camera; make the DrivingEnv with a camera")
     brain.reset(env.circuit)
+    replayed = replay_source(settings, latency_ms, seed)
     clock = CLOCKS[settings.timing](env, settings)
     builder = TrajectoryBuilder(env.circuit.length, {
         "circuit": env.circuit.name, "direction": env.circuit.direction, "start_m": float(start),
-        "brain": brain.name, **{k: getattr(settings, k) for k in DriveSettings.model_fields}})
+        "brain": brain.name, "label_ranges": getattr(brain, "label_ranges", None),
+        **{k: getattr(settings, k) for k in DriveSettings.model_fields}})
     measured, previous, total = [], tuple(info["command"]), env.laps * env.circuit.length
     wall0 = clock.wall0 = clock.cycle_start = time.perf_counter()
     builder.sample(info, 0.0)
     done = False
     while not done:
-        command, brain_s, decision_s = think(brain, obs, info, settings)
+        command, brain_s, decision_s = think(brain, obs, info, settings, replayed() if replayed else None)
         measured.append(brain.last_inference_s)
         if on_frame is not None:
             on_frame(obs, info, command)

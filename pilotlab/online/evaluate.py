@@ -1,8 +1,8 @@
 """An online evaluation: one brain, one circuit and direction, one or more runs from different start
 points; metrics per run, their mean and spread, the trajectory data and pictures.
 
-    spec = OnlineSpec(circuit="simple_circuit", repetitions=3, timing="latency")   # pilotlab.specs.online
-    result = evaluate_online(brain, spec, out_dir)
+    spec = OnlineSpec(circuit="simple_circuit", repetitions=3, timing="replay")   # pilotlab.specs.online
+    result = evaluate_online(brain, spec, out_dir, latency_ms=samples)   # samples: pilotlab.online.latency
     result["position_deviation_mae_m"], result["spread"]["position_deviation_mae_m"]["std"]
 
 Files written into `out_dir`: trajectory.png (every run over the circuit, coloured by speed),
@@ -19,10 +19,13 @@ from typing import Any
 import numpy as np
 
 from pilotlab.circuits import Circuit
+from pilotlab.online.bm_metrics import BM_METRICS, bm_run_metrics
 from pilotlab.online.brains import Brain
 from pilotlab.online.drive import drive
 from pilotlab.online.media import CameraRecorder, plot_trajectories
-from pilotlab.online.metrics import aggregate, run_metrics
+from pilotlab.online.metrics import METRICS, aggregate, run_metrics
+from pilotlab.online.perfect_lap import perfect_lap
+from pilotlab.online.tolerance import cell_tolerance
 from pilotlab.online.trajectory import Trajectory, save_csv, save_npz
 from pilotlab.sim.camera import CameraSpec
 from pilotlab.sim.env import DrivingEnv
@@ -42,18 +45,21 @@ def start_points(spec: LapSettings, length: float) -> list[float]:
     return [float(s) % length for s in spec.starts]
 
 
-def make_env(spec: OnlineSpec, camera: bool) -> DrivingEnv:
+def make_env(spec: OnlineSpec, camera: bool, view=None) -> DrivingEnv:
+    """`view`: the brain's preprocessing, rendered directly instead of the camera image (sim.view)."""
     return DrivingEnv(spec.circuit, direction=spec.direction,
                       camera=CameraSpec(width=spec.camera.width, height=spec.camera.height) if camera else None,
                       renderer=spec.renderer, control_period=spec.period_s, laps=spec.laps,
-                      timeout_s=spec.timeout_s, stop_off_road=spec.stop_off_road, trapped_s=spec.trapped_s)
+                      timeout_s=spec.timeout_s, stop_off_road=spec.stop_off_road, trapped_s=spec.trapped_s,
+                      view=view)
 
 
-def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None
+def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None, latency_ms=None
             ) -> tuple[list[Trajectory], dict[str, Any], Circuit]:
     """Drive every repetition; returns the trajectories, the media written and the circuit driven."""
     wants_media = bool(spec.video or spec.camera_frames)
-    env = make_env(spec, camera=brain.needs_camera or wants_media)
+    # A network brain is given its preprocessed frame rendered directly (pilotlab.sim.view)
+    env = make_env(spec, camera=brain.needs_camera or wants_media, view=getattr(brain, "view", None))
     recorder = CameraRecorder(out, control_hz=spec.control_hz, video_seconds=spec.video_length_s,
                               stills=spec.camera_frames) if wants_media else None
     trajectories = []
@@ -63,23 +69,42 @@ def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | No
         for i, start in enumerate(starts):
             what = f"{brain.name} on {spec.circuit} {spec.direction}, run {i + 1}/{len(starts)} from {start:.0f} m"
             report = None if progress is None else (lambda done, total, what=what: progress(done, total, what))
-            trajectories.append(drive(env, brain, spec, start=start, seed=spec.seed + i,
-                                      render=brain.needs_camera or (wants_media and i == 0),
-                                      on_frame=recorder if i == 0 else None, progress=report))
+            trajectories.append(drive(env, brain, spec, start=start, seed=spec.seed + i, render=brain.needs_camera,
+                                      on_frame=media_frames(env, recorder) if recorder and i == 0 else None,
+                                      progress=report, latency_ms=latency_ms))
     finally:
         env.close()
         media = recorder.close() if recorder else {}
     return trajectories, media, env.circuit
 
 
-def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None) -> dict[str, Any]:
-    """Drive, measure, and write the files; returns the result (see the module docstring)."""
+def media_frames(env: DrivingEnv, recorder: CameraRecorder):
+    """`drive`'s on_frame for the media: the full camera image, rendered only when the recorder keeps it
+    (the brain may see only its view, or no image at all)."""
+    def on_frame(image, info: dict[str, Any], command) -> None:
+        if recorder.wants(info["sim_time"]):
+            recorder(env.camera_image(), info, command)
+    return on_frame
+
+
+def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None,
+                    checkpoints=None, latency_ms=None, tolerance=None) -> dict[str, Any]:
+    """Drive, measure, and write the files; returns the result (see the module docstring). The
+    BehaviorMetrics-compatible metrics are scored against `checkpoints` (default: the expert's lap on
+    the same circuit and direction, `pilotlab.online.perfect_lap`); `latency_ms`: the samples the
+    replay timing mode draws from; `tolerance` (a pilotlab.specs.online.ToleranceSpec): also search the cell's latency
+    tolerance (pilotlab.online.tolerance) from the first run."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    trajectories, media, circuit = run_all(brain, spec, out, progress)
-    runs = [run_metrics(t) for t in trajectories]
-    means, spread = aggregate(runs)
+    if checkpoints is None:
+        checkpoints = perfect_lap(spec.circuit, spec.direction)
+    trajectories, media, circuit = run_all(brain, spec, out, progress, latency_ms)
+    runs = [{**run_metrics(t), **bm_run_metrics(t, checkpoints)} for t in trajectories]
+    means, spread = aggregate(runs, METRICS + BM_METRICS)
+    if tolerance is not None:
+        means |= cell_tolerance(make_env(spec, camera=brain.needs_camera), brain, spec, tolerance, trajectories[0],
+                                checkpoints, latency_ms, progress)
     save_npz(trajectories, out / "trajectory.npz")
     save_csv(trajectories, out / "trajectory.csv")
     title = picture_title(brain.name, spec, means, len(trajectories))
@@ -87,6 +112,7 @@ def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: Progres
     return {**means, "spread": spread, "runs": [run_summary(t, m) for t, m in zip(trajectories, runs)],
             "repetitions": len(trajectories), "brain": brain.name, "circuit": spec.circuit,
             "direction": spec.direction, "circuit_length_m": round(circuit.length, 3), "laps": spec.laps,
+            "perfect_lap_checkpoints": len(checkpoints),
             "timeout_s": trajectories[0].meta["timeout_s"], **_drive_settings(spec),
             "measured_inference_ms": float(np.mean([t.meta["measured_inference_ms"] for t in trajectories])),
             "trajectory": "trajectory.png", "trajectory_data": "trajectory.npz", "trajectory_csv": "trajectory.csv",

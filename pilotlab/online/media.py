@@ -84,6 +84,11 @@ class CameraRecorder:
         self.stills, self.still_every_s = stills, still_every_s
         self._writer, self._written, self._candidates = None, 0, []
 
+    def wants(self, t: float) -> bool:
+        """Whether an image seen at simulated time `t` would be kept (so a caller renders only those)."""
+        return bool((self.video_seconds and t <= self.video_seconds)
+                    or (self.stills and t >= len(self._candidates) * self.still_every_s))
+
     def __call__(self, image: np.ndarray | None, info: dict[str, Any], command) -> None:
         if image is None:
             return

@@ -18,7 +18,8 @@ where we differ, so our numbers can be read next to the 2022 study's:
   the last) of the car's distance from the red line, in metres. BehaviorMetrics' numbers are NOT
   metres: for every point of a "perfect lap" it finds the nearest point of a spline through the
   car's positions and adds `1000 ** distance`, so its MAE is an exponential score (0.1 m -> 2.0,
-  0.5 m -> 31.6) that cannot be compared with ours.
+  0.5 m -> 31.6) that cannot be compared with ours; `pilotlab.online.bm_metrics` computes it (and
+  BehaviorMetrics' other definitions) beside ours, as the `bm_*` columns.
 - brain_frequency_sim_hz: brain iterations per simulated second: 1 / the mean simulated time between
   consecutive decisions, as BehaviorMetrics (1 / the mean simulated duration of an iteration).
 - brain_frequency_real_hz: 1 / the mean wall-clock time of one brain iteration (camera image in,
@@ -137,18 +138,20 @@ def run_metrics(trajectory: Trajectory) -> dict[str, Any]:
     return {name: function(trajectory) for name, function in FUNCTIONS.items()}
 
 
-def aggregate(runs: Sequence[dict[str, Any]]) -> tuple[dict[str, Any], dict[str, dict[str, float]]]:
+def aggregate(runs: Sequence[dict[str, Any]], names: Sequence[str] = METRICS
+              ) -> tuple[dict[str, Any], dict[str, dict[str, float]]]:
     """(mean, spread) over repetitions. The mean of each metric is over the runs that have it
     (lap_seconds: over the completed laps); `lap_completed` is True only when every run completed
     its lap. The spread gives std (sample standard deviation; 0 for one run), min and max, and for
-    lap_completed the number of runs that completed."""
+    lap_completed the number of runs that completed. `names`: the metrics to aggregate (BehaviorMetrics'
+    `bm_` ones too; `bm_lap_completed` as lap_completed)."""
     means: dict[str, Any] = {}
     spread: dict[str, dict[str, float]] = {}
-    for name in METRICS:
+    for name in names:
         values = [run[name] for run in runs if run.get(name) is not None]
         if not values:
             continue
-        if name == "lap_completed":
+        if name.endswith("lap_completed"):
             means[name] = all(values) and len(values) == len(runs)
             spread[name] = {"completed": sum(bool(v) for v in values), "runs": len(runs)}
             continue

@@ -105,6 +105,16 @@ class Spread(_Frozen):
         return None if _unmeasured(value) else value
 
 
+class TolerancePoint(_Frozen):
+    """One lap of a latency tolerance search (pilotlab.online.tolerance): the online job's
+    `tolerance_laps[i]` (other keys are ignored)."""
+    model_config = ConfigDict(frozen=True, extra="ignore")
+    injected_ms: float
+    lap_completed: bool
+    position_deviation_mae_m: float | None = None
+    bm_position_deviation_mae: float | None = None
+
+
 class Claim(_Frozen):
     """A published claim checked against this report's figures (pilotlab.report.studies)."""
     claim: str
@@ -128,6 +138,9 @@ class ReportRow(_Frozen):
     trajectory: Path | None = None           # online rows: PNG of the path over the red line
     spread: dict[str, Spread] = Field(default_factory=dict)  # online rows: metric -> its spread over runs
     unstable: dict[str, str] = Field(default_factory=dict)   # offline rows: timed metric -> why it is unstable
+    tolerance: tuple[TolerancePoint, ...] = ()              # online rows: the laps of the tolerance search
+    tolerance_at_least: bool = False         # the lap was still completed at the search's largest latency
+    latency_source: str | None = None        # online rows: where the replayed latencies came from
 
     @model_validator(mode="before")
     @classmethod
@@ -265,7 +278,8 @@ class ReportData(_Frozen):
     def spread_columns(self) -> list[str]:
         """The result columns after the metrics: repetitions and repetitions_completed, then std, min and
         max of each metric that some row measured more than once (columns.py order)."""
-        measured = {name for row in self.rows for name in BY_NAME if row.spread_of(name)} - {"lap_completed"}
+        measured = {name for row in self.rows for name in BY_NAME if row.spread_of(name)} - {"lap_completed",
+                                                                                             "bm_lap_completed"}
         stats = [f"{name}_{stat}" for name in BY_NAME if name in measured for stat in ("std", "min", "max")]
         return ["repetitions", "repetitions_completed", *stats]
 

@@ -202,6 +202,34 @@ def draw_closed_loop(data: ReportData) -> Figure | None:
     return figure
 
 
+def draw_latency_tolerance(data: ReportData) -> Figure | None:
+    """Deviation against injected latency, one line per strategy and panel per (hardware, circuit):
+    the laps of each cell's tolerance search; lost laps marked ✗ (their deviation until they left)."""
+    rows = [r for r in data.of_kind("online") if r.status == "ok" and r.tolerance]
+    if not rows:
+        return None
+    places = list(dict.fromkeys((r.hardware, r.place) for r in rows))
+    figure, axes = _grid(len(places))
+    colours, markers = strategy_colours(data), model_markers(data)
+    for ax, (target, place) in zip(axes, places):
+        for r in (r for r in rows if (r.hardware, r.place) == (target, place)):
+            points = [p for p in r.tolerance if p.position_deviation_mae_m is not None]
+            done = [p for p in points if p.lap_completed]
+            ax.plot([p.injected_ms for p in done], [p.position_deviation_mae_m for p in done],
+                    color=colours[r.strategy], marker=markers[r.model], markersize=5, lw=1.4)
+            lost = [p for p in points if not p.lap_completed]
+            ax.scatter([p.injected_ms for p in lost], [p.position_deviation_mae_m for p in lost], marker="X", s=70,
+                       color=colours[r.strategy], edgecolors="crimson", linewidths=1.0, zorder=3)
+        ax.set(title=f"{place} · {target}", xlabel="Injected latency (ms)",
+               ylabel="Position deviation MAE (m), lower is better")
+        ax.grid(alpha=0.3)
+    lost_handle = Line2D([], [], ls="", marker="X", color="0.6", markeredgecolor="crimson", markersize=9,
+                         label="lap not completed")
+    _legend_and_title(figure, _identity_handles(data, rows) + [lost_handle],
+                      "Latency tolerance: deviation as latency is added to each brain's own")
+    return figure
+
+
 def draw_training(data: ReportData) -> Figure | None:
     histories = {model: points for model, points in data.histories.items() if points}
     if not histories:
@@ -228,6 +256,7 @@ PLOTS: dict[str, Callable[[ReportData], Figure | None]] = {
     "pareto": draw_pareto,
     "ratios": draw_ratios,
     "closed_loop": draw_closed_loop,
+    "latency_tolerance": draw_latency_tolerance,
     "training": draw_training,
 }
 CAPTIONS = {
@@ -236,5 +265,7 @@ CAPTIONS = {
     "ratios": "Size reduction and speed-up of each strategy against the baseline (no bar where a timing was "
               "unstable or the strategy not applicable).",
     "closed_loop": "Closed-loop laps: average speed against position deviation; a cross marks a lost lap.",
+    "latency_tolerance": "Latency tolerance: each lap cell driven again with more latency injected; position "
+                         "deviation against the injected latency, a cross marks a lost lap.",
     "training": "Training and validation loss per epoch for each model.",
 }

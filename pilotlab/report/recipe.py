@@ -125,6 +125,10 @@ def row_from_result(result: dict[str, Any], artifacts: Path) -> dict[str, Any]:
         row["unstable"] = unstable
     if value.get("trajectory"):
         row["trajectory"] = str(artifacts / value["trajectory"])
+    if value.get("latency_source"):
+        row["latency_source"] = value["latency_source"]
+    if value.get("tolerance_laps"):
+        row |= {"tolerance": value["tolerance_laps"], "tolerance_at_least": bool(value.get("tolerance_at_least"))}
     return row
 
 

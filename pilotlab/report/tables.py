@@ -194,9 +194,39 @@ def online_cells(row: ReportRow, _baseline: ReportRow | None) -> tuple[Cell, ...
     return (lap_cell(row),) + tuple(metric_cell(row, name) for _, name in ONLINE_COLUMNS)
 
 
+TOLERANCE_HEADER = "Latency tolerance (ms)"
+# BehaviorMetrics' own figures (pilotlab/columns.py BEHAVIORMETRICS), shown where the laps have them
+BM_ONLINE_COLUMNS = (("BM deviation MAE (1000^d)", "bm_position_deviation_mae"),
+                     ("BM completed (%)", "bm_percentage_completed"))
+
+
+def tolerance_cell(row: ReportRow) -> Cell:
+    """The largest injected latency at which the lap is still completed: `140`, `≥ 1000` (never lost
+    in the searched range) or `lost at 0` (lost with nothing injected)."""
+    value, title = row.get("latency_tolerance_ms"), "latency_tolerance_ms: " + BY_NAME["latency_tolerance_ms"].doc
+    if value is None:
+        lost = row.status == "ok" and row.tolerance and not row.tolerance[0].lap_completed
+        return Cell("lost at 0", -1.0, title) if lost else Cell(MISSING, None, title + ": not searched", missing=True)
+    return Cell(("≥ " if row.tolerance_at_least else "") + f"{value:.0f}", float(value), title)
+
+
+def online_layout(data: ReportData) -> tuple[tuple[str, ...], Callable]:
+    """The simulation tables' headers and cells: ours, then BehaviorMetrics' figures and the latency
+    tolerance where some lap has them."""
+    rows = data.of_kind("online")
+    bm = [(header, name) for header, name in BM_ONLINE_COLUMNS if any(row.get(name) is not None for row in rows)]
+    tolerance = any(row.tolerance for row in rows)
+
+    def cells(row: ReportRow, baseline: ReportRow | None) -> tuple[Cell, ...]:
+        extra = tuple(metric_cell(row, name) for _, name in bm) + ((tolerance_cell(row),) if tolerance else ())
+        return online_cells(row, baseline) + extra
+    return ONLINE_HEADERS + tuple(header for header, _ in bm) + ((TOLERANCE_HEADER,) if tolerance else ()), cells
+
+
 def build_tables(data: ReportData, kind: str) -> list[Table]:
-    """One table per (hardware, test set) offline or (hardware, circuit and direction) online."""
-    headers, cells_of = (OFFLINE_HEADERS, offline_cells) if kind == "offline" else (ONLINE_HEADERS, online_cells)
+    """One table per (hardware, test set) offline or (hardware, circuit and direction) online; the
+    simulation tables get BehaviorMetrics' figures and a latency tolerance column where laps have them."""
+    headers, cells_of = (OFFLINE_HEADERS, offline_cells) if kind == "offline" else online_layout(data)
     groups: dict[tuple[str, str], list[ReportRow]] = {}
     for row in data.of_kind(kind):
         groups.setdefault((row.hardware, row.place), []).append(row)
@@ -216,7 +246,8 @@ def _table(data: ReportData, kind: str, hardware: str, place: str, rows: list[Re
         return Table(title, kind, hardware, place, headers, (), (note,))
     baselines = {r.model: r for r in rows if r.strategy == data.baseline and r.status == "ok"}
     notes = tuple(f"No usable {data.baseline!r} row for {model} here: ratios are not shown."
-                  for model in _unique(r.model for r in rows) if model not in baselines) if kind == "offline" else ()
+                  for model in _unique(r.model for r in rows) if model not in baselines) if kind == "offline" else \
+        _latency_notes(rows)
     table_rows = tuple(TableRow(method_label(r, data), r, cells_of(r, baselines.get(r.model)), _note(r)) for r in rows)
     if kind != "offline":
         return Table(title, kind, hardware, place, headers, table_rows, notes)
@@ -264,6 +295,13 @@ def _extent(rows: list[ReportRow], name: str) -> str:
         return "the"
     low, high = min(values), max(values)
     return f"{low:,}" if low == high else f"{low:,}–{high:,}"
+
+
+def _latency_notes(rows: list[ReportRow]) -> tuple[str, ...]:
+    """Where the laps' latencies came from, when they were replayed (one line per source)."""
+    sources = _unique(r.latency_source for r in rows if r.status == "ok" and r.latency_source
+                      and not r.latency_source.startswith("none"))
+    return tuple(f"Latencies replayed from the {source}." for source in sources)
 
 
 def _all_alike_and_not_measured(rows: list[ReportRow]) -> bool:

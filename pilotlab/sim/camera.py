@@ -99,7 +99,9 @@ def camera_pose(spec: CameraSpec, position, quaternion, axle_height: float) -> t
     pitch = math.radians(spec.pitch_deg)
     forward = car @ np.array([math.cos(pitch), 0.0, -math.sin(pitch)])
     down = car @ np.array([-math.sin(pitch), 0.0, -math.cos(pitch)])
-    right = np.cross(down, forward)
+    # np.cross's arithmetic, without its per-call overhead (the camera moves every step)
+    right = np.array([down[1] * forward[2] - down[2] * forward[1], down[2] * forward[0] - down[0] * forward[2],
+                      down[0] * forward[1] - down[1] * forward[0]])
     return eye, np.stack([right, down, forward])
 
 
@@ -110,13 +112,42 @@ def quaternion_matrix(q) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def sky_polygon(spec: CameraSpec, rotation: np.ndarray) -> np.ndarray:
+@dataclass(frozen=True)
+class PixelGrid:
+    """Which points of the full frame an image samples: its pixel (j, k), of `width` × `height`, looks
+    at the full frame's pixel coordinates (scale·j + u0, scale·k + v0). A renderer given a grid draws
+    only those samples: a crop of the full frame (scale 1), or one sample per scale×scale block of it."""
+    width: int
+    height: int
+    scale: float = 1.0
+    u0: float = 0.0
+    v0: float = 0.0
+
+    @classmethod
+    def full(cls, spec: CameraSpec) -> PixelGrid:
+        return cls(spec.width, spec.height)
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.width, self.height
+
+    def intrinsics(self, spec: CameraSpec) -> np.ndarray:
+        """K of these samples: the full frame's K followed by full-frame pixels -> grid pixels."""
+        to_grid = np.array([[1 / self.scale, 0.0, -self.u0 / self.scale],
+                            [0.0, 1 / self.scale, -self.v0 / self.scale], [0.0, 0.0, 1.0]])
+        return to_grid @ spec.intrinsics()
+
+
+def sky_polygon(spec: CameraSpec, rotation: np.ndarray, intrinsics_inverse: np.ndarray | None = None,
+                size: tuple[int, int] | None = None) -> np.ndarray:
     """The part of the image whose rays point at or above the horizon, as a polygon in pixels
-    (empty when the camera sees only ground)."""
+    (empty when the camera sees only ground). `intrinsics_inverse` and `size` describe the image when it
+    is not the spec's own (a PixelGrid's); passing the inverse also saves inverting K every frame."""
+    inverse = np.linalg.inv(spec.intrinsics()) if intrinsics_inverse is None else intrinsics_inverse
+    width, height = size or spec.size
     # The world z of the ray through pixel (u, v) is linear in (u, v, 1).
-    a, b, c = (rotation.T @ np.linalg.inv(spec.intrinsics()))[2]
-    corners = [(-0.5, -0.5), (spec.width - 0.5, -0.5), (spec.width - 0.5, spec.height - 0.5),
-               (-0.5, spec.height - 0.5)]
+    a, b, c = (rotation.T @ inverse)[2]
+    corners = [(-0.5, -0.5), (width - 0.5, -0.5), (width - 0.5, height - 0.5), (-0.5, height - 0.5)]
     kept = []
     for (u0, v0), (u1, v1) in zip(corners, corners[1:] + corners[:1]):
         h0, h1 = a * u0 + b * v0 + c, a * u1 + b * v1 + c

@@ -163,9 +163,10 @@ class Car:
         clip = spec.max_steer
         return max(-clip, min(clip, left)), max(-clip, min(clip, right))
 
-    def apply(self, v: float, w: float) -> None:
+    def apply(self, v: float, w: float, speed: float | None = None) -> None:
         """Set the command in force until the next one: steering targets and wheel speeds. The rear
-        wheels drive (and brake); the front wheels roll freely, and brake too when the car must slow."""
+        wheels drive (and brake); the front wheels roll freely, and brake too when the car must slow.
+        `speed`: the forward speed now, when the caller has just read it (saves reading it again)."""
         spec, client, body = self.spec, self.client, self.body
         (v_min, v_max), _ = spec.command_bounds
         v = max(v_min, min(v_max, float(v)))
@@ -178,7 +179,7 @@ class Car:
             wheel_speed = (v + side * w * spec.track / 2) / spec.wheel_radius
             p.setJointMotorControl2(body, joint, p.VELOCITY_CONTROL, targetVelocity=wheel_speed,
                                     force=spec.drive_torque, physicsClientId=client)
-        braking = abs(v) < abs(self.state()[2]) - 0.2
+        braking = abs(v) < abs(self.state()[2] if speed is None else speed) - 0.2
         for joint in self.free:
             p.setJointMotorControl2(body, joint, p.VELOCITY_CONTROL, targetVelocity=v / spec.wheel_radius,
                                     force=spec.brake_torque if braking else 0.0, physicsClientId=client)

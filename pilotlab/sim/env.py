@@ -14,10 +14,15 @@ Spaces (`pilotlab.sim.observation`): the observation is the camera image (uint8 
 camera it is the state. The action is (v, w) in m/s and rad/s within the car's limits
 (`actions="normalized"`: the same range mapped onto [-1, 1]²).
 
+With `view` (a `pilotlab.data.preprocess.PreprocessConfig`), the image is not the camera's but what
+that preprocessing makes of it, rendered directly (pilotlab.sim.view: the network's input at a
+fraction of the cost); `info["view"]` is then that config, so a brain knows what it was given, and
+`camera_image()` still renders the camera's full image (videos, stills).
+
 `step` keeps Gymnasium's signature (`step(action)`) and adds two keyword arguments: `duration`, the
 simulated seconds this command stays in force (default: `env.control_period`, 0.05 s = 20 Hz;
-pilotlab's "latency" timing mode passes max(control period, inference time) here, so a slow brain
-reacts late), and `render=False` to skip the camera (obs is then None: for callers that only advance
+pilotlab's "replay" and "measured" timing modes pass max(control period, inference time) here, so a
+slow brain reacts late), and `render=False` to skip the camera (obs is then None: for callers that only advance
 time). Time advances in physics steps (1/120 s): a duration is rounded to the nearest step, at least
 one; `info["sim_time"]` is exact. `timing="latency"` does the same inside `step` for agents that
 call plain `step(action)`: the wall-clock time since the last observation was returned (or
@@ -85,6 +90,7 @@ INFO_KEYS = {
     "termination": "None, or why the episode ended: lap_completed | off_road | trapped | timeout",
     "circuit": "circuit name", "direction": "cw | ccw", "circuit_length": "metres",
     "road_width": "metres",
+    "view": "the PreprocessConfig the image was rendered for (None: the camera image itself)",
 }
 
 
@@ -107,15 +113,18 @@ class DrivingEnv(gymnasium.Env):
                  car: CarSpec = CarSpec(), laps: float = 1, timeout_s: float | None = None,
                  stop_off_road: bool = True, trapped_s: float = 10.0, start: float | str = 0.0,
                  observation: str | None = None, actions: str = "physical", render_mode: str | None = None,
-                 timing: str = "lockstep", extra_latency_ms: float = 0.0, fixed_inference_ms: float | None = None):
+                 timing: str = "lockstep", extra_latency_ms: float = 0.0, fixed_inference_ms: float | None = None,
+                 view=None):
         self.camera, self.renderer_name = camera, check_renderer(renderer, walls)
+        self.view = view if camera is not None else None
         self.physics_hz, self.walls, self.car_spec = physics_hz, walls, car
         self.stop_off_road, self.trapped_s = stop_off_road, trapped_s
         self._defaults = {"circuit": circuit, "direction": check_direction(direction), "laps": laps,
                           "timeout_s": timeout_s, "control_period": control_period, "start": start}
         self.control_period = control_period
         self.observation = check_observation(observation or ("image" if camera else "state"), camera)
-        self.observation_space = observation_space(self.observation, camera)
+        self.observation_space = observation_space(self.observation, camera if self.view is None else
+                                                   CameraSpec(width=self.view.width, height=self.view.height))
         self.actions = ActionSpace(car, actions)
         self.action_space = self.actions.space
         self.render_mode = _check_render_mode(render_mode)
@@ -125,6 +134,7 @@ class DrivingEnv(gymnasium.Env):
         self.world: World | None = None
         self.car: Car | None = None
         self._renderer = self._view = None
+        self._camera_renderer = None   # with a `view`: the camera's full image (camera_image)
         self.circuit = self._load_circuit(circuit, direction)
 
     # -- Gymnasium API ----------------------------------------------------------------------
@@ -151,7 +161,7 @@ class DrivingEnv(gymnasium.Env):
         before = self._progress
         segments = self._schedule(command, duration)
         for segment_command, steps in segments:
-            self.car.apply(*segment_command)
+            self.car.apply(*segment_command, speed=self._state[2])  # read after the last physics step
             self._advance(steps)
         self._steps += 1
         self._last_dt = sum(steps for _, steps in segments) / self.physics_hz
@@ -195,14 +205,19 @@ class DrivingEnv(gymnasium.Env):
             self.close()
             meshes = self.camera is not None and self.renderer_name == "pybullet"
             self.world = World(canonical, walls=self.walls, physics_hz=self.physics_hz, road_meshes=meshes)
-            self._renderer = self._make_renderer(canonical)
+            self._renderer, self._camera_renderer = self._make_renderer(canonical, self.view), None
         elif self.car is not None:
             self.world.remove(self.car.body)  # a fresh car: nothing of the last episode carries over
         self.car = None
 
-    def _make_renderer(self, canonical: Circuit):
+    def _make_renderer(self, canonical: Circuit, view):
         if self.camera is None:
             return None
+        if view is not None:  # imported here: the views need preprocessing (and torch)
+            from pilotlab.sim.view import GroundView, PreprocessedView
+            if self.renderer_name == "ground":
+                return GroundView(canonical, self.camera, view)
+            return PreprocessedView(PybulletRenderer(self.world.client, self.camera), view)
         if self.renderer_name == "pybullet":
             return PybulletRenderer(self.world.client, self.camera)
         return GroundRenderer(canonical, self.camera)
@@ -291,12 +306,25 @@ class DrivingEnv(gymnasium.Env):
         return {"image": image, "state": state_vector(info, self.circuit)}
 
     def _camera_image(self) -> np.ndarray | None:
-        if self._renderer is None or self.car is None:
+        """The image the observation holds: the camera's, or with a `view` its preprocessed frame."""
+        self._image = self._render_with(self._renderer)
+        return self._image
+
+    def camera_image(self) -> np.ndarray | None:
+        """The camera's full image now, even with a `view` (videos and stills of a run; None without a
+        camera)."""
+        if self.view is None:
+            return self._camera_image()
+        if self._camera_renderer is None and self.world is not None:
+            self._camera_renderer = self._make_renderer(self.circuit.directed("cw"), None)
+        return self._render_with(self._camera_renderer)
+
+    def _render_with(self, renderer) -> np.ndarray | None:
+        if renderer is None or self.car is None:
             return None
         position, orientation = self._state[:2]
         eye, rotation = camera_pose(self.camera, position, orientation, self.car_spec.wheel_radius)
-        self._image = self._renderer.render(eye, rotation)
-        return self._image
+        return renderer.render(eye, rotation)
 
     def _top_down(self) -> np.ndarray:
         if self.car is None:
@@ -323,7 +351,7 @@ class DrivingEnv(gymnasium.Env):
             "distance_to_line": projection.distance,
             "heading_error": float(wrap_angle(yaw - projection.heading)), "off_road": self._off_road(),
             "termination": self._termination_reason, "circuit": circuit.name, "direction": circuit.direction,
-            "circuit_length": circuit.length, "road_width": circuit.road_width,
+            "circuit_length": circuit.length, "road_width": circuit.road_width, "view": self.view,
         }
 
 

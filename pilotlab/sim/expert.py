@@ -57,6 +57,14 @@ def speed_profile(circuit: Circuit, config: ExpertConfig) -> np.ndarray:
     return speed
 
 
+def periodic_table(xp: np.ndarray, fp: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
+    """The padded table np.interp(..., period=period) builds on every call."""
+    xp = np.asarray(xp, np.float64) % period
+    order = np.argsort(xp)
+    xp, fp = xp[order], np.asarray(fp, np.float64)[order]
+    return np.concatenate((xp[-1:] - period, xp, xp[0:1] + period)), np.concatenate((fp[-1:], fp, fp[0:1]))
+
+
 class Expert:
     """(v, w) from the ground truth in the env's info dict."""
 
@@ -64,9 +72,12 @@ class Expert:
         self.circuit, self.config = circuit, config
         self.profile, self.bend = speed_profile(circuit, config), bend(circuit)
         self._spacing = circuit.length / len(circuit.points)
+        self._profile_xp, self._profile_fp = periodic_table(circuit.arc, self.profile, circuit.length)
 
     def target_speed(self, s: float) -> float:
-        return float(np.interp(s % self.circuit.length, self.circuit.arc, self.profile, period=self.circuit.length))
+        # np.interp(s % length, arc, profile, period=length), its periodic table built once, not per call
+        length = self.circuit.length
+        return float(np.interp((s % length) % length, self._profile_xp, self._profile_fp))
 
     def act(self, info: dict[str, Any]) -> tuple[float, float]:
         """The command for this state: pure pursuit on the red line."""

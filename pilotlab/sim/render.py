@@ -17,7 +17,7 @@ import numpy as np
 from pilotlab.circuits import Circuit
 from pilotlab.errors import PilotlabError
 from pilotlab.sim.bullet import p
-from pilotlab.sim.camera import GROUND, LINE, LINE_WIDTH_M, ROAD, SKY, CameraSpec, sky_polygon
+from pilotlab.sim.camera import GROUND, LINE, LINE_WIDTH_M, ROAD, SKY, CameraSpec, PixelGrid, sky_polygon
 
 RENDERERS = ("pybullet", "ground")
 RASTER_M = 0.05          # ground raster resolution: 5 cm per pixel
@@ -125,36 +125,40 @@ def _paint_line(raster: np.ndarray, points: np.ndarray, half: float, origin: tup
 
 
 def _level_palette() -> np.ndarray:
-    """256 BGR colours for the raster levels, split at the midpoints between grass, road and line.
+    """256 RGB colours for the raster levels, split at the midpoints between grass, road and line.
 
     Bilinear sampling of the 5 cm raster is a ramp across each edge whose midpoint is the true edge,
-    so thresholding there gives sharp edges in the right place (TinyRenderer does not blur either)."""
+    so thresholding there gives sharp edges in the right place (TinyRenderer does not blur either).
+    `cv2.applyColorMap` only looks colours up, so an RGB palette gives RGB pixels (no BGR round trip)."""
     levels = np.arange(256)
     rgb = np.where((levels < (_ROAD_LEVEL + 1) // 2)[:, None], GROUND,
                    np.where((levels < (_ROAD_LEVEL + _LINE_LEVEL + 1) // 2)[:, None], ROAD, LINE))
-    return rgb[:, ::-1].astype(np.uint8).reshape(256, 1, 3)
+    return rgb.astype(np.uint8).reshape(256, 1, 3)
 
 
 class GroundRenderer:
-    """A homography of the circuit's top-down raster onto the image, sky above the horizon."""
+    """A homography of the circuit's top-down raster onto the image, sky above the horizon.
+
+    With a `grid`, it draws only the grid's samples of the full frame (see PixelGrid): the network's
+    view renders one sample per block of the frame that preprocessing would average (pilotlab.sim.view)."""
 
     def __init__(self, circuit: Circuit, spec: CameraSpec, line_width: float = LINE_WIDTH_M,
-                 resolution: float = RASTER_M):
+                 resolution: float = RASTER_M, grid: PixelGrid | None = None):
         self.raster, (x0, y1) = ground_raster(circuit, line_width, resolution)
-        self.spec = spec
-        self._intrinsics = spec.intrinsics()
+        self.spec, self.grid = spec, grid or PixelGrid.full(spec)
+        self._intrinsics = spec.intrinsics() if grid is None else grid.intrinsics(spec)
+        self._inverse = np.linalg.inv(self._intrinsics)
         # raster pixel (col, row, 1) -> world (x, y, 1)
         self._raster_to_world = np.array([[resolution, 0, x0], [0, -resolution, y1], [0, 0, 1]])
         self._palette = _level_palette()
 
     def render(self, eye: np.ndarray, rotation: np.ndarray) -> np.ndarray:
-        spec = self.spec
         ground_to_camera = np.stack([rotation[:, 0], rotation[:, 1], -rotation @ eye], axis=1)
         homography = self._intrinsics @ ground_to_camera @ self._raster_to_world
-        levels = cv2.warpPerspective(self.raster, homography, spec.size, flags=cv2.INTER_LINEAR,
+        levels = cv2.warpPerspective(self.raster, homography, self.grid.size, flags=cv2.INTER_LINEAR,
                                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        image = cv2.cvtColor(cv2.applyColorMap(levels, self._palette), cv2.COLOR_BGR2RGB)
-        fill_polygon(image, sky_polygon(spec, rotation), SKY)
+        image = cv2.applyColorMap(levels, self._palette)
+        fill_polygon(image, sky_polygon(self.spec, rotation, self._inverse, self.grid.size), SKY)
         return image
 
 

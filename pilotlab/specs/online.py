@@ -3,38 +3,46 @@ BehaviorMetrics' metrics. Exclusive (its latency may be measured live) and askin
 when its hardware profile is a CUDA one.
 
 deps: `artifact` (optional): the optimize job whose artifact the network brain runs; without it,
-`brain` names a reference brain. The recipe's `online:` section and `pilotlab drive` share the
-lap settings below.
+`brain` names a reference brain. `timing` (network brains, replay timing): the offline job of the
+same artifact and hardware profile, whose latency samples the lap replays; `scale_reference` (with
+latency_scale_to_ms): the baseline strategy's offline job on the same profile. inputs:
+`latency_file` (optional): a device's latency file, replayed instead (pilotlab.online.latency).
+The recipe's `online:` section and `pilotlab drive` share the lap settings below.
 """
 from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from matrix.kinds import register_kind
 from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, Spec
 from pilotlab.specs.offline import gpu_resources
 
 
+# the timing modes that charge the brain's time to the lap (pilotlab.online.drive explains all four)
+CHARGED = ("replay", "measured")
+
+
 class DriveSettings(Spec):
     """How simulated time advances around the brain (pilotlab.online.drive explains the modes)."""
-    timing: Literal["latency", "lockstep", "realtime"] = Field(
-        "latency", description="latency: each measured inference time passes in simulated time with the previous "
-                               "command in force; lockstep: the world waits for the brain; realtime: simulated "
-                               "time follows the wall clock")
+    timing: Literal["replay", "measured", "lockstep", "realtime"] = Field(
+        "replay", description="replay: each inference time, drawn from latencies measured once (the offline job's, "
+                              "or a device's latency file), passes in simulated time with the previous command in "
+                              "force; measured: the same with this host's wall clock; lockstep: the world waits "
+                              "for the brain; realtime: simulated time follows the wall clock")
     control_hz: float = Field(CONTROL_HZ, gt=0, le=1000, description="brain iterations per simulated second when "
                                                                      "the brain keeps up")
     extra_latency_ms: float = Field(0.0, ge=0, le=60_000, description="artificial latency added to every brain "
                                                                       "iteration (a slower network)")
-    fixed_inference_ms: float | None = Field(None, ge=0, le=60_000, description="latency timing: charge this "
-                                             "instead of the measured brain time (exactly reproducible runs)")
+    fixed_inference_ms: float | None = Field(None, ge=0, le=60_000, description="replay and measured timing: charge "
+                                             "this instead of the brain's time (\"what if it took X ms\")")
 
     @model_validator(mode="after")
-    def _fixed_needs_latency(self):
-        if self.fixed_inference_ms is not None and self.timing != "latency":
-            raise ValueError(f"fixed_inference_ms only means something in the latency timing mode, not "
-                             f"{self.timing!r}")
+    def _fixed_needs_a_charged_mode(self):
+        if self.fixed_inference_ms is not None and self.timing not in CHARGED:
+            raise ValueError(f"fixed_inference_ms only means something in the {' and '.join(CHARGED)} timing "
+                             f"modes, not {self.timing!r}")
         return self
 
     @property
@@ -43,6 +51,23 @@ class DriveSettings(Spec):
 
     @property
     def drive(self) -> DriveSettings:
+        return self
+
+
+class ToleranceSpec(Spec):
+    """The latency tolerance search of a lap cell (pilotlab.online.tolerance)."""
+    fixed_ms: list[float] = Field([0.0, 50.0, 100.0, 200.0], description="injected latencies whose laps' deviation "
+                                                                         "is reported (they also bracket the search)")
+    max_ms: float = Field(1000.0, gt=0, le=60_000, description="the largest injected latency searched")
+    step_ms: float = Field(5.0, gt=0, description="the search's resolution")
+
+    @model_validator(mode="after")
+    def _fixed_on_the_grid(self):
+        if self.max_ms < self.step_ms or any(
+                ms < 0 or ms > self.max_ms or abs(ms / self.step_ms - round(ms / self.step_ms)) > 1e-9
+                for ms in self.fixed_ms):
+            raise ValueError(f"fixed_ms {self.fixed_ms} must be multiples of step_ms ({self.step_ms:g}) between 0 and "
+                             f"max_ms ({self.max_ms:g})")
         return self
 
 
@@ -65,6 +90,15 @@ class LapSettings(DriveSettings):
     video: bool = Field(False, description="write camera.mp4, the first run's camera view")
     video_seconds: float = Field(20.0, gt=0, description="length of that video (simulated seconds)")
     camera_frames: int = Field(4, ge=0, le=1000, description="JPEG stills of the first run's camera view")
+    tolerance: ToleranceSpec | None = Field(None, description="search the largest injected latency at which the lap "
+                                                              "is still completed (true: the default search)")
+    latency_scale_to_ms: float | None = Field(None, gt=0, description="replay: scale every latency by one factor so "
+                                                                      "the baseline's median is this (a slower device)")
+
+    @field_validator("tolerance", mode="before")
+    @classmethod
+    def _true_is_the_default_search(cls, value: Any) -> Any:
+        return {} if value is True else None if value is False else value
 
     @model_validator(mode="after")
     def _one_start_per_run(self):
@@ -100,6 +134,7 @@ class OnlineSpec(LapSettings):
     user_brain: UserBrainSpec | None = Field(None, description="with brain 'user': which class")
     hardware: dict[str, Any] = Field({"name": "cpu"}, description='the profile {"name", "device", "threads"}')
     host: dict[str, Any] | None = Field(None, description="the host the planner expects; another is an error")
+    latency_for: dict[str, str] = Field({}, description='{"model", "strategy"}: the rows of the latency file to replay')
     version: int = 1
 
     @model_validator(mode="after")

@@ -6,15 +6,15 @@ with `apply_strategy(name, options, source)`; the artifact it writes is loaded w
 """
 from matrix.fingerprint import module_closure
 from pilotlab.strategies import (  # noqa: F401  (each module registers its strategies)
-    baseline, cluster, cuda, half, onnx_runtime, prune, prune_quant, pt2e, structured_prune,
-    structured_prune_int8, torchscript,
+    baseline, cluster, cuda, half, litert, onnx_runtime, prune, prune_quant, pt2e,
+    structured_prune, structured_prune_int8, structured_prune_xnnpack, torchscript,
 )
 from pilotlab.strategies.registry import (  # noqa: F401
     STRATEGIES, StrategySource, apply_strategy, make_strategy_config, register_strategy,
 )
 
 SHARED = ("pilotlab.strategies.registry", "pilotlab.strategies.artifact", "pilotlab.strategies.common",
-          "pilotlab.strategies.fold")
+          "pilotlab.strategies.fold", "pilotlab.strategies.edge")
 
 
 def strategy_modules(name: str) -> list[str]:

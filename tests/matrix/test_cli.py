@@ -87,3 +87,33 @@ def test_a_key_prefix_in_capitals_is_found(recipe, tmp_path, capsys):
     cli(capsys, "run", str(recipe), "--store", store)
     key = json.loads(cli(capsys, "plan", str(recipe), "--json", "--store", store)[1])[0]["key"]
     assert cli(capsys, "show", key[:8].upper(), "--store", store)[0] == 0
+
+
+def test_a_large_plan_is_summarised_per_kind_and_all_of_it_is_in_json(tmp_path, capsys):
+    from matrix.display import PLAN_ROWS
+    path = tmp_path / "big.yaml"
+    path.write_text("name: big\nsources:\n  a: {value: 2}\nmatrix:\n  source: [a]\n"
+                    f"  power: [{', '.join(str(p) for p in range(2 * PLAN_ROWS))}]\n")
+    store = str(tmp_path / "s")
+    code, out, _ = cli(capsys, "plan", str(path), "--store", store)
+    total = 2 * PLAN_ROWS + 2   # one source, the powers, one total
+    assert code == 0 and f"the first {PLAN_ROWS} of {total} jobs" in out and "toy plan --all" in out
+    assert sum(line.startswith("new ") for line in out.splitlines()) == PLAN_ROWS
+    kinds = {line.split()[0]: line.split()[1:] for line in out.splitlines()[1:4]}
+    assert kinds == {"source": ["·", "·", "1", "1"], "power": ["·", "·", str(2 * PLAN_ROWS), str(2 * PLAN_ROWS)],
+                     "total": ["·", "·", "1", "1"]}
+    assert sum(line.startswith("new ") for line in cli(capsys, "plan", str(path), "--store", store, "--all")[1].splitlines()) \
+        == total
+    assert len(json.loads(cli(capsys, "plan", str(path), "--store", store, "--json")[1])) == total
+
+
+def test_status_times_sums_job_durations_per_kind(recipe, tmp_path, capsys):
+    store = str(tmp_path / "s")
+    (tmp_path / "slow.yaml").write_text((RECIPE % 3).replace("b: {value: 3}", "b: {value: 3, sleep: 0.5}"))
+    assert cli(capsys, "run", str(tmp_path / "slow.yaml"), "--store", store)[0] == 0
+    code, out, _ = cli(capsys, "status", "--store", store, "--times", "--recipe", "toy")
+    lines = out.splitlines()
+    assert code == 0 and lines[1].split()[:2] == ["source", "2"]   # the slowest kind first
+    assert float(lines[1].split()[2]) >= 0.5 and "source b" in lines[1]
+    assert "recipe toy: 5 jobs" in out
+    assert cli(capsys, "status", "--store", store, "--times", "--recipe", "nope")[0] == 2

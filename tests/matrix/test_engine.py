@@ -198,3 +198,14 @@ def test_what_a_job_prints_at_the_fd_level_goes_to_its_log(tmp_path, capfd):
 def test_executor_settings_that_make_no_sense_are_errors(arguments, message):
     with pytest.raises(MatrixError, match=message):
         engine.Executor(*arguments)
+
+
+def test_a_dependency_under_two_roles_makes_its_dependent_ready_once():
+    from matrix.execute import Schedule
+    shared = Job("source", "shared", {"value": 1})
+    both = Job("source", "both", {"value": 2}, deps={"timing": shared, "reference": shared})
+    schedule = Schedule([shared, both])
+    assert list(schedule.ready) == [shared.key]
+    schedule.ready.popleft()
+    schedule.done(shared.key)
+    assert list(schedule.ready) == [both.key]

@@ -4,7 +4,8 @@
     matrix:   {source: [a, b], power: [2, 3]}
 
 plans one `source` job per source (shared by every power), one `power` job per combination and
-one `total` job over all of them.
+one `total` job over all of them; with `measures: true`, also one exclusive `measure` job per power
+(a timing job: it notes when it ran, as the others do, so tests can check that it ran alone).
 """
 from __future__ import annotations
 
@@ -68,7 +69,16 @@ def run_power(ctx) -> dict[str, Any]:
     value = json.loads((source.artifacts / "value.json").read_text())
     with timed(ctx):
         time.sleep(ctx.params.get("sleep", 0.0))
+    (ctx.out / "power.txt").write_text(f"{value}^{ctx.params['power']}")
     return {"value": value ** ctx.params["power"]}
+
+
+@job_kind("measure", exclusive=True)
+def run_measure(ctx) -> dict[str, Any]:
+    count_execution(ctx)
+    with timed(ctx):
+        time.sleep(ctx.params["sleep"])
+    return {"value": ctx.dep("power").result["value"] + 1}
 
 
 @job_kind("total", exclusive=True)
@@ -84,13 +94,16 @@ def plan(recipe: Recipe) -> list[Job]:
                for name, cfg in recipe.config.sources.items()}
     powers = [Job("power", f"power {c['source']}^{c['power']}", {"power": c["power"], "sleep": recipe.config.sleep},
                   deps={"source": sources[c["source"]]}) for c in recipe.combinations]
+    measures = [Job("measure", f"measure {p.name}", {"sleep": recipe.config.sleep}, deps={"power": p})
+                for p in powers] if recipe.config.measures else []
     total = {"sleep": recipe.config.total_sleep} if recipe.config.total_sleep else {}
-    return powers + [Job("total", "total", total, deps={"parts": tuple(powers)})]
+    return powers + measures + [Job("total", "total", total, deps={"parts": tuple(powers)})]
 
 
 TOY = Domain(
     name="toy",
-    sections={"sources": (dict[str, SourceConfig], ...), "sleep": (float, 0.0), "total_sleep": (float, 0.0)},
+    sections={"sources": (dict[str, SourceConfig], ...), "sleep": (float, 0.0), "total_sleep": (float, 0.0),
+              "measures": (bool, False)},
     axes={"source": lambda config: list(config.sources), "power": lambda config: None},
     plan=plan,
     kind_modules=("tests.matrix.toydomain",),

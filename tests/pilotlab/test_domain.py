@@ -133,3 +133,43 @@ def test_shipped_recipes_plan(tmp_path):
     for recipe in sorted(Path(__file__).resolve().parents[2].glob("recipes/*.yaml")):
         jobs = engine.plan_jobs(load_recipe(recipe, DOMAIN), DOMAIN)
         assert jobs and {"train", "optimize", "offline", "online"} <= set(kinds(jobs))
+
+
+def network_laps(jobs):
+    return [job for job in jobs if job.kind == "online" and job.params.get("brain") == "network"]
+
+
+def test_network_laps_replay_their_offline_jobs_latencies(tmp_path):
+    jobs = engine.plan_jobs(recipe_at(tmp_path), DOMAIN)
+    offline = {(j.labels["model"], j.labels["strategy"], j.labels["hardware"]): j for j in jobs if j.kind == "offline"}
+    for lap in network_laps(jobs):
+        assert lap.params["timing"] == "replay" and lap.params["tolerance"] is None
+        cell = (lap.labels["model"], lap.labels["strategy"], lap.labels["hardware"])
+        assert lap.deps["timing"].key == offline[cell].key and "scale_reference" not in lap.deps
+
+
+def test_scaled_latencies_and_the_tolerance_search(tmp_path):
+    text = RECIPE + "online: {latency_scale_to_ms: 124, tolerance: true}\n"
+    jobs = engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
+    offline = {(j.labels["model"], j.labels["strategy"], j.labels["hardware"]): j for j in jobs if j.kind == "offline"}
+    for lap in network_laps(jobs):
+        assert lap.params["latency_scale_to_ms"] == 124
+        assert lap.params["tolerance"] == {"fixed_ms": [0.0, 50.0, 100.0, 200.0], "max_ms": 1000.0, "step_ms": 5.0}
+        base = (lap.labels["model"], "baseline", lap.labels["hardware"])
+        assert lap.deps["scale_reference"].key == offline[base].key
+    references = [job for job in jobs if job.kind == "online" and job.params["brain"] != "network"]
+    assert references and all(job.params["tolerance"] is not None and not job.deps for job in references)
+
+
+def test_a_hardware_latency_file_is_replayed_instead_of_this_hosts_timings(tmp_path):
+    (tmp_path / "timings").mkdir()
+    (tmp_path / "timings" / "jetson.csv").write_text("model,strategy,latency_ms\n,,25\n")
+    text = RECIPE.replace("hardware: [cpu, cpu1]", "hardware: [jetson]").replace(
+        "matrix:", "hardware:\n  jetson: {threads: 1, latency_file: timings/jetson.csv}\nmatrix:")
+    jobs = engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
+    for lap in network_laps(jobs):
+        assert "timing" not in lap.deps and "latency_file" in lap.inputs
+        assert lap.params["latency_for"] == {"model": lap.labels["model"], "strategy": lap.labels["strategy"]}
+    missing = text.replace("timings/jetson.csv", "timings/nano.csv")
+    with pytest.raises(RecipeError, match="nano.csv does not exist"):
+        engine.plan_jobs(recipe_at(tmp_path, missing), DOMAIN)

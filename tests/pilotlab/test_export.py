@@ -100,3 +100,24 @@ def test_the_readme_says_predict_is_normalised_and_how_to_get_v_and_w(store, tmp
     (v_lo, v_hi), (w_lo, w_hi) = predictor.meta.labels["v"], predictor.meta.labels["w"]
     assert v == pytest.approx(vw[0, 0] * (v_hi - v_lo) + v_lo, rel=1e-5)
     assert w == pytest.approx(vw[0, 1] * (w_hi - w_lo) + w_lo, rel=1e-5)
+
+
+@pytest.mark.parametrize("strategy", ["litert_full_int8", "litert_int8"])
+def test_the_readme_runs_an_edge_artifact_with_its_runtime_alone(trained, frames, tmp_path, monkeypatch, strategy):
+    """The README's own "Load and run" code (the LiteRT interpreter, no pilotlab, no TensorFlow)
+    gives what pilotlab's predictor gives: for the integer-only model that includes (de)quantizing."""
+    from matrix.kinds import NotApplicable
+    from pilotlab.export import readme
+    try:
+        value = apply_strategy(strategy, {"calibration_frames": 16},
+                               StrategySource(trained / "model.pt", tmp_path / "a", (frames,)))
+    except NotApplicable as reason:
+        pytest.skip(str(reason))
+    out = export_artifact(tmp_path / "a", value, tmp_path / "deploy")
+    text = (out / "README.md").read_text()
+    code = text.split("## Load and run")[1].split("```python")[1].split("```")[0]
+    images = np.random.default_rng(0).random((20, 3, 66, 200), dtype=np.float32)
+    namespace = {"images": images}
+    monkeypatch.chdir(out)              # the README names the model file relative to its folder
+    exec(code, namespace)               # the README's own code, as a user would paste it
+    np.testing.assert_allclose(namespace["vw"], load_predictor(out, "cpu1").predict(images), atol=1e-6)

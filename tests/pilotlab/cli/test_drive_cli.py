@@ -37,3 +37,14 @@ def test_drive_refuses_a_used_out_path_and_meaningless_numbers_before_starting(t
         assert main(base + extra) == 2
         assert message in capsys.readouterr().err
     assert not (tmp_path / "a").exists()
+
+
+def test_drive_replays_a_latency_file(tmp_path):
+    timings = tmp_path / "device.csv"
+    timings.write_text("strategy,latency_ms\nexpert,120\n,,3\n")
+    out = tmp_path / "run"
+    assert main(["drive", "--brain", "expert", "--circuit", "simple_circuit", "--timeout", "2", "--hardware", "cpu1",
+                 "--latency-file", str(timings), "--out", str(out)]) == 0
+    result = json.loads((out / "result.json").read_text())
+    assert result["timing"] == "replay" and result["mean_inference_ms"] == 120.0
+    assert result["brain_frequency_sim_hz"] < 9.0

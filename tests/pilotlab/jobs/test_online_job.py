@@ -2,11 +2,13 @@
 them: an optimized artifact's brain, the reference brains, the files, and the report row it feeds."""
 import json
 
+import numpy as np
+
 import pytest
 
 import pilotlab.jobs.online  # noqa: F401  (registers the kind)
 from matrix.kinds import KINDS, DepResult, NotApplicable
-from pilotlab.columns import ONLINE
+from pilotlab.columns import BEHAVIORMETRICS, ONLINE
 from pilotlab.errors import PilotlabError
 from pilotlab.hardware import host_fingerprint
 from pilotlab.online.trajectory import load_npz
@@ -38,12 +40,13 @@ def test_an_artifact_drives_from_two_start_points(tmp_path, artifact_dep):
     result = KINDS.get("online").handler(ctx)
     json.dumps(result)
     assert result["strategy"] == "baseline" and result["brain"] == "baseline" and result["repetitions"] == 2
-    assert result["hardware"] == {"name": "cpu1", "device": "cpu", "threads": 1} and result["timing"] == "latency"
+    assert result["hardware"] == {"name": "cpu1", "device": "cpu", "threads": 1} and result["timing"] == "replay"
     starts = [run["start_m"] for run in result["runs"]]
     assert starts[0] == 0.0 and starts[1] == pytest.approx(result["circuit_length_m"] / 2, abs=1e-3)
     measured = set(pick_metrics(result))
     assert {"completed_distance_m", "position_deviation_mae_m", "brain_frequency_sim_hz", "mean_inference_ms",
-            "real_time_factor", "off_road_events"} <= measured <= {c.name for c in ONLINE}
+            "real_time_factor", "off_road_events", "bm_percentage_completed", "bm_position_deviation_mae",
+            "bm_suddenness"} <= measured <= {c.name for c in ONLINE + BEHAVIORMETRICS}
     assert result["mean_inference_ms"] == pytest.approx(5.0) and result["measured_inference_ms"] > 0
     assert result["spread"]["completed_distance_m"]["runs"] == 2
     assert (ctx.out / result["trajectory"]).stat().st_size > 10_000
@@ -55,6 +58,25 @@ def test_an_artifact_drives_from_two_start_points(tmp_path, artifact_dep):
                                     "kind": "online", "circuit": result["circuit"], **pick_metrics(result),
                                     "trajectory": ctx.out / result["trajectory"]})
     assert row.get("mean_inference_ms") == pytest.approx(5.0)
+
+
+def test_a_network_lap_replays_the_offline_jobs_latency_scaled_and_searches_its_tolerance(tmp_path, artifact_dep):
+    timed = tmp_path / "offline"
+    timed.mkdir()
+    np.save(timed / "latency_ms.npy", np.array([3.0, 4.0, 5.0]))
+    np.save(timed / "base.npy", np.array([2.0]))
+    offline = DepResult(key="offline-key", kind="offline", params={}, result={"latency_samples": "latency_ms.npy"},
+                        artifacts=timed, name="offline:baseline")
+    base = DepResult(key="offline-base", kind="offline", params={}, result={"latency_samples": "base.npy"},
+                     artifacts=timed, name="offline:baseline")
+    _, result = run(tmp_path, "online-replay", {**SHORT, "latency_scale_to_ms": 20.0,
+                                                "tolerance": {"fixed_ms": [0, 50], "max_ms": 100, "step_ms": 25}},
+                    deps={"artifact": artifact_dep, "timing": offline, "scale_reference": base})
+    assert result["latency_source"] == "offline timing job, scaled ×10 so that baseline takes 20 ms"
+    assert result["latency_scale"] == 10.0 and result["replayed_latency_ms"] == 40.0
+    assert result["bm_mean_inference_ms"] is None or 30.0 <= result["bm_mean_inference_ms"] <= 50.0
+    assert {lap["injected_ms"] for lap in result["tolerance_laps"]} >= {0.0}
+    assert "latency_tolerance_ms" in result and result["tolerance_fixed_ms"] == [0.0, 50.0]
 
 
 def test_reference_brains_with_video_and_stills(tmp_path):
@@ -94,7 +116,8 @@ def test_the_kind_runs_alone_and_asks_for_a_gpu_only_for_cuda():
     ({"circuit": "simple_circuit", "brain": "expert", "starts": [0.0, 10.0], "repetitions": 3}, False,
      "starts lists 2 point.s. but repetitions is 3"),
     ({"circuit": "simple_circuit", "brain": "expert", "timing": "lockstep", "fixed_inference_ms": 3}, False,
-     "only means something in the latency timing mode"),
+     "only means something in the replay and measured timing modes"),
+    ({"circuit": "simple_circuit", "timeout_s": 1.0}, True, "needs the offline timing job"),
     ({"circuit": "simple_circut", "brain": "expert"}, False, "did you mean 'simple_circuit'"),
 ])
 def test_params_are_checked(tmp_path, artifact_dep, params, deps, message):

@@ -99,3 +99,23 @@ def test_reference_brains_are_a_registry_with_checked_options():
         make_reference_brain("explicit", {"max_speed": "fast"})
     with pytest.raises(UnknownNameError, match="did you mean 'expert'"):
         make_reference_brain("expret")
+
+
+def test_in_the_loop_the_network_is_given_its_view_and_uses_it_as_is(pilotnet_artifact, tmp_path):
+    from pilotlab.online.evaluate import OnlineSpec, make_env, run_all
+    brain = NetworkBrain(load_predictor(pilotnet_artifact, "cpu1"))
+    spec = OnlineSpec(circuit="simple_circuit", timeout_s=0.5, timing="measured")
+    with make_env(spec, camera=True, view=brain.view) as env:
+        frame, info = env.reset(seed=0)
+    assert frame.shape == (66, 200, 3) and info["view"] == brain.config
+    np.testing.assert_array_equal(brain.inputs(frame, 0.0, info["view"])[0],
+                                  np.transpose(frame, (2, 0, 1)).astype(np.float32) / 255)
+    # A camera image of another size is preprocessed, not taken for the frame.
+    full = camera_images(1)[0]
+    brain.reset(None)
+    np.testing.assert_array_equal(brain.inputs(full, 0.0, None), brain.inputs(full, 0.0, PreprocessConfig(width=8)))
+    # The lap's stills are the full camera image, while the network is given its view.
+    trajectories, media, _ = run_all(brain, spec, tmp_path)
+    assert trajectories[0].meta["termination"] == "timeout" and media["camera_frames"]
+    import cv2
+    assert cv2.imread(str(tmp_path / media["camera_frames"][0])).shape == (480, 640, 3)

@@ -31,13 +31,14 @@ class Constant:
         return self.command
 
 
-def expert_run(circuit="simple_circuit", timeout_s=4.0, **settings):
+def expert_run(circuit="simple_circuit", timeout_s=4.0, latency_ms=None, seed=0, **settings):
     with DrivingEnv(circuit, camera=None, timeout_s=timeout_s) as env:
-        return drive(env, make_reference_brain("expert"), DriveSettings(**settings))
+        return drive(env, make_reference_brain("expert"), DriveSettings(**settings), latency_ms=latency_ms, seed=seed)
 
 
-def test_latency_mode_with_a_fixed_inference_time_is_reproducible():
-    first, second = (expert_run(fixed_inference_ms=20.0) for _ in range(2))
+@pytest.mark.parametrize("timing", ["replay", "measured"])
+def test_a_fixed_inference_time_is_reproducible(timing):
+    first, second = (expert_run(timing=timing, fixed_inference_ms=20.0) for _ in range(2))
     for column in STATE:
         np.testing.assert_array_equal(getattr(first, column), getattr(second, column))
     assert first.termination == "timeout" and first.t[-1] == pytest.approx(4.0)
@@ -45,7 +46,7 @@ def test_latency_mode_with_a_fixed_inference_time_is_reproducible():
 
 @pytest.mark.parametrize("inference_ms, iteration_s, charged_s", [(0.0, 0.05, 0.0), (30.0, 0.05, 4 / 120),
                                                                     (120.0, 15 / 120, 15 / 120)])
-def test_latency_mode_charges_max_of_period_and_inference_time(inference_ms, iteration_s, charged_s):
+def test_replay_charges_max_of_period_and_inference_time(inference_ms, iteration_s, charged_s):
     trajectory = expert_run(timeout_s=2.0, fixed_inference_ms=inference_ms)
     decisions = trajectory.decisions
     np.testing.assert_allclose(np.diff(trajectory.t)[:-1], iteration_s)     # (the last may be cut by the timeout)
@@ -55,7 +56,7 @@ def test_latency_mode_charges_max_of_period_and_inference_time(inference_ms, ite
 
 
 def test_extra_latency_is_added_to_the_measured_time():
-    trajectory = expert_run(timeout_s=1.0, extra_latency_ms=100.0)
+    trajectory = expert_run(timing="measured", timeout_s=1.0, extra_latency_ms=100.0)
     decisions = trajectory.decisions
     assert np.all(trajectory.charged_s[decisions] >= 0.1) and np.all(trajectory.inference_s[decisions] >= 0.1)
     assert run_metrics(trajectory)["brain_frequency_sim_hz"] <= 10.0
@@ -89,10 +90,12 @@ def test_realtime_follows_the_wall_clock_and_the_world_moves_on_while_the_brain_
     assert np.all(trajectory.charged_s[trajectory.decisions][:-1] >= 0.09)
 
 
-def test_fixed_inference_time_belongs_to_the_latency_mode():
-    with pytest.raises(pydantic.ValidationError, match="fixed_inference_ms only means something in the latency"):
+def test_fixed_inference_time_belongs_to_the_modes_that_charge_the_brain():
+    with pytest.raises(pydantic.ValidationError, match="fixed_inference_ms only means something in the replay and "
+                                                       "measured"):
         DriveSettings(timing="realtime", fixed_inference_ms=5.0)
-    with pytest.raises(pydantic.ValidationError, match="Input should be 'latency', 'lockstep' or 'realtime'"):
+    with pytest.raises(pydantic.ValidationError, match="Input should be 'replay', 'measured', 'lockstep' or "
+                                                       "'realtime'"):
         DriveSettings(timing="lazy")
 
 
@@ -100,7 +103,7 @@ def test_the_explicit_brain_drives_a_stretch_from_the_camera_image():
     frames = []
     with DrivingEnv("simple_circuit", camera=CameraSpec(width=320, height=240), renderer="ground",
                     timeout_s=10.0) as env:
-        trajectory = drive(env, make_reference_brain("explicit"), DriveSettings(),
+        trajectory = drive(env, make_reference_brain("explicit"), DriveSettings(timing="measured"),
                            on_frame=lambda image, info, command: frames.append((image.shape, command)))
     metrics = run_metrics(trajectory)
     assert trajectory.termination == "timeout" and metrics["off_road_events"] == 0
@@ -111,7 +114,7 @@ def test_the_explicit_brain_drives_a_stretch_from_the_camera_image():
 
 def test_a_run_stops_when_the_car_leaves_the_road():
     with DrivingEnv("simple_circuit", camera=None, timeout_s=20.0) as env:
-        trajectory = drive(env, Constant(6.0, 0.8), DriveSettings())
+        trajectory = drive(env, Constant(6.0, 0.8), DriveSettings(timing="measured"))
     metrics = run_metrics(trajectory)
     assert trajectory.termination == "off_road" and metrics["off_road_events"] == 1
     assert trajectory.off_road[-1] and not trajectory.off_road[:-1].any()
@@ -121,4 +124,19 @@ def test_a_run_stops_when_the_car_leaves_the_road():
 def test_a_camera_brain_needs_a_camera():
     with DrivingEnv("simple_circuit", camera=None) as env, \
             pytest.raises(PilotlabError, match="the explicit brain needs the camera"):
-        drive(env, make_reference_brain("explicit"), DriveSettings())
+        drive(env, make_reference_brain("explicit"), DriveSettings(timing="measured"))
+
+
+def test_replay_draws_the_charged_latency_from_the_samples_seeded():
+    samples = np.array([10.0, 30.0, 70.0])
+    runs = [expert_run(timeout_s=2.0, latency_ms=samples, seed=seed) for seed in (0, 0, 1)]
+    charged = [run.inference_s[run.decisions] * 1000 for run in runs]
+    assert set(np.round(charged[0], 6)) <= set(samples) and len(set(np.round(charged[0], 6))) > 1
+    np.testing.assert_array_equal(charged[0], charged[1])
+    assert not np.array_equal(charged[0][:10], charged[2][:10])
+    np.testing.assert_allclose(runs[0].brain_s[runs[0].decisions] * 1000, charged[0])   # not this host's clock
+
+
+def test_replay_needs_samples():
+    with pytest.raises(PilotlabError, match="replay timing mode needs latency samples"):
+        expert_run(timeout_s=1.0)

@@ -14,6 +14,7 @@ TEST_OPTIONS = {
     "global_prune": {"finetune_epochs": 1, "batch_size": 16},
     "structured_prune": {"finetune_epochs": 1, "batch_size": 16},
     "structured_prune_int8": {"finetune_epochs": 1, "batch_size": 16, "calibration_frames": 32},
+    "structured_prune_litert_int8": {"finetune_epochs": 1, "batch_size": 16, "calibration_frames": 32},
     "cluster": {"finetune_epochs": 1, "batch_size": 16},
     "qat": {"finetune_epochs": 1, "batch_size": 16},
     "prune_quant": {"finetune_epochs": 1, "batch_size": 16},

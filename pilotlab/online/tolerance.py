@@ -1,0 +1,116 @@
+"""Latency tolerance: how much latency a brain can take on top of its own before it loses the lap.
+
+    found = tolerance_search(lap, ToleranceSpec())     # lap(injected_ms) -> LapOutcome (pilotlab.specs.online)
+    found["latency_tolerance_ms"], found["tolerance_laps"]
+
+For one lap cell (brain, circuit, direction, hardware profile), the lap from the first start point is
+driven again with more injected latency (`extra_latency_ms` on top of the brain's own, replayed or
+measured). The result is the largest injected latency, on a grid of `step_ms` in 0..`max_ms`, at which
+the lap is still completed, and the deviation of the laps at a few fixed injected latencies.
+
+The search is cheap by construction:
+- coarse then fine: the laps at the fixed latencies (needed for the deviation anyway) bracket the
+  tolerance, then bisection on the `step_ms` grid inside the bracket (log2(bracket / step) laps);
+- shared laps: a latency is never driven twice, and the plain lap (0 ms injected) is the cell's
+  first run, already driven;
+- early stop: a lap that leaves the road ends there (the env's stop rule), so lost laps cost a
+  fraction of a lap; only completed ones cost a full lap.
+Bisection assumes that a lap completed at some latency is completed at every smaller one; the laps at
+the fixed latencies are reported, so a cell where that does not hold shows it.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from pilotlab.specs.online import ToleranceSpec
+
+
+@dataclass
+class LapOutcome:
+    injected_ms: float
+    completed: bool
+    metrics: dict[str, Any] = field(default_factory=dict)   # termination, deviations, sim_seconds, ...
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"injected_ms": self.injected_ms, "lap_completed": self.completed, **self.metrics}
+
+
+LapFn = Callable[[float], LapOutcome]
+
+
+class _Laps:
+    """Each injected latency driven at most once."""
+
+    def __init__(self, lap: LapFn, known: dict[float, LapOutcome]):
+        self.lap, self.outcomes = lap, dict(known)
+
+    def completed(self, ms: float) -> bool:
+        if ms not in self.outcomes:
+            self.outcomes[ms] = self.lap(ms)
+        return self.outcomes[ms].completed
+
+
+def _bracket(laps: _Laps, settings: ToleranceSpec) -> tuple[float | None, float | None]:
+    """(largest latency of the completed run of fixed latencies from 0, first lost one after it)."""
+    completed, lost = None, None
+    for ms in sorted({0.0, *settings.fixed_ms}):
+        if not laps.completed(ms):
+            lost = ms
+            break
+        completed = ms
+    return completed, lost
+
+
+def tolerance_search(lap: LapFn, settings: ToleranceSpec = ToleranceSpec(),
+                     known: dict[float, LapOutcome] | None = None) -> dict[str, Any]:
+    """Drive `lap(injected_ms)` as needed; `known`: outcomes already driven (the plain lap at 0 ms).
+    latency_tolerance_ms is None when the lap is lost with nothing injected; tolerance_at_least is
+    true when it was still completed at max_ms."""
+    laps = _Laps(lap, known or {})
+    low, high = _bracket(laps, settings)
+    if low is not None and high is None:
+        high = None if laps.completed(settings.max_ms) else settings.max_ms
+        low = settings.max_ms if high is None else low
+    while low is not None and high is not None and high - low > settings.step_ms + 1e-9:
+        middle = low + settings.step_ms * max(1, round((high - low) / 2 / settings.step_ms))
+        low, high = (middle, high) if laps.completed(middle) else (low, middle)
+    outcomes = [laps.outcomes[ms].as_dict() for ms in sorted(laps.outcomes)]
+    return {"latency_tolerance_ms": low, "tolerance_at_least": low is not None and high is None,
+            "tolerance_fixed_ms": sorted({0.0, *settings.fixed_ms}), "tolerance_laps": outcomes,
+            "tolerance_laps_driven": len(laps.outcomes) - len(known or {})}
+
+
+def lap_outcome(trajectory, injected_ms: float, checkpoints=None) -> LapOutcome:
+    """The lap's completion and our deviation; BehaviorMetrics' too when `checkpoints` are given (the
+    bisection's laps skip them: only their completion counts)."""
+    from pilotlab.online.bm_metrics import bm_position_deviation_mae, bm_percentage_completed
+    from pilotlab.online.metrics import lap_completed, percentage_completed, position_deviation_mae_m
+    metrics = {"termination": trajectory.termination, "sim_seconds": round(float(trajectory.t[-1]), 3),
+               "percentage_completed": percentage_completed(trajectory),
+               "position_deviation_mae_m": position_deviation_mae_m(trajectory)}
+    if checkpoints is not None:
+        metrics |= {"bm_position_deviation_mae": bm_position_deviation_mae(trajectory, checkpoints),
+                    "bm_percentage_completed": bm_percentage_completed(trajectory, checkpoints)}
+    return LapOutcome(injected_ms, lap_completed(trajectory), metrics)
+
+
+def cell_tolerance(env, brain, spec, settings: ToleranceSpec, first, checkpoints, latency_ms=None,
+                   progress: Callable[[float, float, str], None] | None = None) -> dict[str, Any]:
+    """The tolerance search of one lap cell in `env` (closed at the end): the laps from `first`'s
+    start and seed (`first` is the cell's first run, driven with nothing more injected: the 0 ms lap)."""
+    from pilotlab.online.drive import drive
+    start, seed = first.meta["start_m"], spec.seed
+
+    def lap(injected_ms: float) -> LapOutcome:
+        if progress is not None:
+            progress(0.0, 1.0, f"{brain.name}: latency tolerance, lap with +{injected_ms:g} ms")
+        settings_ms = spec.model_copy(update={"extra_latency_ms": spec.extra_latency_ms + injected_ms})
+        trajectory = drive(env, brain, settings_ms, start=start, seed=seed, latency_ms=latency_ms)
+        return lap_outcome(trajectory, injected_ms, checkpoints if injected_ms in settings.fixed_ms else None)
+
+    try:
+        return tolerance_search(lap, settings, known={0.0: lap_outcome(first, 0.0, checkpoints)})
+    finally:
+        env.close()

@@ -1,0 +1,90 @@
+"""The latency tolerance search: on a lap function whose answer is known, and in the simulator."""
+import time
+
+import pydantic
+import pytest
+
+from pilotlab.online.brains import make_reference_brain
+from pilotlab.online.drive import drive
+from pilotlab.online.evaluate import evaluate_online
+from pilotlab.online.perfect_lap import perfect_lap
+from pilotlab.online.tolerance import LapOutcome, tolerance_search
+from pilotlab.sim.camera import CameraSpec
+from pilotlab.sim.env import DrivingEnv
+from pilotlab.specs.online import DriveSettings, OnlineSpec, ToleranceSpec
+from tests.pilotlab.tracks import stadium, write_csv
+
+
+class Threshold:
+    """Completes the lap up to `limit` ms injected; counts the laps driven."""
+
+    def __init__(self, limit):
+        self.limit, self.driven = limit, []
+
+    def __call__(self, ms):
+        self.driven.append(ms)
+        return LapOutcome(ms, ms <= self.limit, {"position_deviation_mae_m": 0.1 + ms / 1000})
+
+
+@pytest.mark.parametrize("limit, expected, at_least", [(137.0, 135.0, False), (60.0, 60.0, False), (0.0, 0.0, False),
+                                                       (-1.0, None, False), (2000.0, 1000.0, True),
+                                                       (997.0, 995.0, False)])
+def test_the_search_finds_the_largest_completed_latency_on_the_grid(limit, expected, at_least):
+    lap = Threshold(limit)
+    found = tolerance_search(lap, ToleranceSpec())
+    assert found["latency_tolerance_ms"] == expected and found["tolerance_at_least"] is at_least
+    assert len(set(lap.driven)) == len(lap.driven) <= 4 + 8      # fixed latencies, then bisection to 5 ms
+    assert [lap["injected_ms"] for lap in found["tolerance_laps"]] == sorted(lap.driven)
+
+
+def test_known_laps_are_not_driven_again():
+    lap = Threshold(137.0)
+    found = tolerance_search(lap, known={0.0: LapOutcome(0.0, True)})
+    assert 0.0 not in lap.driven and found["tolerance_laps_driven"] == len(lap.driven)
+    assert found["tolerance_laps"][0]["injected_ms"] == 0.0
+
+
+def test_fixed_latencies_must_lie_on_the_grid():
+    with pytest.raises(pydantic.ValidationError, match="multiples of step_ms"):
+        ToleranceSpec(fixed_ms=[0.0, 33.0])
+
+
+@pytest.fixture(scope="module")
+def track(tmp_path_factory):
+    return str(write_csv(tmp_path_factory.mktemp("tolerance") / "stadium.csv", stadium(30.0, 12.0)))
+
+
+def expert_cell(track, out, tolerance=None, brain="expert", checkpoints=None):
+    spec = OnlineSpec(circuit=track, timeout_s=40.0, timing="replay", fixed_inference_ms=0.0)
+    return evaluate_online(make_reference_brain(brain), spec, out, tolerance=tolerance, checkpoints=checkpoints)
+
+
+def test_the_expert_tolerates_latency_up_to_a_limit_it_finds(track, tmp_path):
+    found = expert_cell(track, tmp_path, ToleranceSpec(fixed_ms=[0.0, 100.0, 300.0], max_ms=600.0, step_ms=10.0))
+    tolerance = found["latency_tolerance_ms"]
+    laps = {lap["injected_ms"]: lap for lap in found["tolerance_laps"]}
+    assert found["lap_completed"] and tolerance is not None and 0 < tolerance < 600
+    assert laps[tolerance]["lap_completed"] and not laps[tolerance + 10]["lap_completed"]
+    assert laps[0.0]["position_deviation_mae_m"] == found["position_deviation_mae_m"]   # the plain lap, shared
+    assert not laps[tolerance + 10]["termination"] == "lap_completed"
+
+
+@pytest.mark.benchmark
+@pytest.mark.parametrize("brain", ["expert", "explicit"])
+def test_benchmark_tolerance_search_against_one_plain_lap(track, tmp_path, brain):
+    camera = CameraSpec() if brain == "explicit" else None
+    with DrivingEnv(track, camera=camera, renderer="ground", timeout_s=40.0) as env:
+        started = time.perf_counter()
+        drive(env, make_reference_brain(brain), DriveSettings(fixed_inference_ms=0.0))
+        lap_s = time.perf_counter() - started
+    checkpoints = perfect_lap(track)
+    started = time.perf_counter()
+    plain = expert_cell(track, tmp_path / "plain", brain=brain, checkpoints=checkpoints)
+    plain_s = time.perf_counter() - started
+    started = time.perf_counter()
+    found = expert_cell(track, tmp_path / "search", ToleranceSpec(), brain=brain, checkpoints=checkpoints)
+    search_s = time.perf_counter() - started - plain_s
+    print(f"\n{brain} on a {plain['circuit_length_m']:.0f} m stadium: one plain lap {lap_s:.2f} s, its online "
+          f"evaluation {plain_s:.2f} s (metrics, files); the tolerance search adds {search_s:.2f} s = "
+          f"{search_s / lap_s:.1f} plain laps for {found['tolerance_laps_driven']} laps driven (lost ones stop "
+          f"early); tolerance {found['latency_tolerance_ms']} ms")

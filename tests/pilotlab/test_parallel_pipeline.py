@@ -1,0 +1,53 @@
+"""A small pilotlab recipe run with one job at a time and with several: the same jobs, the same
+results (timings apart) and the same recorded and trained files."""
+import hashlib
+
+import pytest
+
+from matrix import engine
+from matrix.recipe import load_recipe
+from matrix.store import Store
+from pilotlab.domain import DOMAIN
+from tests.pilotlab.test_dask_pipeline import COMPARED, RECIPE, results, same
+
+
+def file_hashes(store: Store, kinds=("record", "frames", "train", "optimize")) -> dict[str, str]:
+    """sha256 of the data files (bags, frame arrays, models) of the jobs of `kinds`, by job name and
+    file. JSON files are left out (they note how long things took); a checkpoint counts by its weights
+    (it embeds its training history, seconds included)."""
+    import torch
+    hashes = {}
+    for key in store.keys():
+        spec = store.spec(key)
+        if spec["kind"] not in kinds:
+            continue
+        for path in sorted(p for p in store.artifacts(key).rglob("*") if p.is_file() and p.suffix != ".json"):
+            name = f"{spec['name']}/{path.relative_to(store.artifacts(key))}"
+            if path.suffix == ".pt":
+                weights = torch.load(path, weights_only=False, map_location="cpu")["state_dict"]
+                content = b"".join(tensor.numpy().tobytes() for tensor in weights.values())
+            else:
+                content = path.read_bytes()
+            hashes[name] = hashlib.sha256(content).hexdigest()
+    return hashes
+
+
+@pytest.mark.slow
+def test_several_jobs_at_once_give_the_results_of_one_at_a_time(tmp_path):
+    path = tmp_path / "recipe.yaml"
+    path.write_text(RECIPE)
+    recipe = load_recipe(path, DOMAIN)
+    one, many = Store(tmp_path / "one"), Store(tmp_path / "many")
+    plans = {}
+    for store, jobs in ((one, 1), (many, 3)):
+        plans[jobs] = engine.make_plan(recipe, DOMAIN, store)
+        assert not engine.run_plan(plans[jobs], DOMAIN, store, jobs=jobs).failed
+    assert sorted(one.keys()) == sorted(many.keys())
+    ours, theirs = results(one, plans[1]), results(many, plans[3])
+    for name, result in ours.items():
+        assert result["status"] == theirs[name]["status"], name
+        for metric in COMPARED & set(result["value"]):
+            assert same(result["value"][metric], theirs[name]["value"][metric]), (name, metric)
+    hashes = file_hashes(one)
+    assert any(name.endswith("model.pt") for name in hashes) and any(name.startswith("record ") for name in hashes)
+    assert file_hashes(many) == hashes
