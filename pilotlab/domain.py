@@ -21,7 +21,7 @@ from matrix.recipe import Domain, Recipe
 from pilotlab.recipe import SECTIONS, DatasetSpec, ModelSpec, RecordingsSpec
 from pilotlab.specs import KIND_MODULES
 from pilotlab.specs.base import Spec
-from pilotlab.specs.frames import FramesSpec
+from pilotlab.specs.frames import FramesSpec, PreprocessConfig
 from pilotlab.specs.offline import OfflineSpec
 from pilotlab.specs.online import LapSettings, OnlineSpec
 from pilotlab.specs.optimize import OptimizeSpec
@@ -62,7 +62,7 @@ class Planner:
     def __init__(self, recipe: Recipe):
         self.recipe, self.config = recipe, recipe.config
         self.folder = Path(recipe.file).resolve().parent
-        self.datasets: dict[str, list[Job]] = {}
+        self.datasets: dict[tuple[str, PreprocessConfig], list[Job]] = {}
         self.trained: dict[str, Job] = {}
         self.optimized: dict[tuple, Job] = {}
         self.shared_params: dict[tuple, dict] = {}
@@ -87,24 +87,30 @@ class Planner:
         return jobs
 
     # datasets -----------------------------------------------------------------------------------
-    def dataset(self, name: str, used_by: list) -> list[Job]:
+    def dataset(self, name: str, used_by: list, preprocess: PreprocessConfig | None = None) -> list[Job]:
+        """The frames jobs of a dataset, preprocessed as `preprocess` says (default: pilotlab's)."""
         if name not in self.config.datasets:
             raise self.recipe.error(f"dataset {name!r} is not defined; datasets: "
                                     f"{', '.join(self.config.datasets) or '(none)'}", used_by)
-        if name not in self.datasets:
-            self.datasets[name] = self._dataset_jobs(name, self.config.datasets[name])
-        return self.datasets[name]
+        settings = preprocess or PreprocessConfig()
+        if (name, settings) not in self.datasets:
+            self.datasets[name, settings] = self._dataset_jobs(name, self.config.datasets[name], settings)
+        return self.datasets[name, settings]
 
-    def _dataset_jobs(self, name: str, spec: DatasetSpec) -> list[Job]:
-        topics = {"image_topic": spec.topics.image, "command_topic": spec.topics.command}
+    def _dataset_jobs(self, name: str, spec: DatasetSpec, settings: PreprocessConfig) -> list[Job]:
+        topics = {"image_topic": spec.topics.image, "command_topic": spec.topics.command,
+                  **settings.model_dump(exclude={"version"})}
+        shown = "" if settings == PreprocessConfig() else \
+            f" ({settings.width}x{settings.height} {settings.interpolation}, rows {settings.crop_top}-{settings.crop_bottom})"
         jobs = []
         if spec.record is not None:
             for label, record in self._recordings(name, spec):
-                jobs.append(job("frames", f"frames {label}", FramesSpec(**topics, label=label), deps={"bag": record}))
+                jobs.append(job("frames", f"frames {label}{shown}", FramesSpec(**topics, label=label),
+                                deps={"bag": record}))
         for i, path in enumerate(spec.bags + spec.folders):
             source = self.path(path, ["datasets", name, "bags" if i < len(spec.bags) else "folders"])
             label = f"{name}/{Path(path).name}"
-            jobs.append(job("frames", f"frames {label}", FramesSpec(**topics, label=label),
+            jobs.append(job("frames", f"frames {label}{shown}", FramesSpec(**topics, label=label),
                             inputs={"bag": input_file(str(source))}))
         return jobs
 
@@ -151,10 +157,11 @@ class Planner:
     def train(self, model: str) -> Job:
         if model not in self.trained:
             spec: ModelSpec = self.config.models[model]
-            frames = self.dataset(spec.data, ["models", model, "data"])
+            frames = self.dataset(spec.data, ["models", model, "data"], spec.preprocess)
             _check_model(self.recipe, model, spec)
             params = spec.model_dump(mode="json", exclude={"data"})
-            self.trained[model] = Job("train", f"train {model}", params, deps={"frames": tuple(frames)})
+            self.trained[model] = Job("train", f"train {model}", params, deps={"frames": tuple(frames)},
+                                      inputs=model_inputs(self, model, spec))
         return self.trained[model]
 
     def optimize(self, model: str, strategy: str, hardware: str) -> Job:
@@ -212,8 +219,8 @@ class Planner:
     # evaluations ----------------------------------------------------------------------------------
     def offline(self, optimize: Job, combination: dict, hardware: str) -> Job:
         from pilotlab.hardware import host_fingerprint
-        test = self.dataset(self.config.offline.data, ["offline", "data"])
         model, strategy = combination["model"], combination["strategy"]
+        test = self.dataset(self.config.offline.data, ["offline", "data"], self.config.models[model].preprocess)
         params = self.params_once(("offline", hardware), lambda: OfflineSpec(
             hardware=self.profile(hardware).as_dict(), host=host_fingerprint(),
             batch=self.config.offline.batch).model_dump(mode="json"))
@@ -234,10 +241,35 @@ class Planner:
 
 def _check_model(recipe: Recipe, name: str, spec: ModelSpec) -> None:
     from pilotlab.models import make_config
+    from pilotlab.models.imported import IMPORTED_ARCHS
+    if spec.source != "arch":
+        return
+    if spec.arch in IMPORTED_ARCHS:
+        raise recipe.error(f"arch {spec.arch!r} names checkpoints of models you bring; write `{spec.arch}: ...` "
+                           f"(e.g. network: nets/mine.py:MyNet) instead of `arch`", ["models", name, "arch"])
     try:
         make_config(spec.arch, spec.options)
     except MatrixError as error:
         raise recipe.error(str(error), ["models", name]) from None
+
+
+def model_inputs(planner: Planner, name: str, spec: ModelSpec) -> dict[str, InputFile]:
+    """The files a model is made from, content-hashed into its train job's key: the network's source
+    (the file and the user's modules it imports), the weights, the TorchScript or ONNX file.
+    Planning reads them; it never runs them (a syntax error is reported here, with its line)."""
+    from pilotlab import usercode
+    inputs = {}
+    for key in ("weights", "torchscript", "onnx"):
+        if getattr(spec, key) is not None:
+            inputs[key] = input_file(str(planner.path(getattr(spec, key), ["models", name, key])))
+    if spec.network is not None:
+        try:
+            files = usercode.source_files(spec.network, planner.folder)
+            usercode.check_syntax(files[0])
+            inputs["network_source"] = InputFile(str(files[0]), usercode.source_hash(spec.network, planner.folder))
+        except MatrixError as error:
+            raise planner.recipe.error(str(error), ["models", name, "network"]) from None
+    return inputs
 
 
 def online_jobs(planner: Planner, optimize: Job, combination: dict, hardware: str, timing: Job) -> list[Job]:

@@ -132,8 +132,23 @@ def readme(meta: ArtifactMeta, result: dict[str, Any]) -> str:
         "same normalised `vw` (float32 [N, 2], each in about [0, 1]), not speeds: denormalise it as above, or "
         "`pilotlab.data.frames.LabelRanges.from_dict(predictor.meta.labels).denormalise(vw)` gives "
         "[N, 2] (v m/s, w rad/s).", "",
-        *camera_section(meta)]
+        *source_section(meta), *camera_section(meta)]
     return "\n".join(lines)
+
+
+def source_section(meta: ArtifactMeta) -> list[str]:
+    """Where a model the user brought came from (pilotlab.models.imported), and what loading needs."""
+    config = meta.config or {}
+    if meta.arch == "network":
+        needs = (" Loading the pilotlab checkpoint imports that class again: keep its file (and the modules "
+                 "it imports) where it was." if meta.format == "pilotlab-checkpoint" else "")
+        return ["## Where the network came from", "",
+                f"Your class `{config.get('network')}` with options `{json.dumps(config.get('options', {}))}` "
+                f"(source sha256 {str(config.get('source_hash', ''))[:12]}).{needs}", ""]
+    if meta.arch in ("torchscript", "onnx"):
+        return ["## Where the network came from", "",
+                f"Your {meta.arch} file `{config.get('file')}` (sha256 {str(config.get('sha256', ''))[:12]}).", ""]
+    return []
 
 
 def loader(meta: ArtifactMeta, shape: str, cast: str) -> str:

@@ -137,6 +137,16 @@ def _is_library(filename: str) -> bool:
     return filename.startswith(("<frozen", PILOTLAB)) or "site-packages" in filename
 
 
+def check_syntax(file: Path) -> None:
+    """A UserCodeError naming the line when `file` does not parse (nothing is run)."""
+    try:
+        ast.parse(Path(file).read_bytes(), str(file))
+    except SyntaxError as error:
+        raise UserCodeError(error_line(error, str(file))) from None
+    except ValueError as error:   # a NUL byte
+        raise UserCodeError(f"{file}: not Python source ({error})") from None
+
+
 # --- the source hash -------------------------------------------------------------------------------
 
 def source_files(spec: str, base: Path) -> list[Path]:

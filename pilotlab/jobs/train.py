@@ -1,7 +1,8 @@
 """The `train` job's handler: frames from one or more recordings -> a trained network checkpoint.
 
 deps: "frames", a group of `frames` jobs (one recording each).
-params: pilotlab.specs.train.TrainSpec (arch and its options, epochs, batch size, lr, early
+params: pilotlab.specs.train.TrainSpec (arch and its options, or the user's network / TorchScript /
+ONNX file and weights (their content: the job's inputs, pilotlab.models.user), epochs, batch size, lr, early
 stopping, the validation split, augmentation, label ranges, seed).
 
 artifacts: model.pt (pilotlab.models.save_checkpoint: arch, config, state_dict, labels, preprocess
@@ -9,7 +10,8 @@ with "frames", history, training params and split), history.json.
 result: val_mse, val_mse_v, val_mse_w (normalised labels, best epoch), val_mse_mean_predictor
 (+ _v, _w: predicting the mean training label on the same validation frames), train_loss, epochs_run,
 best_epoch, stopped_early, params, train_frames, val_frames, recordings, val_recordings, val_by,
-labels, frames, seconds, checkpoint. Without validation frames the val_* entries are absent.
+labels, frames, seconds, checkpoint, source (where the model came from: arch, or the user's file and
+its sha256), trained (false: the user's weights or file as they are; then no train_loss). Without validation frames the val_* entries are absent.
 """
 from __future__ import annotations
 
@@ -87,21 +89,31 @@ def split_frames(ctx: JobContext, data: FrameSet, p: TrainSpec) -> tuple[FrameSe
     return data.subset(split.train), data.subset(split.val), split
 
 
-def make_model(p: TrainSpec) -> tuple[torch.nn.Module, Any, FitConfig]:
-    """The freshly initialised (seeded) model, its config, and how to fit it."""
+def make_model(ctx: JobContext, p: TrainSpec, preprocess: dict) -> tuple[torch.nn.Module, str, Any, FitConfig, dict]:
+    """The model (freshly initialised and seeded, or the user's: from their weights or file), its
+    checkpoint arch and config, how to fit it, and where it came from."""
+    from pilotlab.models import user
     torch.manual_seed(p.seed)
-    config = make_config(p.arch, p.options)
+    where = f"models.{ctx.name.removeprefix('train ')}"
+    if p.source == "arch":
+        config = make_config(p.arch, p.options)
+        model, arch, origin = build_model(p.arch, config), p.arch, {"kind": "arch", "arch": p.arch}
+        if p.weights is not None:
+            origin.update(user.builtin_weights(model, ctx.inputs["weights"], where))
+    else:
+        shape = (3, int(preprocess.get("height", 66)), int(preprocess.get("width", 200)))
+        model, arch, config, origin = user.user_model(p, dict(ctx.inputs), shape, where)
     fit_config = FitConfig(epochs=p.epochs, batch_size=p.batch_size, lr=p.lr, seed=p.seed,
                            frames=input_frames(config), patience=p.patience, augment=p.augment)
-    return build_model(p.arch, config), config, fit_config
+    return model, arch, config, fit_config, origin
 
 
 def summarise(model, history: list[dict], data: FrameSet, train: FrameSet, val: FrameSet, split: Split,
               ranges: LabelRanges, fit_config: FitConfig, seconds: float) -> dict[str, Any]:
-    return {**validation_scores(model, train, val, ranges, fit_config.frames),
-            "train_loss": history[-1]["train_loss"], "epochs_run": len(history),
-            "best_epoch": next((r["epoch"] for r in history if r.get("best")), len(history)),
-            "stopped_early": len(history) < fit_config.epochs,
+    trained = {"train_loss": history[-1]["train_loss"], "epochs_run": len(history),
+               "best_epoch": next((r["epoch"] for r in history if r.get("best")), len(history)),
+               "stopped_early": len(history) < fit_config.epochs} if history else {"epochs_run": 0}
+    return {**validation_scores(model, train, val, ranges, fit_config.frames), **trained,
             "params": sum(t.numel() for t in model.parameters()), "train_frames": len(train),
             "val_frames": len(val), "recordings": int(len(np.unique(data.recording))),
             "val_recordings": split.val_recordings, "val_by": split.by, "labels": ranges.as_dict(),
@@ -113,13 +125,15 @@ def run_train(ctx: JobContext) -> dict[str, Any]:
     data, preprocess = load_frames(ctx)
     train, val, split = split_frames(ctx, data, p)
     ranges = label_ranges(p.labels, data)
-    model, config, fit_config = make_model(p)
+    model, arch, config, fit_config, origin = make_model(ctx, p, preprocess)
     on_batch, on_epoch = progress_callbacks(ctx, p.epochs)
     started = time.perf_counter()
-    history = fit(model, train, ranges, fit_config, val=val, on_epoch=on_epoch, on_batch=on_batch)
-    result = summarise(model, history, data, train, val, split, ranges, fit_config, time.perf_counter() - started)
-    save_checkpoint(ctx.out / "model.pt", model, p.arch, config, labels=ranges.as_dict(),
+    history = fit(model, train, ranges, fit_config, val=val, on_epoch=on_epoch, on_batch=on_batch) if p.trains \
+        else []
+    result = {**summarise(model, history, data, train, val, split, ranges, fit_config, time.perf_counter() - started),
+              "source": origin, "trained": p.trains}
+    save_checkpoint(ctx.out / "model.pt", model, arch, config, labels=ranges.as_dict(),
                     preprocess={**preprocess, "frames": fit_config.frames}, history=history,
-                    training={**p.as_dict(), "fit": fit_config.as_dict()}, result=result)
+                    training={**p.as_dict(), "fit": fit_config.as_dict()}, result=result, source=origin)
     (ctx.out / "history.json").write_text(json.dumps(history, indent=1))
     return result

@@ -246,6 +246,7 @@ class ReportData(_Frozen):
     baseline: str = "baseline"               # the strategy the ratios are taken against
     rows: tuple[ReportRow, ...] = ()
     histories: dict[str, tuple[HistoryPoint, ...]] = Field(default_factory=dict)   # model -> epochs
+    sources: dict[str, str] = Field(default_factory=dict)   # model -> where a model the user brought came from
     comparison_title: str = ""               # "Compared with the 2022 study", when the recipe asks for one
     comparison: tuple[Claim, ...] = ()
 

@@ -89,7 +89,9 @@ def build_report_data(recipe: Recipe, jobs: list, store: Store) -> ReportData:
     data = ReportData.from_dict({
         "recipe_name": recipe.name, "description": recipe.description, "recipe_text": recipe.text,
         "versions": package_versions(), "host": _host(jobs, store), "date": datetime.now().isoformat(timespec="seconds"),
-        "rows": rows, "histories": {name: h for name, h in histories.items() if h}})
+        "rows": rows, "histories": {name: h for name, h in histories.items() if h},
+        "sources": {job.name.removeprefix("train "): text for job in jobs if job.kind == "train"
+                    and (text := model_source(store.result(job.key)))}})
     study = recipe.config.report.compare_with
     if study is None:
         return data
@@ -143,6 +145,20 @@ def _why_not_run(job, store: Store) -> str:
             return f"dependency failed: {dep.name}: {failure.get('error', '?')}"
         stack.extend(dep.dep_jobs())
     return NOT_RUN
+
+
+def model_source(result: dict | None) -> str | None:
+    """Where a model the user brought came from, for people: "network nets/x.py:Net (sha256 1a2b3c4d5e6f),
+    weights w.pth (sha256 ...)"; None for a built-in arch or a train job that has not run."""
+    source = ((result or {}).get("value") or {}).get("source") or {}
+    if source.get("kind") in (None, "arch") and "weights" not in source:
+        return None
+    parts = [f"{source['kind']} {source.get('file') or source.get('arch')}"
+             + (f" (sha256 {source['sha256'][:12]})" if source.get("sha256") else "")]
+    if source.get("weights"):
+        parts.append(f"weights {source['weights']} (sha256 {source.get('weights_sha256', '')[:12]})")
+    trained = ((result or {}).get("value") or {}).get("trained")
+    return ", ".join(parts) + ("" if trained is None else ", trained here" if trained else ", used as it is")
 
 
 def _history(job, store: Store) -> list[dict]:

@@ -6,12 +6,25 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from matrix.fingerprint import module_closure
 from matrix.kinds import register_kind
 from pilotlab.models import MODELS
 from pilotlab.specs.base import Spec
+from pilotlab.specs.frames import PreprocessConfig
+
+DEFAULT_ARCH = "pilotnet"
+SOURCES = ("arch", "network", "torchscript", "onnx")   # where a model comes from: exactly one
+# Presets: settings another tool trained with, one word away (docs/own-network.md).
+PRESETS: dict[str, dict[str, Any]] = {
+    # DeepLearningStudio's PyTorch PilotNet (and BehaviorMetrics' brain running it): rows 240:480 of a
+    # 640x480 RGB image, cv2.resize to 200x66 (bilinear), ToTensor ([0, 1]); v min-max normalised over
+    # [6.5, 24] and w over [-7.1, 7.1] (Formula1-FollowLine/pytorch/PilotNet/utils/processing.py).
+    "dls": {"preprocess": {"crop_top": 0.5, "crop_bottom": 1.0, "width": 200, "height": 66,
+                           "interpolation": "linear"},
+            "labels": {"v": [6.5, 24.0], "w": [-7.1, 7.1]}},
+}
 
 
 class AugmentConfig(Spec):
@@ -30,8 +43,25 @@ class AugmentConfig(Spec):
 
 
 class TrainSpec(Spec):
-    arch: str = Field("pilotnet", description="a registered model (pilotnet, pilotnet_stacked, ...)")
-    options: dict[str, Any] = Field({}, description="fields of the arch's config, e.g. {frames: 3}")
+    """How a model is made: a built-in `arch`, the user's PyTorch class (`network`), or a whole model
+    file (`torchscript`, `onnx`); paths as the recipe wrote them (their content is the job's inputs)."""
+    arch: str | None = Field(None, description=f"a registered model (pilotnet, pilotnet_stacked, ...); the "
+                                               f"default, {DEFAULT_ARCH}, when no other source is given")
+    network: str | None = Field(None, pattern=r".:[A-Za-z_][\w.]*$",
+                                description="the user's nn.Module class: file.py:Class or module:Class")
+    torchscript: str | None = Field(None, min_length=1, description="a whole TorchScript model file (torch.jit.save)")
+    onnx: str | None = Field(None, min_length=1, description="an ONNX model file")
+    options: dict[str, Any] = Field({}, description="fields of the arch's config, e.g. {frames: 3}; with network: "
+                                                   "the class's constructor keyword arguments")
+    weights: str | None = Field(None, min_length=1, description="a state dict (.pth/.pt) to start from "
+                                                                "(arch or network)")
+    train: bool | None = Field(None, description="train (from the weights, if given); false: use the weights "
+                                                 "or the model file as they are. Default: true for arch and "
+                                                 "network, false for torchscript and onnx")
+    preset: Literal["dls"] | None = Field(None, description="dls: DeepLearningStudio's preprocessing and label "
+                                                            "ranges (explicit preprocess/labels win)")
+    preprocess: PreprocessConfig | None = Field(None, description="crop and resize of the camera image (default: "
+                                                                  "pilotlab's, the frames jobs')")
     epochs: int = Field(20, ge=1, le=100_000)
     batch_size: int = Field(64, ge=1, le=1_000_000)
     lr: float = Field(1e-3, gt=0, le=100)
@@ -45,11 +75,51 @@ class TrainSpec(Spec):
     seed: int = Field(0, ge=0, lt=2**32)
     augment: AugmentConfig = AugmentConfig()
 
+    @model_validator(mode="before")
+    @classmethod
+    def _one_source_and_preset(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        given = [name for name in SOURCES if data.get(name) is not None]
+        if len(given) > 1:
+            raise ValueError(f"give one of {', '.join(SOURCES)}, not {' and '.join(given)}")
+        data = dict(data) if given else {**data, "arch": DEFAULT_ARCH}
+        for key, value in PRESETS.get(data.get("preset"), {}).items():
+            data.setdefault(key, value)
+        return data
+
+    @model_validator(mode="after")
+    def _training_fits_the_source(self):
+        if self.train and self.source in ("torchscript", "onnx"):
+            raise ValueError(f"train: true: {self.source} models are used as they are; give `network:` (the PyTorch "
+                             "class) to train it")
+        if self.train is False and self.source in ("arch", "network") and self.weights is None:
+            raise ValueError("train: false needs `weights:` (a state dict to use as it is)")
+        if self.weights is not None and self.source not in ("arch", "network"):
+            raise ValueError(f"weights: {self.source} files hold their weights; weights go with arch or network")
+        if not self.trains and self.labels == "auto":
+            raise ValueError("labels: a model used as it is needs the label ranges it was trained with: give "
+                             "labels: {v: [lo, hi], w: [lo, hi]} or a preset (preset: dls)")
+        if self.source in ("torchscript", "onnx") and self.options:
+            raise ValueError(f"options: {self.source} models take no constructor options")
+        return self
+
+    @property
+    def source(self) -> str:
+        """Where the model comes from: "arch", "network", "torchscript" or "onnx"."""
+        return next(name for name in SOURCES if getattr(self, name) is not None)
+
+    @property
+    def trains(self) -> bool:
+        return self.train if self.train is not None else self.source in ("arch", "network")
+
 
 def arch_modules(params) -> list[str]:
     """The modules that define the arch: its network's, and the model modules that one imports (the
     networks it builds on), read from the source without importing them."""
-    entry = MODELS.get(params.get("arch", TrainSpec.model_fields["arch"].default))
+    if any(params.get(name) for name in SOURCES[1:]):   # the user's model: its files are the job's inputs
+        return ["pilotlab.models.user"]
+    entry = MODELS.get(params.get("arch") or DEFAULT_ARCH)
     return module_closure(entry.network_module, "pilotlab.models", exclude=["pilotlab.models.registry"])
 
 

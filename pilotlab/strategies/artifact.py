@@ -122,8 +122,15 @@ def example_batch(input_shape: tuple, batch: int = 2, dtype: torch.dtype | None 
 
 def export_onnx(model: nn.Module, path: Path, input_shape: tuple) -> None:
     """ONNX via the torch.export-based exporter (the TorchScript one is deprecated in torch 2.x),
-    with a dynamic batch dimension and the weights inside the one file (external_data=False)."""
+    with a dynamic batch dimension and the weights inside the one file (external_data=False). A user's
+    ONNX graph is written as it is; a user's TorchScript model goes through the TorchScript exporter."""
     import torch
+    if hasattr(model, "onnx_bytes"):          # pilotlab.models.user.OnnxModel
+        Path(path).write_bytes(model.onnx_bytes)
+        return
+    if isinstance(getattr(model, "module", None), torch.jit.ScriptModule):   # pilotlab.models.user.TorchScriptModel
+        _export_torchscript_onnx(model.module, path, input_shape)
+        return
     from pilotlab.strategies.fold import fold_input_norm
     model = fold_input_norm(model)
     batch = torch.export.Dim("batch", min=1)
@@ -133,6 +140,15 @@ def export_onnx(model: nn.Module, path: Path, input_shape: tuple) -> None:
                                     input_names=[INPUT_NAME], output_names=[OUTPUT_NAME],
                                     dynamic_shapes=({0: batch},), verbose=False)
     program.save(str(path), external_data=False)
+
+
+def _export_torchscript_onnx(module, path: Path, input_shape: tuple) -> None:
+    import torch
+    with warnings.catch_warnings(), _quiet_onnx_exporter():
+        warnings.simplefilter("ignore")
+        torch.onnx.export(module, (example_batch(input_shape),), str(path), dynamo=False,
+                          input_names=[INPUT_NAME], output_names=[OUTPUT_NAME],
+                          dynamic_axes={INPUT_NAME: {0: "batch"}, OUTPUT_NAME: {0: "batch"}})
 
 
 class _quiet_onnx_exporter:

@@ -12,8 +12,9 @@ class BaselineConfig:
     version: int = 1
 
 
-@register_strategy("baseline", BaselineConfig)
+@register_strategy("baseline", BaselineConfig, takes_onnx=True)
 def baseline(config: BaselineConfig, source: StrategySource) -> dict:
-    # Kept as a pilotlab checkpoint run eagerly, as the 2022 study timed its PyTorch baseline.
-    save_float_model(source.load_model(), source, "checkpoint")
+    # Kept as a pilotlab checkpoint run eagerly, as the 2022 study timed its PyTorch baseline; a
+    # user's ONNX graph as it is, in ONNX Runtime.
+    save_float_model(source.load_model(), source, "onnx" if source.imported == "onnx" else "checkpoint")
     return {}

@@ -36,7 +36,7 @@ class OnnxRuntimeConfig:
     version: int = 1
 
 
-@register_strategy("onnxruntime", OnnxRuntimeConfig)
+@register_strategy("onnxruntime", OnnxRuntimeConfig, takes_onnx=True)
 def onnxruntime_fp32(config: OnnxRuntimeConfig, source: StrategySource) -> dict:
     export_onnx(source.load_model(), source.out / "model.onnx", source.input_shape)
     source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime",
@@ -55,7 +55,7 @@ class OnnxRuntimeInt8Config:
     float_first_conv: bool = True         # keep the 3-channel input conv in fp32 (faster here)
 
 
-@register_strategy("onnxruntime_int8", OnnxRuntimeInt8Config)
+@register_strategy("onnxruntime_int8", OnnxRuntimeInt8Config, takes_onnx=True)
 def onnxruntime_int8(config: OnnxRuntimeInt8Config, source: StrategySource) -> dict:
     extra = quantize_int8(source.load_model(), source, config)
     source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime",
@@ -93,7 +93,7 @@ class DynamicQuantConfig:
     op_types: tuple[str, ...] = ("MatMul", "Gemm")
 
 
-@register_strategy("dynamic_quant", DynamicQuantConfig)
+@register_strategy("dynamic_quant", DynamicQuantConfig, takes_onnx=True)
 def dynamic_quant(config: DynamicQuantConfig, source: StrategySource) -> dict:
     from onnxruntime.quantization import QuantType, quantize_dynamic
     with tempfile.TemporaryDirectory() as tmp, _quiet():

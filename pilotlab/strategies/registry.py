@@ -36,6 +36,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from matrix.errors import MatrixError
+from matrix.kinds import NotApplicable
 from matrix.registry import Registry
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.errors import PilotlabError
@@ -65,6 +67,22 @@ class StrategySource:
         """A fresh copy of the trained network, in eval mode."""
         model, _ = load_checkpoint(self.checkpoint_path)
         return model
+
+    @property
+    def imported(self) -> str | None:
+        """"network", "torchscript" or "onnx" for a model the user brought (pilotlab.models.imported),
+        None for a built-in arch."""
+        from pilotlab.models.imported import IMPORTED_ARCHS
+        arch = self.checkpoint.get("arch")
+        return arch if arch in IMPORTED_ARCHS else None
+
+    @property
+    def origin(self) -> str:
+        """The model's source in words, for messages: "the ONNX graph nets/x.onnx"."""
+        source = self.checkpoint.get("source") or {}
+        what = {"network": "the network class", "torchscript": "the TorchScript model",
+                "onnx": "the ONNX graph"}.get(self.imported, "the model")
+        return f"{what} {source.get('file', '')}".strip()
 
     @cached_property
     def checkpoint(self) -> dict[str, Any]:
@@ -131,6 +149,7 @@ class StrategyEntry:
     handler: Handler
     module: str                      # the module that implements it (its code fingerprint)
     hardware_dependent: bool = False  # its artifact depends on the target device (one job per device)
+    takes_onnx: bool = False         # it works on the ONNX graph, so it runs on a user's onnx: model too
 
     @property
     def version(self) -> int:
@@ -145,7 +164,7 @@ class StrategyEntry:
 STRATEGIES: Registry[StrategyEntry] = Registry("strategy")
 
 
-def register_strategy(name: str, config_cls: type, *, hardware_dependent: bool = False
+def register_strategy(name: str, config_cls: type, *, hardware_dependent: bool = False, takes_onnx: bool = False
                       ) -> Callable[[Handler], Handler]:
     if not (dataclasses.is_dataclass(config_cls) and config_cls.__dataclass_params__.frozen):
         raise TypeError(f"strategy {name!r}: its config must be a frozen dataclass")
@@ -153,7 +172,8 @@ def register_strategy(name: str, config_cls: type, *, hardware_dependent: bool =
         raise TypeError(f"strategy {name!r}: its config needs a `version` field")
 
     def decorate(handler: Handler) -> Handler:
-        STRATEGIES.add(name, StrategyEntry(name, config_cls, handler, handler.__module__, hardware_dependent))
+        STRATEGIES.add(name, StrategyEntry(name, config_cls, handler, handler.__module__, hardware_dependent,
+                                           takes_onnx))
         return handler
     return decorate
 
@@ -168,9 +188,29 @@ def apply_strategy(name: str, options: dict[str, Any] | None, source: StrategySo
     config = make_strategy_config(name, options)
     source.strategy = name
     source.out.mkdir(parents=True, exist_ok=True)
-    specifics = STRATEGIES.get(name).handler(config, source) or {}
+    specifics = _run_handler(STRATEGIES.get(name), config, source)
     meta = read_meta(source.out)
     return {"strategy": name, "strategy_version": meta.strategy_version,
             "options": dataclasses.asdict(config), "format": meta.format, "runtime": meta.runtime,
             "dtype": meta.dtype, "device": meta.device, "file": meta.file,
             "size_mb": artifact_size_mb(source.out), **specifics}
+
+
+def _run_handler(entry: StrategyEntry, config, source: StrategySource) -> dict[str, Any]:
+    """The strategy's result. On a model the user brought, a strategy that cannot work on it is not
+    applicable (an ONNX graph for a PyTorch strategy; a network it cannot trace or rewrite), never a crash."""
+    if source.imported == "onnx" and not entry.takes_onnx:
+        raise NotApplicable(f"{entry.name} works on a PyTorch network, not on {source.origin} (strategies for ONNX "
+                            "graphs: " + ", ".join(n for n, e in STRATEGIES.items() if e.takes_onnx) + ")")
+    if source.imported is None:
+        return entry.handler(config, source) or {}
+    try:
+        return entry.handler(config, source) or {}
+    except (MatrixError, KeyboardInterrupt, MemoryError):
+        raise
+    except Exception as error:  # noqa: BLE001 — the user's network is outside what the strategy handles
+        first = str(error).strip().splitlines()[0][:300] if str(error).strip() else ""
+        hint = (" (it rewrites nn.Module layers, which a TorchScript program does not expose; give `network:`, "
+                "the class, to run it)" if source.imported == "torchscript" else "")
+        raise NotApplicable(f"{entry.name} cannot work on {source.origin}{hint}: {type(error).__name__}"
+                            + (f": {first}" if first else "")) from error

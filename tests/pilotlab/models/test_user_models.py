@@ -1,0 +1,219 @@
+"""Models the user brings (recipe `models:` with network / weights / torchscript / onnx), through the
+real train, optimize and offline handlers on small random frames."""
+from __future__ import annotations
+
+import json
+import warnings
+
+import pytest
+import torch
+
+import pilotlab.jobs.optimize  # noqa: F401  (registers the kinds)
+import pilotlab.jobs.train  # noqa: F401
+from matrix.kinds import KINDS, NotApplicable
+from pilotlab import offline
+from pilotlab.data.frames import FrameSet
+from pilotlab.errors import PilotlabError
+from pilotlab.export import export_artifact
+from pilotlab.hardware import BUILTIN
+from pilotlab.models import load_checkpoint
+from tests.pilotlab.conftest import random_frames
+from tests.pilotlab.jobs.context import context, finished
+from tests.pilotlab.models.user_networks import DLS_OPTIONS, DLS_PILOTNET, load_class, write
+
+LABELS = {"v": [0.0, 12.0], "w": [-1.5, 1.5]}
+QUICK = offline.TimingSettings(warmup_runs=1, warmup_seconds=0.0, min_runs=3, max_runs=3, max_seconds=0.1,
+                               block_seconds=0.01, min_blocks=1, attempts=1, throughput_min_runs=1,
+                               throughput_seconds=0.05)
+
+
+@pytest.fixture(scope="module")
+def dls(tmp_path_factory):
+    """DLS's PilotNet as the user has it: the class's file, a state dict, the same as TorchScript and ONNX."""
+    folder = tmp_path_factory.mktemp("user")
+    net_file = write(folder, "nets/pilotnet.py", DLS_PILOTNET)
+    torch.manual_seed(3)
+    model = load_class(net_file, "PilotNet")(**DLS_OPTIONS).eval()
+    with torch.no_grad():   # a state as after training: the input norm's statistics are not the defaults
+        model.ln_1.running_mean.uniform_(0.3, 0.6)
+        model.ln_1.running_var.uniform_(0.05, 0.1)
+    torch.save(model.state_dict(), folder / "pilot_net_model_best_123.pth")
+    example = torch.rand(1, 3, 66, 200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        torch.jit.save(torch.jit.trace(model, example), str(folder / "pilotnet.pt"))
+        torch.onnx.export(model, (example,), str(folder / "pilotnet.onnx"), dynamo=False, input_names=["img"],
+                          output_names=["out"], dynamic_axes={"img": {0: "n"}, "out": {0: "n"}})
+    return folder
+
+
+def run(tmp_path, kind, name, params, deps=None, inputs=None):
+    ctx = context(tmp_path, kind, name, params, deps=deps, inputs=inputs)
+    result = KINDS.get(kind).handler(ctx)
+    json.dumps(result)
+    return finished(ctx, result)
+
+
+def _frames(folder, name):
+    from matrix.kinds import DepResult
+    return DepResult(key=name, kind="frames", params={}, result={}, artifacts=folder, name=name)
+
+
+def train(tmp_path, frames, name, params, inputs):
+    return run(tmp_path, "train", f"train {name}", {"labels": LABELS, "epochs": 1, "batch_size": 16, **params},
+               deps={"frames": (_frames(frames, "frames"),)}, inputs=inputs)
+
+
+def offline_mse(model, test_frames, exports) -> float:
+    """The baseline artifact's offline MSE; `pilotlab export`'s README of it goes into `exports`."""
+    artifact = run(model.artifacts.parent, "optimize", f"optimize {model.name}", {"strategy": "baseline"},
+                   deps={"model": model})
+    out = export_artifact(artifact.artifacts, artifact.result, model.artifacts.parent / f"export {model.name}")
+    exports[model.name.removeprefix("train ")] = (out / "README.md").read_text()
+    return offline.evaluate_offline(out, BUILTIN["cpu"], FrameSet.load(test_frames), QUICK)["mse"]
+
+
+def test_a_dls_state_dict_as_it_is_torchscript_and_onnx_give_the_same_mse(tmp_path, dls, frames, test_frames):
+    forms = {
+        "network": ({"network": "nets/pilotnet.py:PilotNet", "options": DLS_OPTIONS,
+                     "weights": "pilot_net_model_best_123.pth", "train": False},
+                    {"network_source": dls / "nets/pilotnet.py", "weights": dls / "pilot_net_model_best_123.pth"}),
+        "scripted": ({"torchscript": "pilotnet.pt"}, {"torchscript": dls / "pilotnet.pt"}),
+        "exported": ({"onnx": "pilotnet.onnx"}, {"onnx": dls / "pilotnet.onnx"}),
+        # DLS's layer names load into pilotlab's own PilotNet too
+        "builtin": ({"arch": "pilotnet", "weights": "pilot_net_model_best_123.pth", "train": False},
+                    {"weights": dls / "pilot_net_model_best_123.pth"}),
+    }
+    models = {name: train(tmp_path, frames, name, params, inputs) for name, (params, inputs) in forms.items()}
+    assert all(m.result["trained"] is False and m.result["epochs_run"] == 0 for m in models.values())
+    assert models["network"].result["source"]["kind"] == "network"
+    assert len(models["network"].result["source"]["sha256"]) == 64
+    val = {name: m.result["val_mse"] for name, m in models.items()}
+    assert max(val.values()) - min(val.values()) < 1e-4, val
+    exports = {}
+    mse = {name: offline_mse(m, test_frames, exports) for name, m in models.items()}
+    assert max(mse.values()) - min(mse.values()) < 1e-4, mse
+    assert f"Your class `{dls / 'nets/pilotnet.py'}:PilotNet` with options" in exports["network"]
+    assert "Your onnx file" in exports["exported"] and "Your torchscript file" in exports["scripted"]
+    assert models["exported"].result["source"]["sha256"][:12] in exports["exported"]
+    for model in models.values():   # checkpoints are plain data
+        payload = torch.load(model.artifacts / "model.pt", map_location="cpu", weights_only=True)
+        assert payload["arch"] in ("network", "torchscript", "onnx", "pilotnet")
+
+
+def test_a_network_class_trains_and_fine_tunes_from_weights(tmp_path, dls, frames):
+    inputs = {"network_source": dls / "nets/pilotnet.py"}
+    fresh = train(tmp_path, frames, "fresh", {"network": "nets/pilotnet.py:PilotNet", "options": DLS_OPTIONS},
+                  inputs)
+    tuned = train(tmp_path, frames, "tuned", {"network": "nets/pilotnet.py:PilotNet", "options": DLS_OPTIONS,
+                                              "weights": "w.pth"},
+                  {**inputs, "weights": dls / "pilot_net_model_best_123.pth"})
+    for model in (fresh, tuned):
+        assert model.result["trained"] is True and model.result["epochs_run"] == 1
+        network, checkpoint = load_checkpoint(model.artifacts / "model.pt")
+        assert type(network).__name__ == "PilotNet" and "fc_5.weight" in checkpoint["state_dict"]
+        assert checkpoint["config"]["options"] == DLS_OPTIONS
+    assert tuned.result["source"]["weights_sha256"]
+
+
+def test_strategies_run_on_user_models_or_say_why_not(tmp_path, dls, frames):
+    network = train(tmp_path, frames, "net", {"network": "nets/pilotnet.py:PilotNet", "options": DLS_OPTIONS,
+                                              "weights": "w.pth", "train": False},
+                    {"network_source": dls / "nets/pilotnet.py", "weights": dls / "pilot_net_model_best_123.pth"})
+    graph = train(tmp_path, frames, "graph", {"onnx": "pilotnet.onnx"}, {"onnx": dls / "pilotnet.onnx"})
+    frames_deps = (_frames(frames, "frames"),)
+
+    def optimize(model, strategy):
+        return run(tmp_path, "optimize", f"optimize {model.name}/{strategy}", {"strategy": strategy},
+                   deps={"model": model, "calibration": frames_deps})
+    assert optimize(network, "dynamic_quant").result["format"] == "onnx"
+    assert optimize(network, "local_prune").result["sparsity"] > 0.2
+    assert optimize(graph, "dynamic_quant").result["dtype"] == "int8"
+    assert optimize(graph, "onnxruntime").result["format"] == "onnx"
+    with pytest.raises(NotApplicable, match="local_prune works on a PyTorch network, not on the ONNX graph pilotnet.onnx"):
+        optimize(graph, "local_prune")
+    scripted = train(tmp_path, frames, "scripted", {"torchscript": "pilotnet.pt"}, {"torchscript": dls / "pilotnet.pt"})
+    assert optimize(scripted, "dynamic_quant").result["dtype"] == "int8"   # through the TorchScript ONNX exporter
+    with pytest.raises(NotApplicable, match="local_prune cannot work on the TorchScript model pilotnet.pt .it rewrites "
+                                            "nn.Module layers"):
+        optimize(scripted, "local_prune")
+
+
+# --- bad input: one line naming the recipe key ------------------------------------------------------
+
+def error_of(tmp_path, frames, params, inputs) -> str:
+    with pytest.raises(PilotlabError) as caught:
+        train(tmp_path, frames, "mine", params, inputs)
+    message = str(caught.value)
+    assert "\n" not in message
+    return message
+
+
+def test_options_the_class_does_not_take(tmp_path, dls, frames):
+    message = error_of(tmp_path, frames, {"network": "nets/pilotnet.py:PilotNet", "options": {"image_shape": [200, 66, 3],
+                                                                                               "labels": 2}},
+                       {"network_source": dls / "nets/pilotnet.py"})
+    assert message == ("models.mine.options: PilotNet(image_shape, num_labels) does not take labels "
+                       "(did you mean 'num_labels'?)")
+
+
+def test_no_such_class(tmp_path, dls, frames):
+    message = error_of(tmp_path, frames, {"network": "nets/pilotnet.py:PilotNett"},
+                       {"network_source": dls / "nets/pilotnet.py"})
+    assert message.startswith("models.mine.network: ") and "has no 'PilotNett'" in message
+    assert "did you mean 'PilotNet'" in message
+
+
+def test_an_exception_in_the_network_file_names_its_line(tmp_path, frames):
+    path = write(tmp_path, "broken.py", "import torch\n\n\nraise ValueError('half written')\n")
+    message = error_of(tmp_path, frames, {"network": "broken.py:Net"}, {"network_source": path})
+    assert message.startswith("models.mine.network: ") and f"{path}:4: ValueError: half written" in message
+
+
+def test_weights_that_do_not_fit(tmp_path, dls, frames):
+    other = write(tmp_path, "other.py", DLS_PILOTNET.replace("self.fc_5 = ", "self.extra = nn.Linear(10, 10)\n"
+                                                             "        self.fc_5 = ").replace("1164", "1000"))
+    message = error_of(tmp_path, frames, {"network": "other.py:PilotNet", "options": DLS_OPTIONS, "weights": "w.pth"},
+                       {"network_source": other, "weights": dls / "pilot_net_model_best_123.pth"})
+    assert message.startswith("models.mine.weights: pilot_net_model_best_123.pth does not fit PilotNet: ")
+    assert "missing keys extra.weight, extra.bias" in message
+    assert "first shape that differs: fc_1.weight is [1164, 1152] in the file, [1000, 1152] in the network" in message
+
+
+def test_weights_that_are_not_a_state_dict(tmp_path, dls, frames):
+    junk = tmp_path / "junk.pth"
+    junk.write_bytes(b"not a torch file")
+    message = error_of(tmp_path, frames, {"network": "nets/pilotnet.py:PilotNet", "options": DLS_OPTIONS,
+                                          "weights": "junk.pth"},
+                       {"network_source": dls / "nets/pilotnet.py", "weights": junk})
+    assert message.startswith("models.mine.weights: junk.pth is not a state dict torch.load(weights_only=True)")
+
+
+def test_an_output_that_is_not_n_by_2(tmp_path, dls, frames):
+    message = error_of(tmp_path, frames, {"network": "nets/pilotnet.py:PilotNet",
+                                          "options": {"image_shape": [200, 66, 3], "num_labels": 3}},
+                       {"network_source": dls / "nets/pilotnet.py"})
+    assert message == ("models.mine.network: PilotNet's output for an input [2, 3, 66, 200] is [2, 3]; a driving "
+                       "network returns [N, 2] (normalised v, w): check the input size it was built for against "
+                       "`preprocess` (height, width)")
+
+
+def test_a_network_that_fails_on_the_input_size(tmp_path, dls):
+    import numpy as np
+    narrow = random_frames(8, seed=4)   # preprocessed to 100x66, where the network wants 200x66
+    narrow = FrameSet(np.ascontiguousarray(narrow.frames[:, :, :100]), narrow.labels, narrow.recording,
+                      {"preprocess": {"width": 100, "height": 66}})
+    narrow.save(tmp_path / "narrow")
+    message = error_of(tmp_path, tmp_path / "narrow", {"network": "nets/pilotnet.py:PilotNet", "options": DLS_OPTIONS,
+                                                       "preprocess": {"width": 100, "height": 66}},
+                       {"network_source": dls / "nets/pilotnet.py"})
+    assert message.startswith("models.mine.network: PilotNet fails on an input [2, 3, 66, 100] (the preprocessed "
+                              "camera image): ")
+    assert "RuntimeError" in message
+
+
+def test_an_onnx_file_that_is_not_a_model(tmp_path, frames):
+    junk = tmp_path / "model.onnx"
+    junk.write_bytes(b"\x08\x07garbage that protobuf will not take" * 3)
+    message = error_of(tmp_path, frames, {"onnx": "model.onnx"}, {"onnx": junk})
+    assert message.startswith("models.mine.onnx: model.onnx is not an ONNX model (")

@@ -1,0 +1,118 @@
+"""Recipes with models the user brings (network / weights / torchscript / onnx): planning, the
+job keys (editing the network file reruns exactly that model's jobs), and recipe errors with the
+file, line and key. Planning reads the user's files; it never runs them."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from matrix import RecipeError, engine
+from matrix.recipe import load_recipe
+from pilotlab.domain import DOMAIN
+from tests.pilotlab.models.user_networks import DLS_PILOTNET, write
+
+RECIPE = """\
+name: own
+datasets:
+  train: {record: {circuits: [simple_circuit], laps: 0.1}}
+  test: {record: {circuits: [simple_circuit], laps: 0.1, seed: 2}}
+models:
+  builtin: {arch: pilotnet, epochs: 1}
+  dls: {network: nets/pilotnet.py:PilotNet, options: {image_shape: [200, 66, 3], num_labels: 2}, preset: dls,
+        epochs: 1}
+  frozen: {network: nets/pilotnet.py:PilotNet, options: {image_shape: [200, 66, 3], num_labels: 2},
+           weights: weights/dls.pth, train: false, preset: dls}
+  graph: {onnx: models/pilotnet.onnx, preset: dls}
+matrix:
+  model: [builtin, dls, frozen, graph]
+  strategy: [baseline, dynamic_quant]
+  hardware: [cpu]
+  circuit: [simple_circuit]
+"""
+
+
+@pytest.fixture
+def folder(tmp_path) -> Path:
+    write(tmp_path, "nets/pilotnet.py", "from layers import relu_stack  # noqa\n" + DLS_PILOTNET)
+    write(tmp_path, "nets/layers.py", "def relu_stack():\n    return None\n")
+    write(tmp_path, "weights/dls.pth", "state dict bytes")     # planning hashes files, never loads them
+    write(tmp_path, "models/pilotnet.onnx", "onnx bytes")
+    return tmp_path
+
+
+def plan(folder: Path, text: str = RECIPE) -> dict:
+    path = folder / "own.yaml"
+    path.write_text(text)
+    return {job.name: job for job in engine.plan_jobs(load_recipe(path, DOMAIN), DOMAIN)}
+
+
+def keys(folder: Path) -> dict[str, str]:
+    return {name: job.key for name, job in plan(folder).items()}
+
+
+def of_model(model: str, names) -> set[str]:
+    return {n for n in names if n == f"train {model}" or f" {model}/" in n}
+
+
+def test_the_models_files_are_the_train_jobs_inputs(folder):
+    jobs = plan(folder)
+    assert set(jobs["train dls"].inputs) == {"network_source"}
+    assert set(jobs["train frozen"].inputs) == {"network_source", "weights"}
+    assert set(jobs["train graph"].inputs) == {"onnx"}
+    assert jobs["train dls"].params["network"] == "nets/pilotnet.py:PilotNet"   # as written: the key is portable
+    assert jobs["train dls"].params["labels"] == {"v": [6.5, 24.0], "w": [-7.1, 7.1]}   # the dls preset
+    # the dls preset's preprocessing: its own frames jobs, for training and for the test set
+    frames = [job for job in jobs.values() if job.kind == "frames"]
+    assert sorted(job.params["interpolation"] for job in frames) == ["fast_area", "fast_area", "linear", "linear"]
+    assert {dep.params["interpolation"] for dep in jobs["offline dls/baseline on cpu"].deps["test"]} == {"linear"}
+
+
+@pytest.mark.parametrize("edited, models", [("nets/pilotnet.py", {"dls", "frozen"}),
+                                            ("nets/layers.py", {"dls", "frozen"}),   # a module it imports
+                                            ("weights/dls.pth", {"frozen"}),
+                                            ("models/pilotnet.onnx", {"graph"})])
+def test_editing_a_models_file_reruns_exactly_that_models_jobs(folder, edited, models):
+    before = keys(folder)
+    (folder / edited).write_text((folder / edited).read_text() + "\n# an edit\n")
+    after = keys(folder)
+    assert after.keys() == before.keys()
+    changed = {name for name in after if after[name] != before[name]}
+    assert changed == set().union(*(of_model(m, before) for m in models))
+
+
+def recipe_error(folder: Path, old: str, new: str) -> str:
+    with pytest.raises(RecipeError) as caught:
+        plan(folder, RECIPE.replace(old, new))
+    message = str(caught.value)
+    assert "\n" not in message and "own.yaml" in message
+    return message
+
+
+def test_a_missing_file_names_the_key(folder):
+    message = recipe_error(folder, "weights/dls.pth", "weights/gone.pth")
+    assert "models.frozen.weights" in message and "weights/gone.pth does not exist" in message
+    message = recipe_error(folder, "nets/pilotnet.py:PilotNet, options: {image_shape: [200, 66, 3], num_labels: 2}, "
+                                   "preset", "nets/missing.py:PilotNet, preset")
+    assert "models.dls.network" in message and "nets/missing.py: no such file" in message
+
+
+def test_a_syntax_error_names_the_key_and_the_line(folder):
+    write(folder, "nets/pilotnet.py", "import torch\n\nclass PilotNet(\n")
+    message = recipe_error(folder, "", "")
+    assert "models.dls.network" in message and "pilotnet.py:3: syntax error" in message
+
+
+@pytest.mark.parametrize("old, new, said", [
+    ("graph: {onnx: models/pilotnet.onnx,", "graph: {onnx: models/pilotnet.onnx, arch: pilotnet,",
+     "give one of arch, network, torchscript, onnx, not arch and onnx"),
+    ("weights: weights/dls.pth, train: false", "train: false", "train: false needs `weights:`"),
+    ("preset: dls}\n  graph", "}\n  graph", "labels: a model used as it is needs the label ranges it was trained with"),
+    ("graph: {onnx: models/pilotnet.onnx,", "graph: {onnx: models/pilotnet.onnx, train: true,",
+     "onnx models are used as they are"),
+    ("builtin: {arch: pilotnet", "builtin: {arch: network", "arch 'network' names checkpoints of models you bring"),
+    ("preset: dls", "preset: bls", "preset"),
+])
+def test_inconsistent_model_entries(folder, old, new, said):
+    message = recipe_error(folder, old, new)
+    assert said in message and "models." in message
