@@ -120,12 +120,10 @@ def test_an_unstable_timing_and_the_speed_ups_drawn_from_it_are_marked_with_the_
     assert table.notes == (f"⚠ baseline: inference time unstable: {DISTURBED}.",)
 
 
-def test_a_speed_up_between_timings_taken_in_another_machine_state_is_marked():
-    rows = timed_rows(reference_ms=0.8)                 # the reference kernel ran 1.5× slower beside the baseline
+def test_a_differing_reference_kernel_alone_does_not_mark_a_speed_up():
+    rows = timed_rows(reference_ms=0.8)  # 1.5x: what two worker processes of one quiet host read
     [table] = build_tables(ReportData.from_dict(small_dict(rows)), "offline")
-    assert table.rows[1].cells[-2].text == "5.75× ⚠"
-    assert table.notes[0].startswith("⚠ static_quant: speed-up not to be trusted: baseline and static_quant (cpu1): "
-                                     "the reference kernel timed beside them ran 1.54× slower")
+    assert table.rows[1].cells[-2].text == "5.75×" and not table.notes
 
 
 def test_no_summary_line_is_drawn_from_an_unstable_timing():
