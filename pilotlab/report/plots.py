@@ -177,16 +177,24 @@ def draw_ratios(data: ReportData) -> Figure | None:
     return figure
 
 
+def _place_panels(rows: list) -> tuple[Figure, list]:
+    """A panel per (hardware, circuit and direction) of the rows: the figure and, per panel,
+    (axes, hardware, place, the rows driven there)."""
+    places = list(dict.fromkeys((r.hardware, r.place) for r in rows))
+    figure, axes = _grid(len(places))
+    return figure, [(ax, target, place, [r for r in rows if (r.hardware, r.place) == (target, place)])
+                    for ax, (target, place) in zip(axes, places)]
+
+
 def draw_closed_loop(data: ReportData) -> Figure | None:
     rows = [r for r in data.of_kind("online")
             if r.get("average_speed") is not None and r.get("position_deviation_mae_m") is not None]
     if not rows:
         return None
-    places = list(dict.fromkeys((r.hardware, r.place) for r in rows))
-    figure, axes = _grid(len(places))
+    figure, panels = _place_panels(rows)
     colours, markers = strategy_colours(data), model_markers(data)
-    for ax, (target, place) in zip(axes, places):
-        for r in (r for r in rows if (r.hardware, r.place) == (target, place)):
+    for ax, target, place, here in panels:
+        for r in here:
             lost = r.get("lap_completed") is False
             ax.scatter(r.get("position_deviation_mae_m"), r.get("average_speed"), s=90, zorder=3,
                        marker="X" if lost else markers[r.model], color=colours[r.strategy],
@@ -208,11 +216,10 @@ def draw_latency_tolerance(data: ReportData) -> Figure | None:
     rows = [r for r in data.of_kind("online") if r.status == "ok" and r.tolerance]
     if not rows:
         return None
-    places = list(dict.fromkeys((r.hardware, r.place) for r in rows))
-    figure, axes = _grid(len(places))
+    figure, panels = _place_panels(rows)
     colours, markers = strategy_colours(data), model_markers(data)
-    for ax, (target, place) in zip(axes, places):
-        for r in (r for r in rows if (r.hardware, r.place) == (target, place)):
+    for ax, target, place, here in panels:
+        for r in here:
             points = [p for p in r.tolerance if p.position_deviation_mae_m is not None]
             done = [p for p in points if p.lap_completed]
             ax.plot([p.injected_ms for p in done], [p.position_deviation_mae_m for p in done],
