@@ -139,13 +139,6 @@ class JobKind:
         except pydantic.ValidationError as error:
             raise MatrixError(f"{where or self.name}: {params_problem(error, self.params)}") from None
 
-    def dump(self, params: Any) -> dict[str, Any]:
-        """Job params as plain JSON data: a params model (or a mapping, validated) with every default."""
-        if self.params is None:
-            return dict(params)
-        model = params if isinstance(params, self.params) else self.validate(params)
-        return model.model_dump(mode="json")
-
     def base_modules(self) -> tuple[str, ...]:
         """The modules every job of this kind runs: the handler's and the params model's import closures."""
         return _remembered(("closure", self.name), self._closure)
