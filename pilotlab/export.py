@@ -102,6 +102,8 @@ def export_artifact(artifact_dir: Path, result: dict[str, Any], out_dir: Path) -
     """Copy the artifact folder into `out_dir` and write README.md; returns out_dir."""
     artifact_dir, out_dir = Path(artifact_dir), Path(out_dir)
     meta = read_meta(artifact_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise PilotlabError(f"{out_dir} is a file, not a folder; give --out a new folder")
     if out_dir.exists() and any(out_dir.iterdir()):
         raise PilotlabError(f"{out_dir} exists and is not empty; give --out a new folder")
     shutil.copytree(artifact_dir, out_dir, dirs_exist_ok=True)

@@ -10,6 +10,7 @@ from pilotlab.data.bags import COMMAND_TYPES, bag_format, find_topic, messages, 
 from pilotlab.data.folder import is_dataset_folder, load_image, read_rows
 from pilotlab.data.images import IMAGE_TYPES, encoding_of, image_size
 from pilotlab.data.topics import COMMAND_TOPIC
+from pilotlab.errors import BagError
 
 
 def _range(values: np.ndarray) -> list[float] | None:
@@ -42,7 +43,12 @@ def inspect_bag(path: Path, command_topic: str = COMMAND_TOPIC) -> dict[str, Any
 
 def _first_image(reader, path: Path, topic: str) -> dict[str, Any]:
     name, msgtype, connections = find_topic(reader, path, topic, "image_topic", IMAGE_TYPES)
-    _, msg = next(messages(reader, path, connections))
+    first = next(messages(reader, path, connections), None)
+    if first is None:  # the bag's index (metadata.yaml) announces messages the bag does not hold
+        raise BagError(f"{path}: topic {name!r} is announced with {reader.topics[name].msgcount} {msgtype} "
+                       f"messages, but none can be read (its metadata does not match its data); "
+                       f"record the bag again, or repair it with `ros2 bag reindex`")
+    msg = first[1]
     where = f"{path}, topic {name}"
     return {"type": msgtype, "encoding": encoding_of(msg, msgtype), "size": list(image_size(msg, msgtype, where))}
 

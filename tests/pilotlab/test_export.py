@@ -73,6 +73,14 @@ def test_export_errors_say_what_to_do(store, tmp_path, capsys):
         export_artifact(tmp_path, {}, tmp_path / "y")
 
 
+def test_export_to_an_existing_file_is_one_line(store, tmp_path, capsys):
+    (tmp_path / "file").write_text("mine")
+    assert main(["export", "ab12", "--out", str(tmp_path / "file"), "--store", str(store)]) == 2
+    err = capsys.readouterr().err
+    assert "is a file, not a folder; give --out a new folder" in err and len(err.strip().splitlines()) == 1
+    assert (tmp_path / "file").read_text() == "mine"
+
+
 @pytest.mark.parametrize("kind, encoding", [("ros1", "rgb8"), ("ros1", "bgr8"), ("sqlite3", "rgb8"),
                                             ("sqlite3", "png")])
 def test_the_readme_reads_camera_images_from_a_bag(store, tmp_path, kind, encoding):

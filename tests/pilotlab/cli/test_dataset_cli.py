@@ -1,5 +1,8 @@
 """`pilotlab dataset inspect` and `pilotlab dataset convert`, through the real command line."""
 import json
+import sqlite3
+
+import pytest
 
 from pilotlab.cli import main
 from tests.pilotlab.data.bagfiles import RawBag, drive_bag, images
@@ -34,6 +37,23 @@ def test_inspect_a_bad_bag_prints_one_line_and_fails(tmp_path, capsys):
     assert main(["dataset", "inspect", str(tmp_path / "bad.bag")]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"pilotlab: error: {tmp_path}/bad.bag: cannot read the bag") and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("kind, damage", [("sqlite3", "no messages"), ("mcap", "type changed")])
+def test_inspect_an_image_topic_announced_but_not_readable_is_one_line(tmp_path, capsys, kind, damage):
+    path = tmp_path / "run"
+    drive_bag(path, kind, images(5))
+    if damage == "no messages":
+        with sqlite3.connect(next(path.glob("*.db3"))) as db:
+            db.execute("DELETE FROM messages WHERE topic_id = "
+                       "(SELECT id FROM topics WHERE name = '/F1ROS/cameraL/image_raw')")
+    else:  # metadata.yaml says the camera topic is compressed; the data says otherwise
+        metadata = path / "metadata.yaml"
+        metadata.write_text(metadata.read_text().replace("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage"))
+    assert main(["dataset", "inspect", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "topic '/F1ROS/cameraL/image_raw' is announced with 5" in err and "none can be read" in err
+    assert len(err.strip().splitlines()) == 1
 
 
 def test_convert_a_folder_then_inspect_it(tmp_path, capsys):
