@@ -201,6 +201,8 @@ def read_onnx(path: Path, input_shape: tuple[int, int, int]) -> bytes:
         first = str(error).splitlines()[0] if str(error) else type(error).__name__
         raise PilotlabError(f"{path.name} is not an ONNX model ({first})") from None
     graph = model.graph
+    if _names(graph) & {ONNX_INPUT, ONNX_OUTPUT}:   # already named as pilotlab names them: free the names
+        onnx.compose.add_prefix_graph(graph, "user/", inplace=True)
     initializers = {i.name for i in graph.initializer}
     inputs = [i for i in graph.input if i.name not in initializers]
     if len(inputs) != 1 or len(graph.output) != 1:
@@ -208,6 +210,12 @@ def read_onnx(path: Path, input_shape: tuple[int, int, int]) -> bytes:
                             f"this graph has {len(inputs)} and {len(graph.output)}")
     _rename_io(graph, inputs[0], _layout(inputs[0], input_shape, path))
     return model.SerializeToString()
+
+
+def _names(graph) -> set[str]:
+    """Every tensor name in the (top-level) graph."""
+    names = {v.name for v in (*graph.input, *graph.output, *graph.initializer, *graph.value_info)}
+    return names.union(*({*node.input, *node.output} for node in graph.node))
 
 
 def _layout(value_info, input_shape: tuple[int, int, int], path: Path) -> str:

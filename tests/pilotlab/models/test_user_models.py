@@ -217,3 +217,32 @@ def test_an_onnx_file_that_is_not_a_model(tmp_path, frames):
     junk.write_bytes(b"\x08\x07garbage that protobuf will not take" * 3)
     message = error_of(tmp_path, frames, {"onnx": "model.onnx"}, {"onnx": junk})
     assert message.startswith("models.mine.onnx: model.onnx is not an ONNX model (")
+
+
+class _Nhwc(torch.nn.Module):
+    """The same network taking [N, H, W, C], as TensorFlow exports it."""
+
+    def __init__(self, inner):
+        super().__init__()
+        self.inner = inner
+
+    def forward(self, images):
+        return self.inner(images.permute(0, 3, 1, 2))
+
+
+@pytest.mark.parametrize("layout", ["NCHW", "NHWC"])
+def test_an_onnx_model_already_named_images_and_vw(tmp_path, dls, frames, layout):
+    """The most natural export names its input `images` and its output `vw`, as pilotlab does."""
+    torch.manual_seed(3)
+    net = load_class(dls / "nets/pilotnet.py", "PilotNet")(**DLS_OPTIONS).eval()
+    exported = _Nhwc(net) if layout == "NHWC" else net
+    example = torch.rand(1, 66, 200, 3) if layout == "NHWC" else torch.rand(1, 3, 66, 200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        torch.onnx.export(exported, (example,), str(tmp_path / "m.onnx"), dynamo=False, input_names=["images"],
+                          output_names=["vw"], dynamic_axes={"images": {0: "n"}, "vw": {0: "n"}})
+    model = train(tmp_path, frames, "graph", {"onnx": "m.onnx"}, {"onnx": tmp_path / "m.onnx"})
+    loaded, _ = load_checkpoint(model.artifacts / "model.pt")
+    batch = torch.rand(2, 3, 66, 200)
+    with torch.no_grad():
+        torch.testing.assert_close(loaded(batch), net(batch), atol=1e-4, rtol=1e-4)
