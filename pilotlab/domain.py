@@ -262,6 +262,13 @@ def model_inputs(planner: Planner, name: str, spec: ModelSpec) -> dict[str, Inpu
     for key in ("weights", "torchscript", "onnx"):
         if getattr(spec, key) is not None:
             inputs[key] = input_file(str(planner.path(getattr(spec, key), ["models", name, key])))
+    if spec.onnx is not None:   # its weights kept in files beside it ("external data") are inputs too
+        from pilotlab.models.onnx_data import planned_data_files
+        try:
+            data = planned_data_files(Path(inputs["onnx"].path))
+        except MatrixError as error:
+            raise planner.recipe.error(str(error), ["models", name, "onnx"]) from None
+        inputs.update({f"onnx data {location}": input_file(str(file)) for location, file in data.items()})
     if spec.network is not None:
         try:
             files = usercode.source_files(spec.network, planner.folder)

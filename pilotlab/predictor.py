@@ -182,22 +182,8 @@ def _torch_module(path: Path, meta: ArtifactMeta, profile: HardwareProfile):
 def check_onnx_file(path: Path) -> None:
     """An ONNX file that ONNX Runtime may load: readable, and any weights it keeps in external files
     inside its own folder (a location such as ../../etc/x would make the runtime read outside)."""
-    import onnx
-    from onnx.external_data_helper import _get_all_tensors, uses_external_data
-    try:
-        model = onnx.load(str(path), load_external_data=False)
-    except Exception as error:  # protobuf's DecodeError, OSError, ...
-        raise PilotlabError(f"{path}: not a readable ONNX model ({type(error).__name__}: "
-                            f"{(str(error).splitlines() or [''])[0][:200]})") from None
-    folder = path.parent.resolve()
-    for tensor in _get_all_tensors(model):
-        if not uses_external_data(tensor):
-            continue
-        location = next((entry.value for entry in tensor.external_data if entry.key == "location"), "")
-        target = (folder / location).resolve()
-        if not location or Path(location).is_absolute() or not target.is_relative_to(folder):
-            raise PilotlabError(f"{path}: tensor {tensor.name!r} keeps its data in {location!r}, outside "
-                                "the artifact's folder; refused (an exported model keeps its files together)")
+    from pilotlab.models.onnx_data import external_data_files, load_without_data
+    external_data_files(load_without_data(path), path, "the artifact's folder")
 
 
 def _ort_session(path: Path, meta: ArtifactMeta, profile: HardwareProfile, spin: bool = True):

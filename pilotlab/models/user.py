@@ -194,10 +194,18 @@ def read_onnx(path: Path, input_shape: tuple[int, int, int]) -> bytes:
     """The ONNX model with its input renamed `images` (NCHW float32; an NHWC model, as TensorFlow
     exports them, gets a Transpose in front) and its output `vw`."""
     import onnx
+    from onnx.external_data_helper import load_external_data_for_model
+    from pilotlab.models.onnx_data import external_data_files
     try:
         model = onnx.load_from_string(path.read_bytes())
+    except Exception as error:  # noqa: BLE001 — protobuf raises its own types
+        first = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise PilotlabError(f"{path.name} is not an ONNX model ({first})") from None
+    if external_data_files(model, path, "the model file's folder"):  # read beside the model, into the bytes
+        load_external_data_for_model(model, str(path.parent))
+    try:
         onnx.checker.check_model(model)
-    except Exception as error:  # noqa: BLE001 — protobuf and the checker raise their own types
+    except Exception as error:  # noqa: BLE001 — the checker raises its own types
         first = str(error).splitlines()[0] if str(error) else type(error).__name__
         raise PilotlabError(f"{path.name} is not an ONNX model ({first})") from None
     graph = model.graph

@@ -81,6 +81,42 @@ def test_editing_a_models_file_reruns_exactly_that_models_jobs(folder, edited, m
     assert changed == set().union(*(of_model(m, before) for m in models))
 
 
+def test_onnx_external_data_is_an_input_resolved_beside_the_model(folder, monkeypatch):
+    import torch
+    from tests.pilotlab.models.test_user_models import onnx_with_external_data
+    from tests.pilotlab.models.user_networks import DLS_OPTIONS, load_class
+    torch.manual_seed(5)
+    net = load_class(write(folder, "plain/pilotnet.py", DLS_PILOTNET), "PilotNet")(**DLS_OPTIONS).eval()
+    onnx_with_external_data(folder, net)                     # models/m.onnx + models/sub/local.bin
+    (folder / "models/pilotnet.onnx").write_bytes((folder / "models/m.onnx").read_bytes())
+    monkeypatch.chdir(folder / "nets")                       # planned from another folder
+    jobs = plan(folder)
+    data = jobs["train graph"].inputs["onnx data sub/local.bin"]
+    assert Path(data.path) == folder / "models/sub/local.bin"
+    before = keys(folder)
+    with open(folder / "models/sub/local.bin", "ab") as weights:
+        weights.write(b"\x00\x00\x80\x3f")               # an edit (a size change, whatever the clock's tick)
+    after = keys(folder)
+    assert {name for name in after if after[name] != before[name]} == of_model("graph", before)
+
+
+def test_onnx_external_data_outside_the_models_folder_is_a_recipe_error(folder):
+    import onnx
+    from onnx import TensorProto, helper, numpy_helper
+    import numpy as np
+    bias = numpy_helper.from_array(np.zeros((1, 2), np.float32), "bias")
+    bias.ClearField("raw_data")
+    bias.data_location = TensorProto.EXTERNAL
+    for key, value in (("location", "../../secret.bin"), ("offset", "0"), ("length", "8")):
+        bias.external_data.add(key=key, value=value)
+    graph = helper.make_graph([helper.make_node("Add", ["x", "bias"], ["y"])], "g",
+                              [helper.make_tensor_value_info("x", TensorProto.FLOAT, [None, 2])],
+                              [helper.make_tensor_value_info("y", TensorProto.FLOAT, None)], [bias])
+    onnx.save(helper.make_model(graph), str(folder / "models/pilotnet.onnx"))
+    message = recipe_error(folder, "", "")
+    assert "models.graph.onnx" in message and "'../../secret.bin', outside the model file's folder" in message
+
+
 def recipe_error(folder: Path, old: str, new: str) -> str:
     with pytest.raises(RecipeError) as caught:
         plan(folder, RECIPE.replace(old, new))

@@ -246,3 +246,48 @@ def test_an_onnx_model_already_named_images_and_vw(tmp_path, dls, frames, layout
     batch = torch.rand(2, 3, 66, 200)
     with torch.no_grad():
         torch.testing.assert_close(loaded(batch), net(batch), atol=1e-4, rtol=1e-4)
+
+
+def onnx_with_external_data(folder, net, location="sub/local.bin"):
+    """models/m.onnx keeping its weights in `location`, relative to models/ (onnx.save_model writes it there)."""
+    import onnx
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        torch.onnx.export(net, (torch.rand(1, 3, 66, 200),), str(folder / "whole.onnx"), dynamo=False,
+                          input_names=["img"], output_names=["out"], dynamic_axes={"img": {0: "n"}, "out": {0: "n"}})
+    (folder / "models" / location).parent.mkdir(parents=True, exist_ok=True)
+    onnx.save_model(onnx.load(str(folder / "whole.onnx")), str(folder / "models/m.onnx"), save_as_external_data=True,
+                    location=location, size_threshold=0)
+    return folder / "models/m.onnx"
+
+
+def test_onnx_external_data_is_read_beside_the_model_not_in_the_current_folder(tmp_path, dls, frames, monkeypatch):
+    torch.manual_seed(4)
+    net = load_class(dls / "nets/pilotnet.py", "PilotNet")(**DLS_OPTIONS).eval()
+    (tmp_path / "user").mkdir()
+    path = onnx_with_external_data(tmp_path / "user", net)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    model = train(tmp_path, frames, "graph", {"onnx": "models/m.onnx"}, {"onnx": path})
+    (path.parent / "sub/local.bin").unlink()     # the checkpoint holds the weights: it needs no file beside it
+    loaded, _ = load_checkpoint(model.artifacts / "model.pt")
+    batch = torch.rand(2, 3, 66, 200)
+    with torch.no_grad():
+        torch.testing.assert_close(loaded(batch), net(batch), atol=1e-4, rtol=1e-4)
+    message = error_of(tmp_path, frames, {"onnx": "models/m.onnx"}, {"onnx": path})
+    assert message.startswith("models.mine.onnx: ") and "keeps its data in 'sub/local.bin', which is not a file" in message
+
+
+def test_onnx_external_data_outside_the_models_folder_is_refused(tmp_path, dls, frames):
+    import onnx
+    net = load_class(dls / "nets/pilotnet.py", "PilotNet")(**DLS_OPTIONS).eval()
+    path = onnx_with_external_data(tmp_path, net, location="outside.bin")
+    (path.parent / "outside.bin").rename(tmp_path / "outside.bin")
+    model = onnx.load(str(path), load_external_data=False)
+    for tensor in model.graph.initializer:
+        for entry in tensor.external_data:
+            entry.value = "../outside.bin" if entry.key == "location" else entry.value
+    path.write_bytes(model.SerializeToString())
+    message = error_of(tmp_path, frames, {"onnx": "models/m.onnx"}, {"onnx": tmp_path / "models/m.onnx"})
+    assert message.startswith("models.mine.onnx: ") and "outside the model file's folder; refused" in message
