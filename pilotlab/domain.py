@@ -68,6 +68,8 @@ class Planner:
         self.shared_params: dict[tuple, dict] = {}
 
     def jobs(self) -> list[Job]:
+        from pilotlab.definitions import check_definitions
+        check_definitions(self)
         jobs: list[Job] = []
         for combination in self.recipe.combinations:
             jobs += self.combination_jobs(combination)

@@ -113,6 +113,30 @@ def test_recipe_errors_name_the_line_and_key(tmp_path, edit, message):
     assert "\n" not in str(caught.value)
 
 
+@pytest.mark.parametrize("old, new, message", [
+    ("  local_prune: {finetune_epochs: 1}\n", "  local_prune: {finetune_epochs: 1}\n  global_prune: {amount: 0.3, epoch: 1}\n",
+     ":10: strategies.global_prune: unknown option(s) epoch"),
+    ("  local_prune: {finetune_epochs: 1}\n", "  local_prune: {finetune_epochs: 1}\n  spare: {use: local_prun}\n",
+     ":10: strategies.spare.use: unknown strategy 'local_prun' (did you mean 'local_prune'?)"),
+    ("  other: {epochs: 2}\n", "  other: {epochs: 2}\n  spare: {options: {dropuot: 0.1}}\n",
+     ":8: models.spare: model 'pilotnet': unknown option(s) dropuot (did you mean 'dropout'?)"),
+    ("  other: {epochs: 2}\n", "  other: {epochs: 2}\n  spare: {data: trian}\n",
+     ":8: models.spare.data: dataset 'trian' is not defined"),
+    ("  other: {epochs: 2}\n", "  other: {epochs: 2}\n  spare: {network: nope.py:Net}\n",
+     ":8: models.spare.network: nope.py: no such file"),
+    ("  test: {record", "  spare: {bags: [missing.bag]}\n  test: {record", ":4: datasets.spare.bags: missing.bag does not exist"),
+    ("  test: {record", "  spare: {record: {circuits: [simple_circiut]}}\n  test: {record",
+     ":4: datasets.spare.record.circuits: unknown circuit 'simple_circiut'"),
+    ("matrix:", "circuits:\n  spare: {csv: missing.csv}\nmatrix:", ":12: circuits.spare.csv: missing.csv does not exist"),
+    ("matrix:", "hardware:\n  spare: {latency_file: missing.json}\nmatrix:",
+     ":12: hardware.spare.latency_file: missing.json does not exist"),
+])
+def test_definitions_the_matrix_does_not_use_are_validated_too(tmp_path, old, new, message):
+    with pytest.raises(RecipeError) as caught:
+        engine.plan_jobs(recipe_at(tmp_path, RECIPE.replace(old, new, 1)), DOMAIN)
+    assert message in str(caught.value) and "\n" not in str(caught.value)
+
+
 @pytest.mark.parametrize("path, message", [
     ("a" * 5000, "datasets.train.bags: aaaaa"),
     ("/proc/self/mem", "input /proc/self/mem is a system file (below /proc), not data"),
