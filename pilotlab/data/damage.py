@@ -67,7 +67,9 @@ class Damage:
         if not self.count:
             return
         if self.first_error is not None and len(self.stamps) >= total:
-            raise self.first_error
+            first = str(self.first_error)
+            raise (self.first_error if first.startswith(str(self.path)) else
+                   BagError(f"{self.path}, topic {self.topic}: {first}"))
         if self.count > MAX_SHARE * max(total, 1):
             raise BagError(f"{self.path}, topic {self.topic}: {self.count} of {total} messages are lost "
                            f"({self.describe()}); more than {MAX_SHARE:.0%} of a recording may not be lost: "

@@ -13,6 +13,7 @@ import hashlib
 import inspect
 import io
 import logging
+import re
 from pathlib import Path
 from typing import Any
 
@@ -78,8 +79,13 @@ def load_weights(model: nn.Module, path: Path) -> None:
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as error:  # noqa: BLE001 — torch raises many types for a file it cannot read
-        raise PilotlabError(f"{path.name} is not a state dict torch.load(weights_only=True) can read: "
-                            f"{str(error).splitlines()[0] if str(error) else type(error).__name__}") from None
+        if found := re.search(r"Unsupported global: GLOBAL (\S+)", str(error)):   # e.g. torch.save(model)
+            raise PilotlabError(f"{path.name} holds Python objects ({found[1]}), not only tensors (a whole model "
+                                "saved with torch.save(model)?), and pilotlab never unpickles objects; save the "
+                                "weights with torch.save(model.state_dict(), path) and give that file") from None
+        first = re.sub(r"\x1b\[[0-9;]*m", "", str(error).splitlines()[0]) if str(error) else type(error).__name__
+        raise PilotlabError(f"{path.name} is not a state dict torch.load(weights_only=True) can read: {first}") \
+            from None
     if isinstance(state, dict) and isinstance(state.get("state_dict"), dict):
         state = state["state_dict"]                # a checkpoint that wraps its state dict
     if not isinstance(state, dict) or not all(isinstance(v, torch.Tensor) for v in state.values()):

@@ -56,6 +56,13 @@ def test_more_than_two_percent_lost_is_an_error(tmp_path, kind):
         read_frames(path, CONFIG)
 
 
+def test_every_command_damaged_names_the_bag_and_topic(tmp_path):
+    path = recording(bag_path(tmp_path, "mcap"), "mcap", damaged_commands=set(range(10)), n=10)
+    with pytest.raises(BagError) as caught:
+        read_frames(path, CONFIG)
+    assert str(caught.value) == f"{path}, topic /F1ROS/cmd_vel: a command is damaged (v = nan is not a command)"
+
+
 @pytest.mark.parametrize("kind", ["sqlite3", "mcap"])
 def test_a_false_message_count_is_reported(tmp_path, kind):
     path = bag_path(tmp_path, kind)

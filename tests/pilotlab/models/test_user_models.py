@@ -189,6 +189,16 @@ def test_weights_that_are_not_a_state_dict(tmp_path, dls, frames):
     assert message.startswith("models.mine.weights: junk.pth is not a state dict torch.load(weights_only=True)")
 
 
+def test_weights_saved_as_a_whole_module_say_how_to_save_a_state_dict(tmp_path, dls, frames):
+    net = load_class(dls / "nets/pilotnet.py", "PilotNet")(**DLS_OPTIONS)
+    torch.save(net, tmp_path / "whole.pth")
+    message = error_of(tmp_path, frames, {"network": "nets/pilotnet.py:PilotNet", "options": DLS_OPTIONS,
+                                          "weights": "whole.pth"},
+                       {"network_source": dls / "nets/pilotnet.py", "weights": tmp_path / "whole.pth"})
+    assert message.startswith("models.mine.weights: whole.pth holds Python objects (")
+    assert "torch.save(model.state_dict(), path)" in message and "\x1b" not in message
+
+
 def test_an_output_that_is_not_n_by_2(tmp_path, dls, frames):
     message = error_of(tmp_path, frames, {"network": "nets/pilotnet.py:PilotNet",
                                           "options": {"image_shape": [200, 66, 3], "num_labels": 3}},
