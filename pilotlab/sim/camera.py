@@ -39,7 +39,11 @@ class CameraSpec:
     pitch_deg: float = 0.0                 # + looks down
     near_m: float = 0.1
     far_m: float = 300.0
-    version: int = 1
+    lateral_m: float = 0.0                 # mount left of the car's centre line
+    # A level camera turns with the car's yaw only (not its pitch and roll on the suspension), as a
+    # camera on a planar-move car in Gazebo does: the BM world renderer relies on it (pilotlab.worlds).
+    level: bool = False
+    version: int = 2
 
     def __post_init__(self):
         left, top, right, bottom = self.window
@@ -58,6 +62,12 @@ class CameraSpec:
     @property
     def size(self) -> tuple[int, int]:
         return self.width, self.height
+
+    def in_bm_world(self) -> bool:
+        """Whether this is BM's F1 camera (bm_camera): optics and mount, at any window."""
+        full = bm_camera()
+        return all(getattr(self, name) == getattr(full, name) for name in
+                   ("hfov_deg", "aspect", "forward_m", "height_m", "lateral_m", "pitch_deg", "far_m", "level"))
 
     def plane_bounds(self) -> tuple[float, float, float, float]:
         """(left, top, right, bottom) of the rendered window on the image plane at depth 1
@@ -91,11 +101,20 @@ class CameraSpec:
         return matrix.T.reshape(-1).tolist()
 
 
+def bm_camera(**options) -> CameraSpec:
+    """BehaviorMetrics' F1 camera (models/f1_renault/model.sdf, sensor cam_f1_left): 640×480, horizontal
+    FOV 1.57 rad, clip 0.1-15 m, at (0.45, 0.04, 0.10) m in the car's frame with no pitch; the car's
+    origin is spawned 4 mm above the road, so the lens is 0.104 m up. `options` override (a window...)."""
+    settings = dict(hfov_deg=math.degrees(1.57), forward_m=0.45, lateral_m=0.04, height_m=0.104,
+                    near_m=0.1, far_m=15.0, level=True)
+    return CameraSpec(**{**settings, **options})
+
+
 def camera_pose(spec: CameraSpec, position, quaternion, axle_height: float) -> tuple[np.ndarray, np.ndarray]:
     """(eye in the world, R world->camera) for a camera on a car whose centre is at `position`
     (at axle height) with orientation `quaternion` (x, y, z, w; the car looks along its +x)."""
-    car = quaternion_matrix(quaternion)                      # columns: car forward, left, up
-    eye = np.asarray(position) + car @ np.array([spec.forward_m, 0.0, spec.height_m - axle_height])
+    car = level_matrix(quaternion) if spec.level else quaternion_matrix(quaternion)  # columns: forward, left, up
+    eye = np.asarray(position) + car @ np.array([spec.forward_m, spec.lateral_m, spec.height_m - axle_height])
     pitch = math.radians(spec.pitch_deg)
     forward = car @ np.array([math.cos(pitch), 0.0, -math.sin(pitch)])
     down = car @ np.array([-math.sin(pitch), 0.0, -math.cos(pitch)])
@@ -103,6 +122,14 @@ def camera_pose(spec: CameraSpec, position, quaternion, axle_height: float) -> t
     right = np.array([down[1] * forward[2] - down[2] * forward[1], down[2] * forward[0] - down[0] * forward[2],
                       down[0] * forward[1] - down[1] * forward[0]])
     return eye, np.stack([right, down, forward])
+
+
+def level_matrix(q) -> np.ndarray:
+    """The rotation of quaternion q's yaw alone (the car's heading, level)."""
+    x, y, z, w = q
+    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def quaternion_matrix(q) -> np.ndarray:

@@ -1,0 +1,13 @@
+"""BehaviorMetrics' own F1 worlds (Gazebo SDF + COLLADA) in pilotlab's simulator.
+
+    from pilotlab.worlds import load_world
+    world = load_world("simple_circuit", assets="path/to/RoboticsInfrastructure/CustomRobots/f1")
+
+See docs/worlds.md. Modules: assets (where worlds are), sdf (the world and model files), collada
+(meshes), scene (ground layers and solids), raster (top-down rasters), world (the cached, drivable
+world), render (the fast camera renderer), bullet (the same world in pybullet).
+"""
+from pilotlab.worlds.assets import ASSETS_ENV, resolve_assets, world_names
+from pilotlab.worlds.world import BMWorld, load_world
+
+__all__ = ["ASSETS_ENV", "BMWorld", "load_world", "resolve_assets", "world_names"]
