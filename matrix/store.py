@@ -104,9 +104,12 @@ class Store:
         return self.outputs_state(key, result) == INTACT
 
     def outputs_state(self, key: str, result: dict, full: bool = False) -> str:
-        """INTACT, MISSING (a file gone or of another size) or CHANGED (not the sha256 recorded).
+        """INTACT, MISSING (a file gone or of another size, or spec.json gone) or CHANGED (not the sha256 recorded).
         Hashes only files whose stat changed since they were last hashed, or every file if `full`."""
         folder, verified_path = self.artifacts(key), self.job_dir(key) / VERIFIED
+        spec = self.spec(key)
+        if not isinstance(spec, dict) or spec.get("key", key) != key:   # what the entry is of: part of it
+            return MISSING
         verified = read_json(verified_path)
         verified = verified if isinstance(verified, dict) else {}
         if verified.get(CHANGED):

@@ -76,3 +76,13 @@ def test_a_manifest_of_sizes_only_still_reads_as_intact(tmp_path):
     result = dict(store.result(key), manifest={"value.json": 1})
     assert store.outputs_intact(key, result)
     assert not store.outputs_intact(key, dict(result, manifest={"value.json": 2}))
+
+
+def test_an_entry_whose_spec_was_deleted_is_not_fresh_and_the_run_rebuilds_it(tmp_path):
+    path, store, key = setup(tmp_path)
+    (store.job_dir(key) / "spec.json").unlink()
+    status = status_of(path, store, "source a")
+    assert (status.state, status.reason) == ("stale", "output missing or corrupt")
+    _, summary = plan_and_run(path, store)
+    assert [o.name for o in summary.outcomes] == ["source a"] and summary.counts() == {"ok": 1}
+    assert store.spec(key)["key"] == key and status_of(path, store, "source a").state == "fresh"
