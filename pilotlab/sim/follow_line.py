@@ -7,8 +7,9 @@
 Keywords (all optional): `circuit` (a name, `pilotlab circuit list`, or a CSV path), `direction`
 ("cw" | "ccw"), `camera` ((width, height), a dict of `CameraSpec` fields, a `CameraSpec`, "crop" for
 the network's 200×66 input rendered directly, or None for no camera), `renderer` ("ground", the fast
-one, or "pybullet"), `observation` ("image" | "state" | "image+state"), `actions` ("physical" |
-"normalized"), `control_hz` (steps per simulated second), `timing` ("lockstep" | "latency"),
+one, or "pybullet"), `observation` ("image" | "state" | "image+state"), `actions` ("normalized",
+the default here: [-1, 1]² mapped onto the car's limits; or "physical": m/s and rad/s), `control_hz`
+(steps per simulated second), `timing` ("lockstep" | "latency"),
 `extra_latency_ms`, `fixed_inference_ms`, `start` (metres or "random"), `laps`, `timeout_s`,
 `stop_off_road`, `trapped_s`, `walls`; and Gymnasium's own (`render_mode`, `max_episode_steps`...).
 """
@@ -41,13 +42,27 @@ def camera_spec(camera: Any):
 
 
 def make_follow_line(circuit: str = "simple_circuit", direction: str = "cw", camera: Any = (640, 480),
-                     renderer: str = "ground", control_hz: float = 20.0, **options: Any):
-    """The entry point `gymnasium.make` calls: a DrivingEnv from the keywords."""
+                     renderer: str = "ground", control_hz: float = 20.0, actions: str = "normalized",
+                     **options: Any):
+    """The entry point `gymnasium.make` calls: a DrivingEnv from the keywords. Actions are normalized
+    by default (what Gymnasium's checker and learning libraries expect); `info["command"]` is the
+    (v, w) applied, in m/s and rad/s."""
     from pilotlab.sim.env import DrivingEnv
     if not control_hz > 0:
         raise PilotlabError(f"control_hz must be positive, got {control_hz}")
-    return DrivingEnv(circuit, direction=direction, camera=camera_spec(camera), renderer=renderer,
-                      control_period=1.0 / control_hz, **options)
+    return DrivingEnv(circuit, direction=direction, camera=_within_limits(camera_spec(camera)), renderer=renderer,
+                      control_period=1.0 / control_hz, actions=actions, **options)
+
+
+def _within_limits(spec):
+    """A camera no larger than a recipe's may be (an image of 100000×100000 is 30 GB)."""
+    from annotated_types import Le
+    from pilotlab.specs.base import CameraSize
+    limit = next(m.le for m in CameraSize.model_fields["width"].metadata if isinstance(m, Le))
+    if spec is not None and max(spec.width, spec.height) > limit:
+        raise PilotlabError(f"camera {spec.width}×{spec.height} is too large: at most {limit} pixels a side "
+                            "(as in a recipe's camera)")
+    return spec
 
 
 def register() -> None:

@@ -24,6 +24,8 @@ STRAIGHT = np.array([6.0, 0.0], np.float32)
 
 
 def make(stadium_csv, **options):
+    """The registered env; these tests drive in m/s and rad/s unless they say `actions`."""
+    options.setdefault("actions", "physical")
     return gymnasium.make(ENV_ID, circuit=stadium_csv, camera=options.pop("camera", SMALL), **options)
 
 
@@ -37,14 +39,19 @@ def checker_warnings(env) -> list[str]:
 @pytest.mark.parametrize("options", [{"observation": "image"}, {"observation": "state", "camera": None},
                                      {"observation": "image+state"}])
 def test_the_env_checker_passes_without_warnings(stadium_csv, options):
-    with make(stadium_csv, actions="normalized", **options) as env:
+    """As users make it: normalized actions are the registered default."""
+    with gymnasium.make(ENV_ID, circuit=stadium_csv, camera=options.pop("camera", SMALL), **options) as env:
         assert checker_warnings(env) == []
+        assert list(env.action_space.low) == [-1, -1] and list(env.action_space.high) == [1, 1]
+        env.reset(seed=0)
+        _, _, _, _, info = env.step(np.array([1.0, 0.0], np.float32))
+        assert info["command"] == pytest.approx((25.0, 0.0), abs=1e-5)    # physical units in info: full speed
 
 
 def test_with_physical_actions_the_checker_only_recommends_normalizing(stadium_csv):
-    """(v, w) in m/s and rad/s is the default; Gymnasium's checker recommends [-1, 1] for any other
-    Box action range (Pendulum-v1 gets the same), which `actions="normalized"` gives."""
-    with make(stadium_csv) as env:
+    """(v, w) in m/s and rad/s; Gymnasium's checker recommends [-1, 1] for any other Box action
+    range (Pendulum-v1 gets the same), which the default `actions="normalized"` gives."""
+    with make(stadium_csv, actions="physical") as env:
         caught = checker_warnings(env)
         assert len(caught) == 1 and "recommend using a symmetric and normalized space" in caught[0]
         assert env.action_space.low[0] == -5.0 and env.action_space.high[0] == 25.0   # CarSpec's limits
@@ -65,6 +72,8 @@ def test_spaces_follow_the_options(stadium_csv):
         make(stadium_csv, camera=None, observation="image")
     with pytest.raises(PilotlabError, match="camera"):
         make(stadium_csv, camera="big")
+    with pytest.raises(PilotlabError, match=r"camera 100000×100000 is too large: at most 4096 pixels a side"):
+        make(stadium_csv, camera=(100000, 100000))
 
 
 def test_normalized_actions_map_onto_the_car_limits(stadium_csv):
