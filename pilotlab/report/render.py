@@ -48,6 +48,14 @@ def code_block(text: str, language: str = "") -> Markup:
     return Markup(f"{fence}{language}\n{text.rstrip()}\n{fence}")
 
 
+def code_span(text: str) -> Markup:
+    """Inline code that shows `text` verbatim (one line): the backtick run around it is longer than any inside."""
+    text = re.sub(r"\s+", " ", str(text))
+    fence = "`" * (max((len(run) for run in re.findall(r"`+", text)), default=0) + 1)
+    pad = " " if text.startswith("`") or text.endswith("`") else ""
+    return Markup(f"{fence}{pad}{text}{pad}{fence}")
+
+
 def csp_hash(content: str) -> str:
     return "'sha256-" + base64.b64encode(hashlib.sha256(content.encode("utf-8")).digest()).decode("ascii") + "'"
 
@@ -60,6 +68,7 @@ def _environments() -> tuple[Environment, Environment]:
     html_env = Environment(**common)
     md_env = Environment(**common, finalize=markdown_escape)
     md_env.filters["code_block"] = code_block
+    md_env.filters["code_span"] = code_span
     return html_env, md_env
 
 

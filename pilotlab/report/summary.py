@@ -3,7 +3,8 @@
 No line is drawn from a timing that stayed disturbed (or from two taken with the machine in another
 state): where one is, the line says so instead of naming a fastest method.
 
-Findings are (label, text) pairs of plain text; the templates escape them.
+Findings are (label, text) pairs of plain text, the templates escape them; a finding that asks for a
+command names it apart (`command`, then `then`), for the templates to show it as code.
 """
 from __future__ import annotations
 
@@ -19,6 +20,8 @@ from pilotlab.report.tables import format_value, method_label
 class Finding:
     label: str
     text: str
+    command: str = ""      # shown as code after the text
+    then: str = ""         # plain text after the command
 
 
 def summarise(data: ReportData) -> list[Finding]:
@@ -78,8 +81,8 @@ def _fastest(data: ReportData, rows: list[ReportRow]) -> list[Finding]:
             if row is None:
                 continue
             if issue := timing_issue(here, metric):
-                findings.append(Finding(f"{label} on {hardware}", f"not drawn: {issue}; rerun "
-                                        "`pilotlab run --force offline` when the machine is quieter"))
+                findings.append(Finding(f"{label} on {hardware}", f"not drawn: {issue}; rerun",
+                                        "pilotlab run --force offline", "when the machine is quieter"))
                 continue
             text = f"{method_label(row, data)} — {format_value(metric, row.get(metric))} {unit}"
             versus = _versus(data, row, metric, "faster") if metric == "latency_ms" else ""
