@@ -1,5 +1,5 @@
 """A small pilotlab recipe on a Dask LocalCluster (two worker processes) gives the local executor's
-jobs and results (timings apart), and the local executor then finds everything fresh."""
+jobs and results (measurements apart), and the local executor then finds everything fresh."""
 import math
 
 import pytest
@@ -7,7 +7,7 @@ import pytest
 from matrix import engine
 from matrix.recipe import load_recipe
 from matrix.store import Store
-from pilotlab.columns import OFFLINE, ONLINE
+from pilotlab.columns import BEHAVIORMETRICS, OFFLINE, ONLINE
 from pilotlab.domain import DOMAIN
 
 pytest.importorskip("distributed")
@@ -26,10 +26,10 @@ matrix:
   hardware: [cpu1]
   circuit: [simple_circuit]
 """
-TIMINGS = {"latency_ms", "latency_p90_ms", "latency_p99_ms", "latency_runs", "throughput_ips", "peak_mem_mb",
-           "brain_frequency_real_hz", "mean_inference_ms", "real_time_factor", "seconds", "wall_seconds",
-           "measured_inference_ms", "wall_seconds", "decode_fps", "duration_s", "bytes"}
-COMPARED = {c.name for c in OFFLINE + ONLINE} - TIMINGS | {"val_mse", "val_mse_mean_predictor", "frames", "size_mb"}
+COLUMNS = OFFLINE + ONLINE + BEHAVIORMETRICS
+# measurements (timings, memory) differ from run to run: only their presence is compared
+MEASURED = {c.name for c in COLUMNS if c.measured}
+COMPARED = {c.name for c in COLUMNS if not c.measured} | {"val_mse", "val_mse_mean_predictor", "frames"}
 
 
 def results(store: Store, plan) -> dict:
@@ -40,6 +40,18 @@ def same(a, b) -> bool:
     if isinstance(a, float) and isinstance(b, float):
         return math.isclose(a, b, rel_tol=1e-6, abs_tol=1e-9)
     return a == b
+
+
+def assert_same_results(ours: dict, theirs: dict) -> None:
+    """Every job's status and every result that is not a measurement equal; each measurement given by both
+    runs or by neither."""
+    for name, result in ours.items():
+        assert result["status"] == theirs[name]["status"], name
+        mine, other = result["value"], theirs[name]["value"]
+        for metric in COMPARED & set(mine):
+            assert same(mine[metric], other.get(metric)), (name, metric, mine[metric], other.get(metric))
+        for metric in MEASURED & set(mine):
+            assert (mine[metric] is None) == (other.get(metric) is None), (name, metric)
 
 
 @pytest.mark.slow
@@ -54,9 +66,5 @@ def test_dask_local_cluster_matches_the_local_executor(tmp_path):
     summary = engine.run_plan(remote_plan, DOMAIN, remote, executor=engine.Executor("dask-local", 2))
     assert not summary.failed, summary.outcomes
     assert sorted(local.keys()) == sorted(remote.keys())
-    ours, theirs = results(local, local_plan), results(remote, remote_plan)
-    for name, result in ours.items():
-        assert result["status"] == theirs[name]["status"], name
-        for metric in COMPARED & set(result["value"]):
-            assert same(result["value"][metric], theirs[name]["value"][metric]), (name, metric)
+    assert_same_results(results(local, local_plan), results(remote, remote_plan))
     assert not engine.make_plan(recipe, DOMAIN, remote).stale

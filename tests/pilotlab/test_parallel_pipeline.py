@@ -1,5 +1,5 @@
 """A small pilotlab recipe run with one job at a time and with several: the same jobs, the same
-results (timings apart) and the same recorded and trained files."""
+results (measurements apart) and the same recorded and trained files."""
 import hashlib
 
 import pytest
@@ -8,7 +8,7 @@ from matrix import engine
 from matrix.recipe import load_recipe
 from matrix.store import Store
 from pilotlab.domain import DOMAIN
-from tests.pilotlab.test_dask_pipeline import COMPARED, RECIPE, results, same
+from tests.pilotlab.test_dask_pipeline import RECIPE, assert_same_results, results
 
 
 def file_hashes(store: Store, kinds=("record", "frames", "train", "optimize")) -> dict[str, str]:
@@ -43,11 +43,7 @@ def test_several_jobs_at_once_give_the_results_of_one_at_a_time(tmp_path):
         plans[jobs] = engine.make_plan(recipe, DOMAIN, store)
         assert not engine.run_plan(plans[jobs], DOMAIN, store, jobs=jobs).failed
     assert sorted(one.keys()) == sorted(many.keys())
-    ours, theirs = results(one, plans[1]), results(many, plans[3])
-    for name, result in ours.items():
-        assert result["status"] == theirs[name]["status"], name
-        for metric in COMPARED & set(result["value"]):
-            assert same(result["value"][metric], theirs[name]["value"][metric]), (name, metric)
+    assert_same_results(results(one, plans[1]), results(many, plans[3]))
     hashes = file_hashes(one)
     assert any(name.endswith("model.pt") for name in hashes) and any(name.startswith("record ") for name in hashes)
     assert file_hashes(many) == hashes

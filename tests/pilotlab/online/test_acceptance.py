@@ -1,6 +1,7 @@
-"""Issue 6's acceptance, end to end through the job handlers (slow: about 10 minutes on 2 cores):
+"""Issue 6's acceptance, end to end through the job handlers (slow: about a minute and a half on 2 cores):
 the expert records simple_circuit both ways with swerves (recoveries), PilotNet trains on it, the
-`baseline` strategy packs it, and the `online` job drives it.
+`baseline` strategy packs it, the `offline` job times it on cpu1, and the `online` job drives it,
+replaying those timings (the default timing mode, as a recipe wires it).
 
 - the trained baseline completes simple_circuit; the metrics and the trajectory picture are in the result;
 - with 100 ms more latency the brain runs at 10 Hz or less and drives worse (or fails the lap);
@@ -17,6 +18,7 @@ import pytest
 import torch
 
 import pilotlab.jobs.frames  # noqa: F401  (register the kinds)
+import pilotlab.jobs.offline  # noqa: F401
 import pilotlab.jobs.online  # noqa: F401
 import pilotlab.jobs.optimize  # noqa: F401
 import pilotlab.jobs.record  # noqa: F401
@@ -28,7 +30,9 @@ from tests.pilotlab.jobs.context import context, finished
 RECORDINGS = [("cw", 0), ("ccw", 1)]
 TRAIN = {"epochs": 12, "batch_size": 64, "lr": 1e-3, "patience": None, "val_fraction": 0.1, "val_by": "block",
          "augment": {"flip": True}}
-ONLINE = {"circuit": "simple_circuit", "hardware": {"name": "cpu1", "threads": 1}, "camera_frames": 4}
+CPU1 = {"name": "cpu1", "threads": 1}
+ONLINE = {"circuit": "simple_circuit", "hardware": CPU1, "camera_frames": 4}
+QUICK_TIMING = {"max_seconds": 1.0, "throughput_seconds": 0.3}
 
 
 def run_job(tmp_path, kind: str, name: str, params: dict, deps=None, inputs=None) -> DepResult:
@@ -39,8 +43,9 @@ def run_job(tmp_path, kind: str, name: str, params: dict, deps=None, inputs=None
 
 
 @pytest.fixture(scope="module")
-def artifact(tmp_path_factory) -> DepResult:
-    """record (x2) -> frames (x2) -> train -> optimize baseline."""
+def artifact(tmp_path_factory) -> dict[str, DepResult]:
+    """record (x2) -> frames (x2) -> train -> optimize baseline -> offline on cpu1: the online job's
+    `artifact` and `timing` dependencies."""
     torch.set_num_threads(2)
     root = tmp_path_factory.mktemp("acceptance")
     frames = []
@@ -51,11 +56,15 @@ def artifact(tmp_path_factory) -> DepResult:
     model = run_job(root, "train", "train", TRAIN, deps={"frames": tuple(frames)})
     print(f"\ntrained PilotNet: val_mse {model.result['val_mse']:.4f} "
           f"(mean predictor {model.result['val_mse_mean_predictor']:.4f}) in {model.result['seconds']:.0f} s")
-    return run_job(root, "optimize", "optimize", {"strategy": "baseline"}, deps={"model": model})
+    optimized = run_job(root, "optimize", "optimize", {"strategy": "baseline"}, deps={"model": model})
+    timed = run_job(root, "offline", "offline", {"hardware": CPU1, "timing": QUICK_TIMING},
+                    deps={"artifact": optimized, "test": (frames[1],)})
+    print(f"baseline on cpu1: {timed.result['latency_ms']:.2f} ms per frame (replayed by the laps)")
+    return {"artifact": optimized, "timing": timed}
 
 
-def drive(tmp_path, artifact: DepResult, name: str, **params) -> tuple[dict, object]:
-    online = run_job(tmp_path, "online", name, {**ONLINE, **params}, deps={"artifact": artifact})
+def drive(tmp_path, artifact: dict[str, DepResult], name: str, **params) -> tuple[dict, object]:
+    online = run_job(tmp_path, "online", name, {**ONLINE, **params}, deps=artifact)
     result = online.result
     print(f"\n{name}: " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
                                    for k, v in pick_metrics(result).items()))
