@@ -142,6 +142,11 @@ class Car:
         self.command = (0.0, 0.0)
         self.apply(speed, 0.0)
 
+
+    def hide(self) -> None:
+        """Make every link invisible to the renderers (a camera inside the body must see out)."""
+        for link in range(-1, p.getNumJoints(self.body, physicsClientId=self.client)):
+            p.changeVisualShape(self.body, link, rgbaColor=[0, 0, 0, 0], physicsClientId=self.client)
     def _set_dynamics(self) -> None:
         client, body = self.client, self.body
         p.changeDynamics(body, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=client)

@@ -30,6 +30,12 @@ call plain `step(action)`: the wall-clock time since the last observation was re
 new one applies, and the step lasts max(control period, that time). The default, `"lockstep"`, is the
 world waiting for the agent: every step lasts one control period.
 
+In one of BehaviorMetrics' own worlds (`world="simple_circuit_white_line"`, `assets=` the folder of BM's
+worlds or $PILOTLAB_BM_ASSETS; pilotlab.worlds, docs/worlds.md): the circuit is the world's (BM's
+perfect-lap centreline), the camera is BM's F1 camera at the given size, the world's walls are solid
+(hitting one ends the episode: "hit_wall"), and renderer "ground" draws the world fast, "pybullet"
+with TinyRenderer from its meshes.
+
 reset options (all optional): `circuit` (name or CSV path; changing it rebuilds the world),
 `direction` ("cw" | "ccw"), `start` (metres along the driving direction from the start line, or
 "random": uniform over the lap from the seed), `lateral` (metres left of the red line), `heading`
@@ -59,6 +65,7 @@ import numpy as np
 from pilotlab.circuits import Circuit, get_circuit, wrap_angle
 from pilotlab.circuits.circuit import check_direction
 from pilotlab.errors import PilotlabError
+from pilotlab.sim.bullet import p
 from pilotlab.sim.camera import CameraSpec, camera_pose
 from pilotlab.sim.car import Car, CarSpec
 from pilotlab.sim.observation import ActionSpace, check_observation, observation_space, state_vector
@@ -87,7 +94,7 @@ INFO_KEYS = {
     "distance_to_line": "|lateral_offset|",
     "heading_error": "car yaw minus red-line heading, radians in [-pi, pi)",
     "off_road": "the car's centre is off the road (|lateral_offset| > road_width / 2)",
-    "termination": "None, or why the episode ended: lap_completed | off_road | trapped | timeout",
+    "termination": "None, or why the episode ended: lap_completed | off_road | hit_wall | trapped | timeout",
     "circuit": "circuit name", "direction": "cw | ccw", "circuit_length": "metres",
     "road_width": "metres",
     "view": "the PreprocessConfig the image was rendered for (None: the camera image itself)",
@@ -100,21 +107,25 @@ def describe_end(termination: str | None, laps: float) -> str:
         if laps < 1:
             return f"drove the {laps:g} lap asked for"
         return f"{laps:g} lap{'' if laps == 1 else 's'} completed"
-    words = {"off_road": "left the road", "trapped": "trapped: no progress", "timeout": "timed out"}
+    words = {"off_road": "left the road", "hit_wall": "hit a wall", "trapped": "trapped: no progress", "timeout": "timed out"}
     return words.get(termination or "", "stopped")
 
 
 class DrivingEnv(gymnasium.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
 
-    def __init__(self, circuit: str | Circuit = "simple_circuit", *, direction: str = "cw",
+    def __init__(self, circuit: str | Circuit | None = None, *, direction: str = "cw",
                  camera: CameraSpec | None = CameraSpec(), renderer: str = "pybullet",
                  control_period: float = 1.0 / CONTROL_HZ, physics_hz: float = PHYSICS_HZ, walls: bool = False,
                  car: CarSpec = CarSpec(), laps: float = 1, timeout_s: float | None = None,
                  stop_off_road: bool = True, trapped_s: float = 10.0, start: float | str = 0.0,
                  observation: str | None = None, actions: str = "physical", render_mode: str | None = None,
                  timing: str = "lockstep", extra_latency_ms: float = 0.0, fixed_inference_ms: float | None = None,
-                 view=None):
+                 view=None, world: str | None = None, assets=None):
+        self.bm = None if world is None else _load_bm_world(world, assets, circuit)
+        if self.bm is not None:
+            circuit, camera = self.bm.meta["circuit"], _bm_camera(self.bm, camera)
+            walls = False   # the world's own walls stand there (solid)
         self.camera, self.renderer_name = camera, check_renderer(renderer, walls)
         self.view = view if camera is not None else None
         self.physics_hz, self.walls, self.car_spec = physics_hz, walls, car
@@ -135,7 +146,8 @@ class DrivingEnv(gymnasium.Env):
         self.car: Car | None = None
         self._renderer = self._view = None
         self._camera_renderer = None   # with a `view`: the camera's full image (camera_image)
-        self.circuit = self._load_circuit(circuit, direction)
+        self._wall_body = None
+        self.circuit = self._load_circuit(circuit or "simple_circuit", direction)
 
     # -- Gymnasium API ----------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -195,6 +207,11 @@ class DrivingEnv(gymnasium.Env):
 
     # -- internals ----------------------------------------------------------------------------
     def _load_circuit(self, circuit: str | Circuit, direction: str) -> Circuit:
+        if self.bm is not None:
+            if circuit != self.bm.meta["circuit"]:
+                raise PilotlabError(f"world {self.bm.name} has its own circuit ({self.bm.meta['circuit']}); "
+                                    f"a reset cannot change it to {circuit!r}")
+            return self.bm.circuit(direction)
         if isinstance(circuit, Circuit):
             return circuit.directed(direction)
         return get_circuit(circuit, direction)
@@ -204,7 +221,13 @@ class DrivingEnv(gymnasium.Env):
         if self.world is None or self.world.circuit is not canonical:
             self.close()
             meshes = self.camera is not None and self.renderer_name == "pybullet"
-            self.world = World(canonical, walls=self.walls, physics_hz=self.physics_hz, road_meshes=meshes)
+            self.world = World(canonical, walls=self.walls, physics_hz=self.physics_hz,
+                               road_meshes=meshes and self.bm is None)
+            if self.bm is not None:
+                from pilotlab.worlds.bullet import add_collisions, add_visuals
+                self._wall_body = add_collisions(self.world.client, self.bm)
+                if meshes:
+                    add_visuals(self.world.client, self.bm)
             self._renderer, self._camera_renderer = self._make_renderer(canonical, self.view), None
         elif self.car is not None:
             self.world.remove(self.car.body)  # a fresh car: nothing of the last episode carries over
@@ -213,6 +236,9 @@ class DrivingEnv(gymnasium.Env):
     def _make_renderer(self, canonical: Circuit, view):
         if self.camera is None:
             return None
+        if self.bm is not None:
+            from pilotlab.sim.view import bm_renderer
+            return bm_renderer(self.bm, self.renderer_name, self.world.client, self.camera, view)
         if view is not None:  # imported here: the views need preprocessing (and torch)
             from pilotlab.sim.view import GroundView, PreprocessedView
             if self.renderer_name == "ground":
@@ -231,6 +257,8 @@ class DrivingEnv(gymnasium.Env):
         x, y, yaw = self.circuit.start_pose(float(start), float(options.get("lateral", 0.0)))
         yaw += float(options.get("heading", 0.0))
         self.car = Car(self.world.client, self.car_spec, (x, y, yaw), speed=float(options.get("speed", 0.0)))
+        if self.bm is not None:  # BM's camera sits inside the car's body, which its images never show
+            self.car.hide()
         self._physics_steps, self._steps, self._last_dt = 0, 0, 0.0
         self._start_s = float(start) % self.circuit.length
         self._s, self._progress, self._lap_times = self._start_s, 0.0, []
@@ -276,11 +304,17 @@ class DrivingEnv(gymnasium.Env):
             return "lap_completed"
         if self.stop_off_road and self._off_road():
             return "off_road"
+        if self._wall_body is not None and self._hit_wall():
+            return "hit_wall"
         if self._trapped():
             return "trapped"
         if self.sim_time >= self.timeout_s - 1e-9:
             return "timeout"
         return None
+
+    def _hit_wall(self) -> bool:
+        return any(p.getContactPoints(bodyA=self.car.body, bodyB=wall, physicsClientId=self.world.client)
+                   for wall in self._wall_body)
 
     def _off_road(self) -> bool:
         return self._projection.distance > self.circuit.road_width / 2
@@ -363,6 +397,21 @@ def latency_segments(previous: tuple[float, float], command: tuple[float, float]
     late = math.ceil(brain_s * physics_hz - 1e-6)
     total = max(period_steps, late)
     return [(previous, late), (command, total - late)]
+
+
+def _load_bm_world(world: str, assets, circuit):
+    from pilotlab.worlds import load_world   # imported here: only BM worlds need trimesh
+    if circuit is not None:
+        raise PilotlabError(f"give a circuit or a world, not both: world {world!r} has its own circuit")
+    return load_world(world, assets)
+
+
+def _bm_camera(bm, camera: CameraSpec | None) -> CameraSpec | None:
+    """In a BM world the car's camera is the world's own (BM's F1 camera: its optics and mount); the
+    given camera chooses only the image size and window."""
+    if camera is None:
+        return None
+    return bm.camera(width=camera.width, height=camera.height, window=camera.window)
 
 
 def _check_render_mode(render_mode: str | None) -> str | None:

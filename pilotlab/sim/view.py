@@ -52,6 +52,28 @@ class GroundView:
         return finish(self.renderer.render(eye, rotation), self.config)
 
 
+class WorldView:
+    """The BM world renderer drawing the network's view (pilotlab.worlds.render), as GroundView does."""
+
+    def __init__(self, world, camera: CameraSpec, config: PreprocessConfig):
+        from pilotlab.worlds.render import WorldRenderer
+        self.config = config
+        self.renderer = WorldRenderer(world, camera, grid=network_grid(camera, config))
+
+    def render(self, eye: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+        return finish(self.renderer.render(eye, rotation), self.config)
+
+
+def bm_renderer(world, name: str, client: int, camera: CameraSpec, config: PreprocessConfig | None):
+    """The renderer of a BM world: "ground" the fast one (its network view with `config`), "pybullet"
+    TinyRenderer over the world's meshes (preprocessed with `config`)."""
+    from pilotlab.worlds.render import BulletWorldRenderer, WorldRenderer
+    if name == "ground":
+        return WorldView(world, camera, config) if config is not None else WorldRenderer(world, camera)
+    renderer = BulletWorldRenderer(client, camera)
+    return renderer if config is None else PreprocessedView(renderer, config)
+
+
 class PreprocessedView:
     """Any renderer's full frame, preprocessed: the reference the ground view is compared with."""
 

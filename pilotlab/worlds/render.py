@@ -34,19 +34,8 @@ class WorldRenderer:
         self._to_world = world.grid.to_world()
         self._sharp = [(layer, Grid(**layer["grid"]).to_world(), distance)
                        for layer, distance in zip(world.sharp, world.distances)]
-        self._sky_rows, self._sky = self._sky_image()
+        self._sky_rows, self._sky = sky_image(spec, self._intrinsics, self.grid.size)
         self._solids = SolidCells(world.solid_triangles, world.solid_colours)
-
-    def _sky_image(self) -> tuple[int, np.ndarray]:
-        """Rows above the far clip line (the ground there is beyond `far_m`) and the sky they show."""
-        width, height = self.grid.size
-        k = self._intrinsics
-        clip_row = k[1, 2] + k[1, 1] * self.spec.height_m / self.spec.far_m   # v where ground depth = far
-        rows = int(np.clip(np.ceil(clip_row - 1e-9), 0, height))
-        v = (np.arange(height) - k[1, 2]) / k[1, 1]          # tan of the angle below the horizon
-        t = np.clip(-v / 0.6, 0.0, 1.0)[:, None]
-        colours = (1 - t) * np.array(SKY_HORIZON) + t * np.array(SKY_ZENITH)
-        return rows, np.repeat(colours[:, None, :], width, axis=1).astype(np.uint8)
 
     def _homography(self, eye: np.ndarray, rotation: np.ndarray, height: float, to_world=None) -> np.ndarray:
         plane = np.stack([rotation[:, 0], rotation[:, 1], rotation[:, 2] * height - rotation @ eye], axis=1)
@@ -65,50 +54,110 @@ class WorldRenderer:
         return image
 
 
+def sky_image(spec: CameraSpec, intrinsics: np.ndarray, size: tuple[int, int]) -> tuple[int, np.ndarray]:
+    """The rows above the far clip line of a level camera (the ground there lies beyond `far_m`, so
+    Gazebo shows its sky) and the sky's colours (a gradient from the horizon up) for the whole image."""
+    width, height = size
+    clip_row = intrinsics[1, 2] + intrinsics[1, 1] * spec.height_m / spec.far_m
+    rows = int(np.clip(np.ceil(clip_row - 1e-9), 0, height))
+    below_horizon = (np.arange(height) - intrinsics[1, 2]) / intrinsics[1, 1]
+    t = np.clip(-below_horizon / 0.6, 0.0, 1.0)[:, None]
+    colours = (1 - t) * np.array(SKY_HORIZON) + t * np.array(SKY_ZENITH)
+    return rows, np.repeat(colours[:, None, :], width, axis=1).astype(np.uint8)
+
+
+class BulletWorldRenderer:
+    """pybullet's TinyRenderer over the world's meshes (pilotlab.worlds.bullet.add_visuals must have put
+    them in `client`), unshaded (the meshes carry their light); where no mesh is drawn, the sky above the
+    far clip line and Gazebo's background below it, as the fast renderer."""
+
+    def __init__(self, client: int, spec: CameraSpec):
+        if not spec.level:
+            raise PilotlabError("the BM world renderers need a level camera (bm_camera())")
+        self.client, self.spec = client, spec
+        self._projection = spec.gl_projection()
+        self._sky_rows, self._sky = sky_image(spec, spec.intrinsics(), spec.size)
+
+    def render(self, eye: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+        from pilotlab.sim.bullet import p
+        spec = self.spec
+        forward, up = rotation[2], -rotation[1]
+        view = p.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), up.tolist(), physicsClientId=self.client)
+        _, _, rgba, _, segmentation = p.getCameraImage(
+            spec.width, spec.height, view, self._projection, renderer=p.ER_TINY_RENDERER, shadow=0,
+            lightAmbientCoeff=1.0, lightDiffuseCoeff=0.0, lightSpecularCoeff=0.0, physicsClientId=self.client)
+        image = np.ascontiguousarray(np.reshape(rgba, (spec.height, spec.width, 4))[:, :, :3], dtype=np.uint8)
+        empty = np.reshape(segmentation, (spec.height, spec.width)) < 0
+        background = np.empty_like(image)
+        background[:] = VOID
+        background[:self._sky_rows] = self._sky[:self._sky_rows]
+        image[empty] = background[empty]
+        return image
+
+
 class SolidCells:
-    """Wall triangles bucketed by cell; each frame paints those within the far clip, clipped to the
+    """Wall triangles bucketed by cell; each frame paints those within the far clip that face the camera
+    (SketchUp exports each side of a wall as its own triangles, in the side's colour), clipped to the
     view between the near and far planes, farthest first."""
 
     def __init__(self, triangles: np.ndarray, colours: np.ndarray):
         self.triangles, self.colours = triangles, colours
+        cross = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]) if len(triangles) \
+            else np.zeros((0, 3))
+        self.normals = cross
         self.cells: dict[tuple[int, int], np.ndarray] = {}
+        cells: dict[tuple[int, int], list[int]] = {}
         if len(triangles):
             lows = np.floor(triangles[:, :, :2].min(axis=1) / CELL_M).astype(int)
             highs = np.floor(triangles[:, :, :2].max(axis=1) / CELL_M).astype(int)
             for index, (low, high) in enumerate(zip(lows, highs)):
                 for cx in range(low[0], high[0] + 1):
                     for cy in range(low[1], high[1] + 1):
-                        self.cells.setdefault((cx, cy), []).append(index)
-            self.cells = {key: np.array(value) for key, value in self.cells.items()}
+                        cells.setdefault((cx, cy), []).append(index)
+        self.cells = {key: np.array(value) for key, value in cells.items()}
 
     def near(self, eye: np.ndarray, reach: float) -> np.ndarray:
         low = np.floor((eye[:2] - reach) / CELL_M).astype(int)
         high = np.floor((eye[:2] + reach) / CELL_M).astype(int)
-        found = [self.cells.get((cx, cy)) for cx in range(low[0], high[0] + 1) for cy in range(low[1], high[1] + 1)]
-        found = [f for f in found if f is not None]
-        return np.unique(np.concatenate(found)) if found else np.zeros(0, int)
+        chosen = np.zeros(len(self.triangles), bool)
+        for cx in range(low[0], high[0] + 1):
+            for cy in range(low[1], high[1] + 1):
+                found = self.cells.get((cx, cy))
+                if found is not None:
+                    chosen[found] = True
+        return np.flatnonzero(chosen)
 
     def paint(self, image: np.ndarray, eye: np.ndarray, rotation: np.ndarray, intrinsics: np.ndarray,
               spec: CameraSpec) -> None:
         chosen = self.near(eye, spec.far_m)
         if not len(chosen):
             return
+        facing = np.einsum("ij,ij->i", self.normals[chosen], eye - self.triangles[chosen, 0]) > 0
+        chosen = chosen[facing]
         camera = (self.triangles[chosen] - eye) @ rotation.T          # (n, 3, 3) camera coordinates
         depth = camera[:, :, 2]
         visible = (depth.max(axis=1) > spec.near_m) & (depth.min(axis=1) < spec.far_m)
-        # outside the horizontal field of view on one side, entirely: skip
-        slope = np.abs(intrinsics[0, 2] / intrinsics[0, 0]) + 1.0
-        visible &= ~np.all(camera[:, :, 0] > slope * np.maximum(depth, 0) + 1e-3, axis=1)
-        visible &= ~np.all(camera[:, :, 0] < -slope * np.maximum(depth, 0) - 1e-3, axis=1)
+        slope = abs(intrinsics[0, 2] / intrinsics[0, 0]) + 1.0           # beyond the horizontal view: skip
+        positive = np.maximum(depth, 0)
+        visible &= ~np.all(camera[:, :, 0] > slope * positive + 1e-3, axis=1)
+        visible &= ~np.all(camera[:, :, 0] < -slope * positive - 1e-3, axis=1)
         order = np.flatnonzero(visible)
         order = order[np.argsort(-depth[order].mean(axis=1))]
-        for index in order:
-            polygon = clip_depth(camera[index], spec.near_m, spec.far_m)
-            if len(polygon) >= 3:
-                pixels = polygon @ intrinsics.T
-                pixels = pixels[:, :2] / pixels[:, 2:]
-                points = np.round(pixels * 16).astype(np.int32)
-                cv2.fillPoly(image, [points], self.colours[chosen[index]].tolist(), lineType=cv2.LINE_8, shift=4)
+        inside = (depth[order].min(axis=1) >= spec.near_m) & (depth[order].max(axis=1) <= spec.far_m)
+        projected = camera[order] @ intrinsics.T
+        depths = np.where(inside[:, None, None], projected[:, :, 2:], 1.0)   # the others are clipped below
+        pixels = np.round(np.where(inside[:, None, None], projected[:, :, :2] / depths, 0) * 16).astype(np.int32)
+        colours = self.colours[chosen[order]].tolist()
+        for k, index in enumerate(order):
+            if inside[k]:
+                points = pixels[k]
+            else:
+                polygon = clip_depth(camera[index], spec.near_m, spec.far_m)
+                if len(polygon) < 3:
+                    continue
+                projected_polygon = polygon @ intrinsics.T
+                points = np.round(projected_polygon[:, :2] / projected_polygon[:, 2:] * 16).astype(np.int32)
+            cv2.fillConvexPoly(image, points, colours[k], lineType=cv2.LINE_8, shift=4)
 
 
 def clip_depth(polygon: np.ndarray, near: float, far: float) -> np.ndarray:

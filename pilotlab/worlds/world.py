@@ -29,7 +29,7 @@ from pilotlab.worlds.raster import Grid, colour_raster, fill, signed_distance
 from pilotlab.worlds.scene import Layer, split_scene
 from pilotlab.worlds.sdf import WorldFile, read_world
 
-CACHE_VERSION = 1
+CACHE_VERSION = 2
 CACHE_ENV = "PILOTLAB_CACHE"
 # Gazebo lights BM's lambert materials by the scene's ambient (1.0) times a share (they declare no
 # ambient colour of their own) plus the sun's diffuse term; 0.4 is pilotlab's estimate of that share.
@@ -92,6 +92,14 @@ class BMWorld:
         index = self.meta["line_layer"]
         return None if index is None else tuple(self.layers[index]["colour"])
 
+    def ground_layers(self) -> list[Layer]:
+        """The ground layers with their triangles and textures (read again from the meshes: only the
+        pybullet renderer needs them)."""
+        _, parsed, digest = world_inputs(self.name, self.meta["assets"])
+        if digest != self.digest:
+            raise PilotlabError(f"world {self.name}: its files changed since it was loaded; load it again")
+        return split_scene([part for mesh in parsed.visuals for part in read_mesh(mesh)])[0]
+
     def circuit(self, direction: str = "cw") -> Circuit:
         return get_circuit(self.meta["circuit"], direction, road_width=self.road_width)
 
@@ -133,7 +141,9 @@ def load_world(name: str, assets=None) -> BMWorld:
     entry = cache_root() / f"{name}-{digest[:16]}-v{CACHE_VERSION}"
     if not (entry / "meta.json").is_file():
         _store(build_world(parsed, digest), entry)
-    return _read(entry)
+    world = _read(entry)
+    world.meta["assets"] = str(path.parent.parent)   # where it was found this time (not in the cache key)
+    return world
 
 
 def build_world(parsed: WorldFile, digest: str) -> BMWorld:
@@ -157,6 +167,7 @@ def build_world(parsed: WorldFile, digest: str) -> BMWorld:
     line_grid = line_raster_grid(grid)
     sharp_grids = {i: line_grid if i == line else grid for i in sharp}
     meta = {"name": parsed.name, "digest": digest, "grid": grid.__dict__, "spawn": parsed.spawn,
+            "ground_shade": ground_shade,
             "sun": parsed.sun is not None, "sky": parsed.sky, "circuit": circuit_name,
             "camera": None if parsed.camera is None else parsed.camera.__dict__, "line_layer": line,
             "road_width": measure_road_width(grid, labels, centreline, layers),
