@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 import torch
@@ -45,7 +47,12 @@ def test_offline_metrics_of_the_baseline(baseline, trained, test_frames):
 
 def test_latency_stops_when_the_median_is_stable():
     every_call_clean = 1e9           # the stopping rule alone: no call is set aside, whatever the load
-    result = measure_latency(lambda batch: None, np.zeros(1, np.float32),
+
+    def twenty_microseconds(batch):  # a call of a fixed length (a no-op's 5 ms block would hold ~15,000 calls)
+        started = time.perf_counter_ns()
+        while time.perf_counter_ns() - started < 20_000:
+            pass
+    result = measure_latency(twenty_microseconds, np.zeros(1, np.float32),
                              TimingSettings(warmup_seconds=0, min_runs=100, block_seconds=0.005, max_seconds=10,
                                             max_wait_share=every_call_clean))
     assert 100 <= result["latency_runs"] < 20_000 and len(result["samples_ms"]) == result["latency_runs"]
