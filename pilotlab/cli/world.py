@@ -1,0 +1,126 @@
+"""`pilotlab world list | show`: BehaviorMetrics' Gazebo worlds, and what the car's camera sees in them."""
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+from pilotlab.errors import PilotlabError
+
+ASSETS_HELP = ("BehaviorMetrics' worlds: a folder laid out like RoboticsInfrastructure/CustomRobots/f1 "
+               "(worlds/ + models/); default $PILOTLAB_BM_ASSETS")
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser("world", help="list BehaviorMetrics' worlds and render what the car sees",
+                                   description="BehaviorMetrics' Gazebo F1 worlds (docs/worlds.md): drive in them with "
+                                               "--world on record/drive, or a recipe's world axis.")
+    commands = parser.add_subparsers(dest="world_command", metavar="COMMAND", required=True)
+    listing = commands.add_parser("list", help="the worlds of an assets folder")
+    listing.add_argument("--assets", type=Path, default=None, help=ASSETS_HELP)
+    listing.set_defaults(func=list_worlds)
+
+    show = commands.add_parser("show", help="write the car camera's frame at a pose",
+                               description="Write the full 640×480 camera frame (or with --view the network's "
+                                           "200×66 input) with the car's origin at X,Y on the ground, heading YAW.")
+    show.add_argument("world", help="world name: the .world file's stem (pilotlab world list)")
+    show.add_argument("--assets", type=Path, default=None, help=ASSETS_HELP)
+    show.add_argument("--pose", type=parse_pose, default=None,
+                      help="X,Y,YAW: metres and radians in the world frame (default: the world's spawn pose)")
+    show.add_argument("-o", "--out", type=Path, default=None, help="PNG to write (default: WORLD.png)")
+    show.add_argument("--view", action="store_true", help="the network's input (lower half, 200×66) instead")
+    show.add_argument("--renderer", choices=("ground", "pybullet"), default="ground",
+                      help="ground: the fast renderer the laps use; pybullet: TinyRenderer over the meshes")
+    show.add_argument("--own", action="store_true",
+                      help="pilotlab's own world of the same circuit, with pilotlab's own camera, at the same pose")
+    show.set_defaults(func=show_world)
+
+
+def parse_pose(text: str) -> tuple[float, float, float]:
+    try:
+        x, y, yaw = (float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"pose {text!r}: give X,Y,YAW (metres, metres, radians), "
+                                         "e.g. 53.462,-10.734,-1.57") from None
+    if not all(map(math.isfinite, (x, y, yaw))):
+        raise argparse.ArgumentTypeError(f"pose {text!r}: X, Y and YAW must be finite numbers")
+    return x, y, yaw
+
+
+def list_worlds(args: argparse.Namespace) -> int:
+    from pilotlab.worlds.assets import resolve_assets, world_names, world_path
+    from pilotlab.worlds.sdf import read_world
+    from pilotlab.worlds.world import circuit_of
+    assets = resolve_assets(args.assets)
+    table = Table(title=f"BehaviorMetrics worlds in {assets}")
+    for column in ("world", "circuit", "sun", "walls", "camera (up, fov, clip)", "spawn (x, y, yaw)"):
+        table.add_column(column, no_wrap=column in ("world", "circuit"))
+    for name in world_names(assets):
+        world = read_world(world_path(assets, name), assets)
+        camera = world.camera
+        optics = "-" if camera is None else (f"{camera.pose[2]:.2f} m, {math.degrees(camera.hfov_rad):.0f}°, "
+                                             f"{camera.far_m:g} m")
+        spawn = "-" if world.spawn is None else f"{world.spawn[0]:g}, {world.spawn[1]:g}, {world.spawn[5]:g}"
+        table.add_row(name, _circuit(circuit_of, name), "yes" if world.sun else "no",
+                      "yes" if world.collisions else "no", optics, spawn)
+    Console().print(table)
+    return 0
+
+
+def _circuit(circuit_of, name: str) -> str:
+    try:
+        return circuit_of(name)
+    except PilotlabError:
+        return "(none)"
+
+
+def show_world(args: argparse.Namespace) -> int:
+    import cv2
+    from pilotlab.worlds import load_world
+    world = load_world(args.world, args.assets)
+    pose = args.pose or _spawn_pose(world)
+    image = render_at(world, pose, view=args.view, renderer=args.renderer, own=args.own)
+    out = args.out or Path(f"{args.world}{'_own' if args.own else ''}.png")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(out), image[:, :, ::-1]):
+        raise PilotlabError(f"cannot write {out}: give a .png path in a writable folder")
+    what = "pilotlab's own world" if args.own else f"world {args.world}"
+    print(f"{what} at x={pose[0]:g}, y={pose[1]:g}, yaw={pose[2]:g}: {image.shape[1]}×{image.shape[0]} "
+          f"{'network view' if args.view else 'camera frame'} written to {out}")
+    return 0
+
+
+def _spawn_pose(world) -> tuple[float, float, float]:
+    if world.spawn is None:
+        raise PilotlabError(f"world {world.name} has no car spawn pose; give --pose X,Y,YAW")
+    return world.spawn[0], world.spawn[1], world.spawn[5]
+
+
+def render_at(world, pose, *, view: bool = False, renderer: str = "ground", own: bool = False):
+    """The camera frame (or the network's view) with the car's origin at `pose` on the ground."""
+    from pilotlab.data.preprocess import PreprocessConfig, preprocess
+    from pilotlab.sim.camera import CameraSpec, camera_pose
+    x, y, yaw = pose
+    quaternion = (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+    camera = CameraSpec() if own else world.camera()
+    eye, rotation = camera_pose(camera, (x, y, 0.0), quaternion, 0.0)
+    image = _renderer(world, camera, renderer, own).render(eye, rotation)
+    return preprocess(image, PreprocessConfig()) if view else image
+
+
+def _renderer(world, camera, name: str, own: bool):
+    if own:
+        from pilotlab.sim.render import GroundRenderer
+        return GroundRenderer(world.circuit(), camera)
+    if name == "ground":
+        from pilotlab.worlds.render import WorldRenderer
+        return WorldRenderer(world, camera)
+    from pilotlab.sim.bullet import p
+    from pilotlab.worlds.bullet import add_visuals
+    from pilotlab.worlds.render import BulletWorldRenderer
+    client = p.connect(p.DIRECT)
+    add_visuals(client, world)
+    return BulletWorldRenderer(client, camera)
