@@ -49,7 +49,6 @@ OFFLINE = (
     Column("timing_other_cores", "", "cores used by other processes (and steal) while timing the latency",
            measured=True),
     Column("timing_steal_cores", "", "cores taken by the hypervisor (steal) while timing the latency", measured=True),
-    Column("reference_ms", "ms", "a fixed matrix product timed beside the latency: the machine's state", measured=True),
     Column("test_frames", "", "frames in the test set"),
 )
 

@@ -25,7 +25,7 @@ import numpy as np
 from pilotlab import timing
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.errors import PilotlabError
-from pilotlab.hardware import HardwareProfile, apply_profile
+from pilotlab.hardware import HardwareProfile
 from pilotlab.predictor import Predictor, load_predictor, resolve_profile
 from pilotlab.strategies.artifact import artifact_size_mb
 
@@ -75,7 +75,6 @@ def evaluate_offline(artifact_dir: Path, hardware: HardwareProfile | dict | str,
     latency this job measured."""
     test.check_finite("test data")
     profile = resolve_profile(hardware)
-    reference_ms = reference_now(profile)
     memory = PeakMemory()
     predictor = load_predictor(artifact_dir, profile)
     frames = max(1, predictor.meta.input_shape[1] // 3)
@@ -88,32 +87,12 @@ def evaluate_offline(artifact_dir: Path, hardware: HardwareProfile | dict | str,
     unstable = {**latency.pop("unstable"), **throughput.pop("unstable")}
     result.update(latency)
     result.update(throughput)
-    if reference_ms is not None:
-        result["reference_ms"] = reference_ms
     if unstable:
         result["unstable"] = unstable
     if out is not None:
         np.save(Path(out) / LATENCY_SAMPLES, samples)
         result["latency_samples"] = LATENCY_SAMPLES
     return result
-
-
-def reference_now(hardware: HardwareProfile, calls: int = 200) -> float | None:
-    """The reference kernel's median time (ms) on the profile's threads, taken before the artifact is
-    loaded: timed between a runtime's calls it measured that runtime's spinning thread pool (XNNPACK,
-    ONNX Runtime) as much as the machine, and read 1.5x apart for two jobs on a quiet host."""
-    if hardware.device != "cpu":
-        return None
-    apply_profile(hardware)
-    kernel = timing.reference_kernel()
-    for _ in range(20):
-        kernel()
-    times = []
-    for _ in range(calls):
-        started = time.perf_counter_ns()
-        kernel()
-        times.append(time.perf_counter_ns() - started)
-    return float(np.median(times)) / 1e6
 
 
 def sample_batch(test: FrameSet, size: int, frames: int) -> np.ndarray:
@@ -163,7 +142,7 @@ def measure_latency(predict, batch: np.ndarray, settings: TimingSettings = Timin
               "latency_p99_ms": float(p99), "latency_runs": len(samples), "timing_blocks": load["blocks"],
               "timing_calls_discarded": load["discarded"], "timing_cpu_per_wall": load["cpu_per_wall"],
               "timing_other_cores": load["others_cores"], "timing_steal_cores": load["steal_cores"],
-              "reference_ms": measured.reference_ms(), "samples_ms": samples,
+              "samples_ms": samples,
               "unstable": {} if measured.stable else {"latency_ms": measured.reason()}}
     return {k: v for k, v in result.items() if v is not None}
 

@@ -16,11 +16,6 @@ least `min_calls` clean calls were had and they make at least `min_clean_share` 
 few lucky calls never stand for a loaded run); otherwise it is the median of every call, marked
 unstable with the reason, and a report draws no conclusion from it.
 
-Inside every block a fixed reference kernel (a float32 matrix product on the profile's threads) is
-timed the same way: two timing jobs whose reference kernel ran at different speeds were not measured
-on a machine in the same state (a busy neighbour VM, another clock), and the report does not compare
-them (`comparable`).
-
 As pyperf does, a figure comes with its spread (10th and 90th percentiles: interference only adds
 time, so a mean ± std says less), how many calls it is made of, and why it is unstable where it is.
 """
@@ -34,8 +29,6 @@ from functools import cache
 from pathlib import Path
 
 import numpy as np
-
-REFERENCE_TOLERANCE = 1.2   # two jobs whose reference kernels differ more than this are not compared
 
 
 @dataclass(frozen=True)
@@ -81,8 +74,6 @@ class Load:
 class Block:
     times_ns: list[int]
     clean: list[bool]                 # per call: no wait of our threads for a CPU overlapped it
-    reference_ns: list[int]
-    reference_clean: list[bool]
     load: Load
 
 
@@ -115,10 +106,6 @@ class Measurement:
         """The calls the figure is made of, in measurement order: the clean ones, or all when unstable."""
         return self.times(clean_only=self.stable)
 
-    def reference_ms(self) -> float | None:
-        times = [t for b in self.blocks for t, ok in zip(b.reference_ns, b.reference_clean) if ok]
-        return float(np.median(times)) / 1e6 if times else None
-
     def reason(self) -> str | None:
         """Why the figure is unstable (None when it is not)."""
         if self.stable:
@@ -149,14 +136,14 @@ class Measurement:
                 "steal_cores": mean("steal_cores")}
 
 
-def measure(call: Callable[[], object], needed_cores: int, plan: Plan = Plan(), limits: Limits = Limits(),
-            reference: Callable[[], object] | None = None) -> Measurement:
+def measure(call: Callable[[], object], needed_cores: int, plan: Plan = Plan(), limits: Limits = Limits()
+            ) -> Measurement:
     """Time `call` in blocks (see the module docstring) until `plan` is met or its budget is spent."""
     result = Measurement(len(our_cpus()), needed_cores, limits, plan.min_calls)
     start = time.perf_counter()
     previous = None
     while True:
-        result.blocks.append(timed_block(call, plan.block_seconds, needed_cores, limits, reference))
+        result.blocks.append(timed_block(call, plan.block_seconds, needed_cores, limits))
         elapsed = time.perf_counter() - start
         if result.calls >= plan.max_calls or elapsed > plan.seconds * plan.attempts:
             return result
@@ -168,25 +155,21 @@ def measure(call: Callable[[], object], needed_cores: int, plan: Plan = Plan(), 
             previous = median
 
 
-def timed_block(call: Callable[[], object], seconds: float, needed_cores: int, limits: Limits,
-                reference: Callable[[], object] | None = None, reference_calls: int = 5) -> Block:
-    """Calls of `call` for at least `seconds`, then a few of `reference`, each timed with its threads'
-    run-queue wait; the block's load."""
+def timed_block(call: Callable[[], object], seconds: float, needed_cores: int, limits: Limits) -> Block:
+    """Calls of `call` for at least `seconds`, each timed with its threads' run-queue wait; the block's load."""
     before = snapshot()
     with ThreadWaits() as waits:
         per_call = waits.available
         times, clean = _timed_calls(call, waits, limits, seconds=seconds)
-        references, references_clean = _timed_calls(reference, waits, limits, count=reference_calls) \
-            if reference is not None else ([], [])
     load = load_between(before, snapshot())
     if not per_call:    # no per-thread waits: judge the block by the cores others used
         ok = block_is_quiet(load, needed_cores, len(our_cpus()), limits)
-        clean, references_clean = [ok] * len(times), [ok] * len(references)
-    return Block(times, clean, references, references_clean, load)
+        clean = [ok] * len(times)
+    return Block(times, clean, load)
 
 
-def _timed_calls(call: Callable[[], object], waits: ThreadWaits, limits: Limits, seconds: float = 0.0,
-                 count: int = 0) -> tuple[list[int], list[bool]]:
+def _timed_calls(call: Callable[[], object], waits: ThreadWaits, limits: Limits, seconds: float
+                 ) -> tuple[list[int], list[bool]]:
     """Each call's wall time, and whether it is clean: no wait of our threads overlapped it."""
     clock = time.perf_counter_ns
     begins, ends, waited = [], [], []
@@ -201,7 +184,7 @@ def _timed_calls(call: Callable[[], object], waits: ThreadWaits, limits: Limits,
         ends.append(finished)
         waited.append(now - total)
         total = now
-        if finished >= end and len(ends) >= count:
+        if finished >= end:
             times = [e - b for b, e in zip(begins, ends)]
             return times, clean_calls(np.asarray(begins), np.asarray(ends), np.asarray(waited), limits)
 
@@ -266,19 +249,6 @@ class ThreadWaits:
         return waited
 
 
-def comparable(reference_ms: float | None, other_reference_ms: float | None,
-               tolerance: float = REFERENCE_TOLERANCE) -> str | None:
-    """None when two figures were measured on a machine in the same state (their reference kernels ran
-    at speeds within `tolerance` of each other, or one did not say), else why not."""
-    if not reference_ms or not other_reference_ms:
-        return None
-    ratio = max(reference_ms, other_reference_ms) / min(reference_ms, other_reference_ms)
-    if ratio <= tolerance:
-        return None
-    return (f"the reference kernel timed beside them ran {ratio:.2f}× slower in one timing job than in the "
-            f"other ({reference_ms:.3g} vs {other_reference_ms:.3g} ms): the machine was not in the same state")
-
-
 def load_between(before: Snapshot, after: Snapshot) -> Load:
     wall = max(after.wall - before.wall, 1e-9)
     mine = after.process - before.process
@@ -318,16 +288,6 @@ def our_cpus() -> tuple[int, ...]:
         return tuple(sorted(os.sched_getaffinity(0)))
     except AttributeError:  # not Linux
         return tuple(range(os.cpu_count() or 1))
-
-
-def reference_kernel() -> Callable[[], object]:
-    """A fixed float32 matrix product (PilotNet's first fully connected layer at a batch of 8) on
-    torch's thread pool, which the hardware profile has set to its threads."""
-    import torch
-    generator = torch.Generator().manual_seed(0)
-    left = torch.rand(8, 1152, generator=generator)
-    right = torch.rand(1152, 1164, generator=generator)
-    return lambda: torch.mm(left, right)
 
 
 def _list(folder: Path) -> list[str]:

@@ -306,12 +306,8 @@ def pick_unstable(result: Mapping[str, Any]) -> dict[str, str]:
 
 
 def timing_issue(rows: Iterable[ReportRow], metric: str = "latency_ms") -> str | None:
-    """Why the timed `metric` of `rows` cannot be compared, or None: one of them stayed disturbed.
-
-    The reference kernel each offline job times (`reference_ms`, pilotlab.timing) is kept in the
-    results but no longer blocks a comparison: on a quiet host it read 0.27 ms in one worker process
-    and 0.49 ms in another for the same kernel (the workers' thread pools differ by what they ran
-    before), so it flagged every speed-up of the study. The per-call interference check decides."""
+    """Why the timed `metric` of `rows` cannot be compared, or None: one of them stayed disturbed
+    (the per-call interference check of pilotlab.timing decides)."""
     for row in (r for r in rows if r.get(metric) is not None):
         if reason := row.unstable_reason(metric):
             return f"{row.strategy} ({row.hardware}): unstable: {reason}"

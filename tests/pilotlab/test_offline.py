@@ -40,7 +40,7 @@ def test_offline_metrics_of_the_baseline(baseline, trained, test_frames):
     assert result["threads"] == 1 and result["test_frames"] == len(test) and result["throughput_batch"] == 8
     assert 0 < result["latency_p10_ms"] <= result["latency_ms"] <= result["latency_p90_ms"] <= result["latency_p99_ms"]
     assert result["throughput_p10_ips"] <= result["throughput_ips"] <= result["throughput_p90_ips"]
-    assert result["timing_blocks"] >= 2 and result["reference_ms"] > 0
+    assert result["timing_blocks"] >= 2 and "reference_ms" not in result   # no kernel beside: it meant nothing
     assert result["latency_runs"] >= 30 and result["throughput_ips"] > 0 and result["size_mb"] > 5
     assert result["peak_mem_mb"] >= 0
 
