@@ -50,6 +50,9 @@ def _image_path(folder: Path, name: str, row: int) -> Path:
     if not present:
         raise BagError(f"{folder / CSV_NAME}: row {row} names image {name[:80]!r}, which is not in {folder}; "
                        "add the image or remove the row")
+    if not path.parent.resolve().is_relative_to(folder.resolve()):   # not hashed with the folder: not in the key
+        raise BagError(f"{folder / CSV_NAME}: row {row} names image {name[:80]!r}, outside {folder}; a dataset "
+                       "folder holds its images: copy the image into it and name it relative to the folder")
     return path
 
 

@@ -68,6 +68,31 @@ def test_folder_errors_say_where_and_what_to_do(tmp_path):
         read_folder(folder, CONFIG)
 
 
+@pytest.mark.parametrize("name", ["../outside.png", "{outside}", "linked/outside.png"])
+def test_an_image_outside_the_folder_is_refused(tmp_path, name):
+    """Only the folder's own files are hashed into the job key: an image read from elsewhere could
+    change without the frames going stale."""
+    folder = make_folder(tmp_path / "dls", images(2))
+    (tmp_path / "outside.png").write_bytes((folder / "1.png").read_bytes())
+    (folder / "linked").symlink_to(tmp_path, target_is_directory=True)   # a link to a folder is not followed
+    name = name.format(outside=tmp_path / "outside.png")
+    (folder / "data.csv").write_text(f"image_name,v,w\n0.png,1,0\n{name},1,0\n")
+    with pytest.raises(BagError) as caught:
+        read_folder(folder, CONFIG)
+    assert str(caught.value).startswith(f"{folder}/data.csv: row 2 names image '{name}', outside {folder}; ")
+
+
+def test_an_image_in_a_subfolder_or_linked_as_a_file_is_read(tmp_path):
+    folder = make_folder(tmp_path / "dls", images(2))
+    (folder / "sub").mkdir()
+    (folder / "1.png").rename(folder / "sub/1.png")
+    (tmp_path / "elsewhere.png").write_bytes((folder / "0.png").read_bytes())
+    (folder / "0.png").unlink()
+    (folder / "0.png").symlink_to(tmp_path / "elsewhere.png")          # its content is hashed with the folder
+    (folder / "data.csv").write_text("image_name,v,w\n0.png,1,0\nsub/1.png,1,0\n")
+    assert len(read_folder(folder, CONFIG)) == 2
+
+
 def test_a_failed_conversion_leaves_no_partial_bag(tmp_path):
     folder = make_folder(tmp_path / "dls", images(2))
     (folder / "1.png").write_bytes(b"broken")
