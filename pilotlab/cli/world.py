@@ -64,15 +64,15 @@ def list_worlds(args: argparse.Namespace) -> int:
         optics = "-" if camera is None else (f"{camera.pose[2]:.2f} m, {math.degrees(camera.hfov_rad):.0f}°, "
                                              f"{camera.far_m:g} m")
         spawn = "-" if world.spawn is None else f"{world.spawn[0]:g}, {world.spawn[1]:g}, {world.spawn[5]:g}"
-        table.add_row(name, _circuit(circuit_of, name), "yes" if world.sun else "no",
+        table.add_row(name, _circuit(circuit_of, name, world.path), "yes" if world.sun else "no",
                       "yes" if world.collisions else "no", optics, spawn)
     Console().print(table)
     return 0
 
 
-def _circuit(circuit_of, name: str) -> str:
+def _circuit(circuit_of, name: str, path) -> str:
     try:
-        return circuit_of(name)
+        return Path(circuit_of(name, path)).name
     except PilotlabError:
         return "(none)"
 

@@ -53,12 +53,21 @@ def unit_and_axis(root: ET.Element, path: Path) -> tuple[float, np.ndarray]:
     return metres, UP_AXES[axis.strip()]
 
 
-def check_textures(root: ET.Element, path: Path) -> None:
-    """Every image the file names must exist (beside the file, as Gazebo finds them)."""
+def texture_files(path: Path, root: ET.Element | None = None) -> list[Path]:
+    """The image files the COLLADA file names (beside it, as Gazebo finds them); a missing one is an error."""
+    root = parse_xml(path) if root is None else root
+    found = []
     for image in root.iter(f"{NS}image"):
         name = unquote((image.findtext(f"{NS}init_from") or "").strip())
-        if name and not (path.parent / name).is_file() and not (path.parent / Path(name).name).is_file():
+        if not name:
+            continue
+        for candidate in (path.parent / name, path.parent / Path(name).name):
+            if candidate.is_file():
+                found.append(candidate)
+                break
+        else:
             raise PilotlabError(f"{path}: texture {name!r} is missing (looked for {path.parent / name})")
+    return found
 
 
 def read_mesh(mesh: Mesh) -> list[Part]:
@@ -67,7 +76,7 @@ def read_mesh(mesh: Mesh) -> list[Part]:
     if root.tag != f"{NS}COLLADA":
         raise PilotlabError(f"{mesh.path}: not a COLLADA 1.4 file (root element {root.tag!r})")
     metres, up = unit_and_axis(root, mesh.path)
-    check_textures(root, mesh.path)
+    texture_files(mesh.path, root)
     to_world = mesh.transform.copy()
     to_world[:3, :3] = to_world[:3, :3] @ up * metres
     parts = []

@@ -39,6 +39,12 @@ def normals(triangles: np.ndarray) -> np.ndarray:
     return np.divide(cross, length, out=np.zeros_like(cross), where=length > 0)
 
 
+def triangle_areas(flat: np.ndarray) -> np.ndarray:
+    """Signed areas of 2-D triangles (n, 3, 2): + counter-clockwise."""
+    a, b = flat[:, 1] - flat[:, 0], flat[:, 2] - flat[:, 0]
+    return (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]) / 2
+
+
 def split_scene(parts: list[Part]) -> tuple[list[Layer], list[Solid]]:
     """Ground layers in painting order (lowest first; at one height the larger first) and solids."""
     layers, solids = [], []
@@ -59,7 +65,7 @@ def split_scene(parts: list[Part]) -> tuple[list[Layer], list[Solid]]:
 def _layer(part: Part, keep: np.ndarray) -> Layer | None:
     triangles = part.triangles[keep]
     flat = triangles[:, :, :2]
-    area = float(np.abs(np.cross(flat[:, 1] - flat[:, 0], flat[:, 2] - flat[:, 0])).sum() / 2)
+    area = float(np.abs(triangle_areas(flat)).sum())
     if area < MIN_LAYER_AREA_M2:
         return None
     uv_map = None if part.texture is None else fit_uv_map(flat, part.uv[keep])

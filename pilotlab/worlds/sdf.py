@@ -51,6 +51,7 @@ class WorldFile:
     ambient: tuple[float, float, float]
     sky: bool
     files: tuple[Path, ...]           # every file read (the cache key)
+    path: Path | None = None          # the .world file
 
 
 def parse_xml(path: Path) -> ET.Element:
@@ -106,7 +107,7 @@ def read_world(path: Path, assets: Path) -> WorldFile:
         ambient = numbers(scene.find("ambient").text, 4, f"{path} <scene><ambient>")[:3]
     sky = scene is not None and scene.find("sky") is not None
     return WorldFile(path.stem, tuple(reader.visuals), tuple(reader.collisions), reader.spawn, reader.camera,
-                     reader.sun, ambient, sky, tuple(reader.files))
+                     reader.sun, ambient, sky, tuple(reader.files), path)
 
 
 class _Reader:

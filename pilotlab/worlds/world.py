@@ -24,12 +24,12 @@ from pilotlab.circuits import Circuit, get_circuit
 from pilotlab.circuits.registry import CIRCUITS
 from pilotlab.errors import PilotlabError
 from pilotlab.worlds.assets import content_digest, resolve_assets, world_path
-from pilotlab.worlds.collada import read_mesh
+from pilotlab.worlds.collada import read_mesh, texture_files
 from pilotlab.worlds.raster import Grid, colour_raster, fill, signed_distance
 from pilotlab.worlds.scene import Layer, split_scene
 from pilotlab.worlds.sdf import WorldFile, read_world
 
-CACHE_VERSION = 2
+CACHE_VERSION = 4
 CACHE_ENV = "PILOTLAB_CACHE"
 # Gazebo lights BM's lambert materials by the scene's ambient (1.0) times a share (they declare no
 # ambient colour of their own) plus the sun's diffuse term; 0.4 is pilotlab's estimate of that share.
@@ -114,12 +114,17 @@ class BMWorld:
         return CameraSpec(**{**settings, **options})
 
 
-def circuit_of(name: str) -> str:
-    """The built-in circuit (BM's perfect-lap centreline) whose name starts the world's name."""
+def circuit_of(name: str, world_file: Path | None = None) -> str:
+    """The world's circuit: a centreline CSV beside the world file (worlds/NAME.csv, x,y per line in the
+    world frame, as `pilotlab circuit` reads), else the built-in circuit (BM's perfect-lap centreline)
+    whose name starts the world's name."""
+    if world_file is not None and world_file.with_suffix(".csv").is_file():
+        return str(world_file.with_suffix(".csv"))
     matches = [c for c in CIRCUITS.names() if name.startswith(c)]
     if not matches:
         raise PilotlabError(f"world {name!r}: no built-in circuit matches its name (known: "
-                            f"{', '.join(CIRCUITS.names())}); its centreline is needed for progress and laps")
+                            f"{', '.join(CIRCUITS.names())}) and there is no {name}.csv centreline beside its "
+                            ".world file; the centreline is needed for progress, laps and the BM metrics")
     return max(matches, key=len)
 
 
@@ -133,16 +138,21 @@ def world_inputs(name: str, assets=None) -> tuple[Path, WorldFile, str]:
     folder = resolve_assets(assets)
     path = world_path(folder, name)
     parsed = read_world(path, folder)
-    return path, parsed, content_digest(parsed.files)
+    centreline = path.with_suffix(".csv")
+    textures = [image for mesh in parsed.visuals for image in texture_files(mesh.path)]
+    files = [*parsed.files, *textures, *([centreline] if centreline.is_file() else [])]
+    return path, parsed, content_digest(files)
 
 
 def load_world(name: str, assets=None) -> BMWorld:
-    path, parsed, digest = world_inputs(name, assets)
+    _, parsed, digest = world_inputs(name, assets)
     entry = cache_root() / f"{name}-{digest[:16]}-v{CACHE_VERSION}"
     if not (entry / "meta.json").is_file():
         _store(build_world(parsed, digest), entry)
     world = _read(entry)
-    world.meta["assets"] = str(path.parent.parent)   # where it was found this time (not in the cache key)
+    # where it was found this time (not part of the cached content)
+    world.meta["assets"] = str(parsed.path.parent.parent)
+    world.meta["circuit"] = circuit_of(parsed.name, parsed.path)
     return world
 
 
@@ -154,12 +164,12 @@ def build_world(parsed: WorldFile, digest: str) -> BMWorld:
     lighting = Lighting.of(parsed)
     ground_shade = lighting.shade((0.0, 0.0, 1.0))
     grid = Grid.around(layers)
-    sharp = [i for i, layer in enumerate(layers) if layer.texture is None]
+    sharp = sharp_layers(layers)
     # the colour raster holds what lies under the sharp layers (they are drawn over it per frame)
-    textured = [layer for i, layer in enumerate(layers) if i not in sharp]
-    colour = colour_raster(grid, textured, [ground_shade] * len(textured), VOID)
+    under = [layer for i, layer in enumerate(layers) if i not in sharp]
+    colour = colour_raster(grid, under, [ground_shade] * len(under), VOID)
     labels = label_raster(grid, layers)
-    circuit_name = circuit_of(parsed.name)
+    circuit_name = circuit_of(parsed.name, parsed.path)
     centreline = get_circuit(circuit_name).points
     line = find_line(grid, labels, centreline)
     solid_triangles, solid_colours = _solids(solids, lighting)
@@ -182,6 +192,15 @@ def build_world(parsed: WorldFile, digest: str) -> BMWorld:
     return BMWorld(parsed.name, digest, grid, colour, labels, meta["sharp"], distances, solid_triangles,
                    solid_colours, np.concatenate(collisions) if collisions else np.zeros((0, 3, 3)),
                    meta["layers"], meta)
+
+
+def sharp_layers(layers: list[Layer]) -> list[int]:
+    """The flat-coloured layers painted over a textured one (the line, road marks): drawn per frame from
+    signed-distance rasters with sharp edges. The ones below every texture (a plain grass) stay in the
+    colour raster."""
+    textured = [i for i, layer in enumerate(layers) if layer.texture is not None]
+    first = textured[0] if textured else len(layers)
+    return [i for i, layer in enumerate(layers) if layer.texture is None and i > first]
 
 
 def line_raster_grid(grid: Grid) -> Grid:
