@@ -196,11 +196,15 @@ def _input_stat(path: Path) -> os.stat_result:
         resolved = path.resolve()
     except (OSError, ValueError, RuntimeError) as error:
         raise MatrixError(f"input {shown_path(path)} cannot be read: {getattr(error, 'strerror', None) or error}") from None
-    for root in map(Path, _PSEUDO_ROOTS):
-        if resolved == root or root in resolved.parents:
-            raise MatrixError(f"input {shown_path(path)} is a system file (below {root}), not data; "
-                              "name a bag, a dataset folder or a CSV")
+    if root := system_root(resolved):
+        raise MatrixError(f"input {shown_path(path)} is a system file (below {root}), not data; "
+                          "name a bag, a dataset folder or a CSV")
     return result
+
+
+def system_root(resolved: Path) -> Path | None:
+    """The pseudo-file-system root (/proc, /sys, /dev) a resolved path is below, or None."""
+    return next((root for root in map(Path, _PSEUDO_ROOTS) if resolved == root or root in resolved.parents), None)
 
 
 def _file_type(mode: int) -> str:
@@ -231,10 +235,15 @@ def _folder_files(folder: Path) -> list[tuple[Path, int]]:
                     pending.append(path)
                     continue
                 info = path.stat() if entry.is_symlink() else entry.stat(follow_symlinks=False)
+                target = path.resolve() if entry.is_symlink() else None
             except FileNotFoundError:   # a broken link: nothing to read, skipped as before
                 continue
-            except OSError as error:
-                raise MatrixError(f"input {shown_path(path)} cannot be read: {error.strerror}") from None
+            except (OSError, RuntimeError) as error:   # RuntimeError: a loop of links
+                raise MatrixError(f"input {shown_path(path)} cannot be read: "
+                                  f"{getattr(error, 'strerror', None) or error}") from None
+            if target is not None and (root := system_root(target)):
+                raise MatrixError(f"input folder {shown_path(folder)} holds {shown_path(path)}, a link to "
+                                  f"{shown_path(target)}: a system file (below {root}), not data; remove the link")
             if stat.S_ISREG(info.st_mode):
                 found.append((path, info.st_size))
             elif not stat.S_ISDIR(info.st_mode):   # (a link to a folder is skipped, as before)

@@ -20,7 +20,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from pilotlab.data import sqlite_images
 from pilotlab.data.damage import Damage, command_problem
-from pilotlab.data.folder import is_dataset_folder, read_folder
+from pilotlab.data.folder import check_not_system, is_dataset_folder, read_folder
 from pilotlab.data.frames import FrameSet
 from pilotlab.data.images import IMAGE_TYPES, encoding_of, frame_from_message, image_size
 from pilotlab.data.preprocess import PreprocessConfig
@@ -62,6 +62,8 @@ def check_bag_path(path: Path) -> None:
     if path.is_file() and path.suffix not in (".bag", ".db3", ".mcap"):
         raise BagError(f"{path}: not a bag file; a ROS1 bag ends in .bag, a ROS2 bag is a folder "
                        "(or its .db3 / .mcap file)")
+    for file in (path, *(sorted(path.iterdir()) if path.is_dir() else ())):
+        check_not_system(file, path)
 
 
 @contextmanager

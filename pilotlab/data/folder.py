@@ -16,6 +16,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from matrix.fingerprint import system_root
 from pilotlab.data.bagwrite import BagWriter
 from pilotlab.data.damage import MAX_COMMAND
 from pilotlab.data.frames import FrameSet
@@ -39,6 +40,14 @@ def is_dataset_folder(path: Path) -> bool:
     return Path(path).is_dir() and (Path(path) / CSV_NAME).is_file()
 
 
+def check_not_system(file: Path, where: Path) -> None:
+    """A file under /proc, /sys or /dev (links resolved) is refused: reading one may never end, or leak."""
+    target = file.resolve()
+    if root := system_root(target):
+        raise BagError(f"{where}: {file} is {'a link to ' + str(target) + ', ' if target != file else ''}"
+                       f"a system file (below {root}), not data; remove it")
+
+
 def _image_path(folder: Path, name: str, row: int) -> Path:
     try:
         path = folder / name
@@ -50,6 +59,7 @@ def _image_path(folder: Path, name: str, row: int) -> Path:
     if not present:
         raise BagError(f"{folder / CSV_NAME}: row {row} names image {name[:80]!r}, which is not in {folder}; "
                        "add the image or remove the row")
+    check_not_system(path, folder / CSV_NAME)
     if not path.parent.resolve().is_relative_to(folder.resolve()):   # not hashed with the folder: not in the key
         raise BagError(f"{folder / CSV_NAME}: row {row} names image {name[:80]!r}, outside {folder}; a dataset "
                        "folder holds its images: copy the image into it and name it relative to the folder")

@@ -57,6 +57,19 @@ def test_what_is_not_data_is_refused_at_once(tmp_path, target, message):
     assert time.monotonic() - started < 5
 
 
+@pytest.mark.parametrize("target", ["/proc/self/environ", "/dev/zero", "/sys/kernel/mm"])
+def test_a_link_to_a_system_file_inside_a_folder_is_refused(tmp_path, target):
+    """The rule holds for every file hashed (and then read), links resolved, not only for the folder named."""
+    (tmp_path / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    (tmp_path / "run_0.db3").symlink_to(target)
+    with pytest.raises(MatrixError) as caught:
+        hash_path(tmp_path)
+    message = str(caught.value)
+    root = "/" + target.split("/")[1]
+    assert f"holds {tmp_path}/run_0.db3, a link to {root}/" in message and f"a system file (below {root})" in message
+    assert "\n" not in message
+
+
 HASH_IN_A_PROCESS = "import sys; from matrix.fingerprint import hash_path; print(hash_path(sys.argv[1]))"
 
 

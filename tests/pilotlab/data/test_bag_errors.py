@@ -157,3 +157,15 @@ def test_a_bad_bag_breaks_nothing_else(tmp_path):
     with pytest.raises(BagError):
         read_bag(tmp_path / "bad.bag", CONFIG)
     assert len(read_bag(tmp_path / "good.bag", CONFIG)) == 3
+
+
+def test_a_bag_folder_holding_a_link_to_a_system_file_is_refused(tmp_path, capsys):
+    """Read directly (`dataset inspect`, no hashing first), the rule holds for each file, links resolved."""
+    from pilotlab.cli import main
+    drive_bag(tmp_path / "run", "sqlite3", images(3))
+    (tmp_path / "run" / "run.db3").unlink()
+    (tmp_path / "run" / "run.db3").symlink_to("/proc/self/environ")
+    assert message(tmp_path / "run").startswith(f"{tmp_path}/run: {tmp_path}/run/run.db3 is a link to /proc/")
+    assert main(["dataset", "inspect", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert "a system file (below /proc), not data" in err and len(err.strip().splitlines()) == 1

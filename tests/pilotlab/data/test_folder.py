@@ -82,6 +82,14 @@ def test_an_image_outside_the_folder_is_refused(tmp_path, name):
     assert str(caught.value).startswith(f"{folder}/data.csv: row 2 names image '{name}', outside {folder}; ")
 
 
+def test_an_image_linked_to_a_system_file_is_refused(tmp_path):
+    folder = make_folder(tmp_path / "dls", images(2))
+    (folder / "1.png").unlink()
+    (folder / "1.png").symlink_to("/proc/self/environ")
+    with pytest.raises(BagError, match=r"data.csv: .*/1.png is a link to /proc/\S+, a system file \(below /proc\)"):
+        read_folder(folder, CONFIG)
+
+
 def test_an_image_in_a_subfolder_or_linked_as_a_file_is_read(tmp_path):
     folder = make_folder(tmp_path / "dls", images(2))
     (folder / "sub").mkdir()
