@@ -25,6 +25,8 @@ _FILE_HASHES: dict[tuple[str, int, int, int], str] = {}
 _SOURCE_HASHES: dict[Any, str] = {}
 _GENERATION = [0]   # bumped by clear_caches: whatever was derived from source text is stale
 CHUNK = 1 << 20
+MAX_INPUT_FILES = 1_000_000   # files one input folder may hold (a bag folder holds a handful)
+DEFAULT_MAX_INPUT_GB = 64.0   # bytes one input may hold, unless $MATRIX_MAX_INPUT_GB says otherwise
 
 
 def code_fingerprint(sources: Iterable[Any]) -> str:
@@ -171,6 +173,7 @@ def hash_path(path: Path | str) -> str:
     mode = _input_stat(path).st_mode
     if stat.S_ISDIR(mode):
         files = _folder_files(path)
+        _check_size(path, sum(size for _, size in files), len(files))
         with _HashProgress(path, sum(size for _, size in files)) as progress:
             digest = hashlib.sha256()
             for file, _ in files:
@@ -178,11 +181,29 @@ def hash_path(path: Path | str) -> str:
         return digest.hexdigest()
     if not stat.S_ISREG(mode):
         raise MatrixError(f"input {shown_path(path)} is not a regular file or folder ({_file_type(mode)})")
+    _check_size(path, path.stat().st_size, 1)
     with _HashProgress(path, path.stat().st_size) as progress:
         return _hash_file(path, progress)
 
 
 _PSEUDO_ROOTS = ("/proc", "/sys", "/dev")
+
+
+def _max_input_bytes() -> float:
+    try:
+        return float(os.environ.get("MATRIX_MAX_INPUT_GB") or DEFAULT_MAX_INPUT_GB) * 1e9
+    except ValueError:
+        raise MatrixError(f"MATRIX_MAX_INPUT_GB={os.environ['MATRIX_MAX_INPUT_GB']!r} is not a number "
+                          "(gigabytes one input may hold)") from None
+
+
+def _check_size(path: Path, size: int, files: int) -> None:
+    """Hashing is bounded: an input larger than the limit is refused before it is read."""
+    limit = _max_input_bytes()
+    if size > limit:
+        raise MatrixError(f"input {shown_path(path)} holds {size / 1e9:.1f} GB in {files} file(s), more than the "
+                          f"{limit / 1e9:g} GB an input may hold; name the recording itself (not a folder above "
+                          "it), or raise the limit with MATRIX_MAX_INPUT_GB")
 
 
 def shown_path(path: Path, limit: int = 120) -> str:
@@ -246,6 +267,9 @@ def _folder_files(folder: Path) -> list[tuple[Path, int]]:
                                   f"{shown_path(target)}: a system file (below {root}), not data; remove the link")
             if stat.S_ISREG(info.st_mode):
                 found.append((path, info.st_size))
+                if len(found) > MAX_INPUT_FILES:
+                    raise MatrixError(f"input folder {shown_path(folder)} holds more than {MAX_INPUT_FILES:,} "
+                                      "files; name the recording itself (not a folder above it)")
             elif not stat.S_ISDIR(info.st_mode):   # (a link to a folder is skipped, as before)
                 raise MatrixError(f"input folder {shown_path(folder)} holds {shown_path(path)}, which is "
                                   f"{_file_type(info.st_mode)}, not data")

@@ -4,6 +4,7 @@ gets the same one-line error it would get in use. Names, options and that files 
 no user file is hashed, so an unused definition costs planning next to nothing."""
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from matrix.errors import MatrixError
@@ -28,7 +29,7 @@ def check_definitions(planner: Planner) -> None:
                                        ["hardware", name]) from None
         planner.latency_file(name)
     for name, circuit in config.circuits.items():
-        planner.path(circuit.csv, ["circuits", name, "csv"])
+        planner.path(circuit.csv, ["circuits", name, "csv"], "file")
 
 
 def _check_model(planner: Planner, name: str, spec) -> None:
@@ -40,7 +41,7 @@ def _check_model(planner: Planner, name: str, spec) -> None:
                                    f"{', '.join(planner.config.datasets) or '(none)'}", ["models", name, "data"])
     for key in ("weights", "torchscript", "onnx"):
         if getattr(spec, key) is not None:
-            planner.path(getattr(spec, key), ["models", name, key])
+            planner.path(getattr(spec, key), ["models", name, key], "file")
     if spec.network is not None:
         try:
             usercode.source_files(spec.network, planner.folder)
@@ -51,7 +52,29 @@ def _check_model(planner: Planner, name: str, spec) -> None:
 def _check_dataset(planner: Planner, name: str, spec) -> None:
     for key in ("bags", "folders"):
         for path in getattr(spec, key):
-            planner.path(path, ["datasets", name, key])
+            planner.path(path, ["datasets", name, key], "recording")
     for circuit in spec.record.circuits if spec.record is not None else ():
         if circuit not in planner.config.circuits:
             planner.circuit_param(circuit, ["datasets", name, "record", "circuits"])
+
+
+BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+
+
+def path_problem(path: Path, expect: str) -> str | None:
+    """What is wrong with an existing input path for what the recipe expects there, or None; checked
+    before it is hashed, so a folder given for a file (`/root`) fails at once, not after hashing it all.
+    "file": a regular file; "recording": a ROS1 .bag (or ROS2 .db3/.mcap) file, or a folder holding
+    metadata.yaml (a ROS2 bag) or data.csv (a DeepLearningStudio dataset folder)."""
+    from matrix.fingerprint import system_root
+    if system_root(path.resolve()):   # hashing refuses it, saying so
+        return None
+    if expect == "file" and not path.is_file():
+        return "is a folder; give a file" if path.is_dir() else "is not a regular file"
+    if expect == "recording" and path.is_dir():
+        if not ((path / "metadata.yaml").is_file() or (path / "data.csv").is_file()):
+            return ("is a folder holding neither metadata.yaml (a ROS2 bag) nor data.csv (a DeepLearningStudio "
+                    "dataset folder); name the recording's own folder")
+    elif expect == "recording" and path.suffix not in BAG_SUFFIXES:
+        return f"is not a bag: a ROS1 bag ends in .bag, a ROS2 bag is a folder (or its {' / '.join(BAG_SUFFIXES[1:])} file)"
+    return None

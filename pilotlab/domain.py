@@ -110,7 +110,7 @@ class Planner:
                 jobs.append(job("frames", f"frames {label}{shown}", FramesSpec(**topics, label=label),
                                 deps={"bag": record}))
         for i, path in enumerate(spec.bags + spec.folders):
-            source = self.path(path, ["datasets", name, "bags" if i < len(spec.bags) else "folders"])
+            source = self.path(path, ["datasets", name, "bags" if i < len(spec.bags) else "folders"], "recording")
             label = f"{name}/{Path(path).name}"
             jobs.append(job("frames", f"frames {label}{shown}", FramesSpec(**topics, label=label),
                             inputs={"bag": input_file(str(source))}))
@@ -132,7 +132,7 @@ class Planner:
     def circuit_param(self, circuit: str, where: list) -> tuple[dict, dict]:
         """(params, inputs) naming a circuit: a recipe-defined CSV is an input file (content hashed)."""
         if circuit in self.config.circuits:
-            csv = self.path(self.config.circuits[circuit].csv, ["circuits", circuit, "csv"])
+            csv = self.path(self.config.circuits[circuit].csv, ["circuits", circuit, "csv"], "file")
             return {"circuit": str(csv)}, {"circuit_csv": input_file(str(csv))}
         from pilotlab.circuits import csv_path_of
         try:
@@ -141,8 +141,11 @@ class Planner:
             raise self.recipe.error(str(error), where) from None
         return {"circuit": circuit}, ({"circuit_csv": input_file(str(csv))} if csv else {})
 
-    def path(self, value: str, where: list) -> Path:
+    def path(self, value: str, where: list, expect: str = "any") -> Path:
+        """The path a recipe value names (relative to the recipe's folder); it must exist, and be what
+        `expect` says ("file", "recording": see pilotlab.definitions.path_problem), checked before hashing."""
         from matrix.fingerprint import shown_path
+        from pilotlab.definitions import path_problem
         try:
             path = Path(value).expanduser()
             path = path if path.is_absolute() else self.folder / path
@@ -153,6 +156,8 @@ class Planner:
         if not exists:
             raise self.recipe.error(f"{shown_path(Path(value))} does not exist (looked for {shown_path(path)}; relative "
                                     "paths are relative to the recipe's folder)", where)
+        if problem := path_problem(path, expect):
+            raise self.recipe.error(f"{shown_path(Path(value))} {problem}", where)
         return path
 
     # models and strategies ------------------------------------------------------------------------
@@ -216,7 +221,7 @@ class Planner:
         options = self.config.hardware.get(hardware)
         if options is None or options.latency_file is None:
             return None
-        return self.path(options.latency_file, ["hardware", hardware, "latency_file"])
+        return self.path(options.latency_file, ["hardware", hardware, "latency_file"], "file")
 
     # evaluations ----------------------------------------------------------------------------------
     def offline(self, optimize: Job, combination: dict, hardware: str) -> Job:
@@ -263,7 +268,7 @@ def model_inputs(planner: Planner, name: str, spec: ModelSpec) -> dict[str, Inpu
     inputs = {}
     for key in ("weights", "torchscript", "onnx"):
         if getattr(spec, key) is not None:
-            inputs[key] = input_file(str(planner.path(getattr(spec, key), ["models", name, key])))
+            inputs[key] = input_file(str(planner.path(getattr(spec, key), ["models", name, key], "file")))
     if spec.onnx is not None:   # its weights kept in files beside it ("external data") are inputs too
         from pilotlab.models.onnx_data import planned_data_files
         try:

@@ -70,6 +70,25 @@ def test_a_link_to_a_system_file_inside_a_folder_is_refused(tmp_path, target):
     assert "\n" not in message
 
 
+def test_hashing_is_bounded_with_a_clear_error(tmp_path, monkeypatch):
+    import matrix.fingerprint
+    (tmp_path / "a").mkdir()
+    for i in range(4):
+        (tmp_path / "a" / f"{i}.bin").write_bytes(b"x" * 1000)
+    monkeypatch.setenv("MATRIX_MAX_INPUT_GB", "0.000003")     # 3000 bytes
+    with pytest.raises(MatrixError, match=r"input .*/a holds 0.0 GB in 4 file\(s\), more than the 3e-06 GB an "
+                                          r"input may hold; .* raise the limit with MATRIX_MAX_INPUT_GB"):
+        hash_path(tmp_path / "a")
+    assert len(hash_path(tmp_path / "a" / "0.bin")) == 64
+    monkeypatch.setenv("MATRIX_MAX_INPUT_GB", "lots")
+    with pytest.raises(MatrixError, match="MATRIX_MAX_INPUT_GB='lots' is not a number"):
+        hash_path(tmp_path / "a" / "0.bin")
+    monkeypatch.delenv("MATRIX_MAX_INPUT_GB")
+    monkeypatch.setattr(matrix.fingerprint, "MAX_INPUT_FILES", 3)
+    with pytest.raises(MatrixError, match=r"input folder .*/a holds more than 3 files; name the recording itself"):
+        hash_path(tmp_path / "a")
+
+
 HASH_IN_A_PROCESS = "import sys; from matrix.fingerprint import hash_path; print(hash_path(sys.argv[1]))"
 
 

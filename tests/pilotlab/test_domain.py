@@ -140,7 +140,7 @@ def test_definitions_the_matrix_does_not_use_are_validated_too(tmp_path, old, ne
 @pytest.mark.parametrize("path, message", [
     ("a" * 5000, "datasets.train.bags: aaaaa"),
     ("/proc/self/mem", "input /proc/self/mem is a system file (below /proc), not data"),
-    ("/", "input folder / holds /dev/"),
+    ("/", "datasets.train.bags: / is a folder holding neither metadata.yaml (a ROS2 bag) nor data.csv"),
     ("~no_such_user_here/run.bag", "cannot be a path: Could not determine home directory"),
 ])
 def test_an_input_that_is_not_data_is_one_line_at_once(tmp_path, path, message):
@@ -151,6 +151,27 @@ def test_an_input_that_is_not_data_is_one_line_at_once(tmp_path, path, message):
     assert message in str(caught.value)
     assert "\n" not in str(caught.value) and len(str(caught.value)) < 400
     assert time.monotonic() - started < 5
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ("matrix:", "circuits:\n  x: {csv: BIG}\nmatrix:", "circuits.x.csv: BIG is a folder; give a file"),
+    ("  test: {record", "  spare: {folders: [BIG]}\n  test: {record",
+     "datasets.spare.folders: BIG is a folder holding neither metadata.yaml (a ROS2 bag) nor data.csv"),
+    ("  test: {record", "  spare: {bags: [recipe.yaml]}\n  test: {record",
+     "datasets.spare.bags: recipe.yaml is not a bag: a ROS1 bag ends in .bag"),
+    ("  other: {epochs: 2}\n", "  other: {epochs: 2}\n  spare: {arch: pilotnet, weights: BIG}\n",
+     "models.spare.weights: BIG is a folder; give a file"),
+    ("matrix:", "hardware:\n  spare: {latency_file: BIG}\nmatrix:", "hardware.spare.latency_file: BIG is a folder"),
+])
+def test_a_folder_where_a_file_is_expected_fails_before_anything_is_hashed(tmp_path, monkeypatch, old, new, message):
+    import matrix.fingerprint
+    big = tmp_path / "home"                  # a folder of anything (a home folder of 6 GB)
+    (big / "sub").mkdir(parents=True)
+    (big / "sub" / "data.bin").write_bytes(b"0" * 1000)
+    monkeypatch.setattr(matrix.fingerprint, "_folder_files", lambda folder: pytest.fail(f"{folder} was walked"))
+    with pytest.raises(RecipeError) as caught:
+        engine.plan_jobs(recipe_at(tmp_path, RECIPE.replace(old, new.replace("BIG", str(big)), 1)), DOMAIN)
+    assert message.replace("BIG", str(big)) in str(caught.value) and "\n" not in str(caught.value)
 
 
 def test_shipped_recipes_plan(tmp_path):
