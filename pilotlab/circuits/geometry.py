@@ -14,7 +14,9 @@ from pilotlab.errors import PilotlabError
 
 SPACING_M = 0.25        # distance between resampled centreline points
 SMOOTHING_M = 1.5       # Gaussian sigma along the arc
-CLOSE_TOLERANCE_M = 2.0  # a recorded lap that passes this close to its start again is cut there
+CLOSE_TOLERANCE_M = 2.0  # a recorded lap that passes this close to its start again is cut there ...
+CLOSE_ALIGNMENT = 0.7     # ... driving within ~45° of the start's direction (cos), not across it
+HEADING_REACH_M = 3.0     # the direction of travel at a point: over this many metres either side
 MAX_LENGTH_M = 100_000.0  # longer than any race track: a longer lap is a unit error (and 4e5 points)
 MAX_OPEN_GAP = 0.1        # a lap that stops short by more than this share of its length is no lap
 MIN_OPEN_GAP_M = 10.0     # ... and by more than this
@@ -40,14 +42,23 @@ def close_loop(points: np.ndarray, tolerance: float = CLOSE_TOLERANCE_M) -> np.n
     if len(tail) == 0:
         return points
     distance = np.linalg.norm(points[tail] - points[0], axis=1)
-    # The first pass near the start in the far half of the lap is where the lap closes.
+    # The first pass near the start in the far half of the lap, driven the way the lap starts, is where
+    # the lap closes; a pass across the start (a figure eight started at its crossing) is not.
     near = np.flatnonzero(distance < tolerance)
-    if len(near) == 0:
-        return points
-    breaks = np.flatnonzero(np.diff(near) > 1)
-    first_pass = near[: breaks[0] + 1] if len(breaks) else near
-    closest = first_pass[np.argmin(distance[first_pass])]
-    return points[:tail[closest]]
+    start = _heading(points, arc, 0)
+    for group in np.split(near, np.flatnonzero(np.diff(near) > 1) + 1) if len(near) else ():
+        closest = tail[group[np.argmin(distance[group])]]
+        if np.dot(_heading(points, arc, closest), start) > CLOSE_ALIGNMENT:
+            return points[:closest]
+    return points
+
+
+def _heading(points: np.ndarray, arc: np.ndarray, index: int, reach: float = HEADING_REACH_M) -> np.ndarray:
+    """Unit direction of travel at `index`: from `reach` metres before it to `reach` metres after it."""
+    before = points[np.searchsorted(arc, arc[index] - reach)]
+    after = points[min(np.searchsorted(arc, arc[index] + reach), len(points) - 1)]
+    step = after - before
+    return step / (np.linalg.norm(step) or 1.0)
 
 
 def resample_closed(points: np.ndarray, spacing: float) -> np.ndarray:

@@ -10,8 +10,8 @@ from pilotlab.errors import PilotlabError
 from tests.pilotlab.tracks import stadium, write_csv
 
 
-def figure_eight(radius: float = 15.0) -> np.ndarray:
-    t = np.linspace(0, 2 * np.pi, 400, endpoint=False) + np.pi / 2   # starts away from the crossing
+def figure_eight(radius: float = 15.0, start: float = np.pi / 2, endpoint: bool = False) -> np.ndarray:
+    t = np.linspace(0, 2 * np.pi, 400, endpoint=endpoint) + start   # by default, starts away from the crossing
     return np.stack([radius * np.sin(2 * t), radius * np.sin(t)], axis=1)
 
 
@@ -34,6 +34,10 @@ BAD = {
                                              np.stack([np.linspace(100, 0, 200), np.full(200, 0.5)], axis=1)]),
                      "encloses almost no area"),
     "figure eight": (figure_eight, r"crosses itself near x=-?0\.\d, y=-?0\.\d m"),
+    # started at its crossing, it passes its start half-way: that is the crossing, not where the lap closes
+    "figure eight from its crossing": (lambda: figure_eight(start=0.0), r"crosses itself near x=-?0\.\d, y=-?0\.\d m"),
+    "figure eight from its crossing, closed": (lambda: figure_eight(60.0, start=0.0, endpoint=True),
+                                               r"crosses itself near x=-?0\.\d, y=-?0\.\d m"),
     "open zig-zag": (lambda: np.array([(10.0 * i, 10.0 * (i % 2)) for i in range(12)]), "is not a lap: it ends 110.5 m from its start"),
 }
 
