@@ -89,9 +89,19 @@ class CameraSpec:
         fx, fy = self.width / (right - left), self.height / (bottom - top)
         return np.array([[fx, 0.0, -left * fx], [0.0, fy, -top * fy - 1.0], [0.0, 0.0, 1.0]])
 
-    def gl_projection(self) -> list[float]:
-        """The same optics as an OpenGL off-axis frustum (column-major), for pybullet."""
+    def pinhole_intrinsics(self) -> np.ndarray:
+        """K of an ideal pinhole camera (as Gazebo's): pixel i's centre looks through window coordinate
+        i + 0.5. The BM world renderer uses it (pilotlab.worlds.render); `intrinsics` is TinyRenderer's."""
         left, top, right, bottom = self.plane_bounds()
+        fx, fy = self.width / (right - left), self.height / (bottom - top)
+        return np.array([[fx, 0.0, -left * fx - 0.5], [0.0, fy, -top * fy - 0.5], [0.0, 0.0, 1.0]])
+
+    def gl_projection(self, pixel_shift: tuple[float, float] = (0.0, 0.0)) -> list[float]:
+        """The same optics as an OpenGL off-axis frustum (column-major), for pybullet; `pixel_shift`
+        (du, dv) moves the window by that many pixels (right, down)."""
+        left, top, right, bottom = self.plane_bounds()
+        du, dv = pixel_shift[0] * (right - left) / self.width, pixel_shift[1] * (bottom - top) / self.height
+        left, right, top, bottom = left + du, right + du, top + dv, bottom + dv
         n, f = self.near_m, self.far_m
         l, r, b, t = left * n, right * n, -bottom * n, -top * n  # OpenGL's y points up
         matrix = np.array([[2 * n / (r - l), 0, (r + l) / (r - l), 0],
@@ -158,11 +168,12 @@ class PixelGrid:
     def size(self) -> tuple[int, int]:
         return self.width, self.height
 
-    def intrinsics(self, spec: CameraSpec) -> np.ndarray:
-        """K of these samples: the full frame's K followed by full-frame pixels -> grid pixels."""
+    def intrinsics(self, spec: CameraSpec, pinhole: bool = False) -> np.ndarray:
+        """K of these samples: the full frame's K (TinyRenderer's, or with `pinhole` the ideal one)
+        followed by full-frame pixels -> grid pixels."""
         to_grid = np.array([[1 / self.scale, 0.0, -self.u0 / self.scale],
                             [0.0, 1 / self.scale, -self.v0 / self.scale], [0.0, 0.0, 1.0]])
-        return to_grid @ spec.intrinsics()
+        return to_grid @ (spec.pinhole_intrinsics() if pinhole else spec.intrinsics())
 
 
 def sky_polygon(spec: CameraSpec, rotation: np.ndarray, intrinsics_inverse: np.ndarray | None = None,

@@ -1,7 +1,7 @@
 """A BM world in pybullet: its collision meshes as static, solid bodies (the car hits the walls), and
 its visual meshes for TinyRenderer (the reference renderer, pilotlab.worlds.render.BulletWorldRenderer).
 
-Visual meshes are the ground layers (lifted 0.5 mm per layer in painting order, so that coplanar faces
+Visual meshes are the ground layers (lifted 0.1 mm per layer in painting order, so that coplanar faces
 do not fight) and the solids, lit as the fast renderer lights them; textures go through PNG files
 (pybullet loads textures from files only).
 """
@@ -19,7 +19,7 @@ from pilotlab.worlds.scene import Layer
 from pilotlab.worlds.world import BMWorld
 
 TRIANGLES_PER_SHAPE = 1000      # pybullet bounds the vertices of one mesh shape
-LAYER_LIFT_M = 0.0005
+LAYER_LIFT_M = 0.0001
 
 
 def _chunks(triangles: np.ndarray):

@@ -30,7 +30,8 @@ class WorldRenderer:
             raise PilotlabError("the BM world renderer needs a level camera (CameraSpec(level=True), as "
                                 "bm_camera() is): its horizon must stay a fixed row")
         self.world, self.spec, self.grid = world, spec, grid or PixelGrid.full(spec)
-        self._intrinsics = spec.intrinsics() if grid is None else grid.intrinsics(spec)
+        # Gazebo's camera is an ideal pinhole (TinyRenderer's half-pixel offsets are its own)
+        self._intrinsics = spec.pinhole_intrinsics() if grid is None else grid.intrinsics(spec, pinhole=True)
         self._to_world = world.grid.to_world()
         self._sharp = [(layer, Grid(**layer["grid"]).to_world(), distance)
                        for layer, distance in zip(world.sharp, world.distances)]
@@ -75,7 +76,10 @@ class BulletWorldRenderer:
         if not spec.level:
             raise PilotlabError("the BM world renderers need a level camera (bm_camera())")
         self.client, self.spec = client, spec
-        self._projection = spec.gl_projection()
+        # TinyRenderer samples pixel i at window coordinate i, not i + 0.5 (CameraSpec.intrinsics): moving
+        # the window half a pixel makes its image the ideal pinhole's, as Gazebo's (measured: IoU of the
+        # red line with an exact projection 0.66 -> 0.84 at its worst pose)
+        self._projection = spec.gl_projection((0.5, -0.5))
         self._sky_rows, self._sky = sky_image(spec, spec.intrinsics(), spec.size)
 
     def render(self, eye: np.ndarray, rotation: np.ndarray) -> np.ndarray:
