@@ -6,6 +6,8 @@ A recipe becomes jobs, shared wherever their inputs are equal:
         -> optimize (per model × strategy) -> offline (per model × strategy × hardware)
                                            -> online  (per model × strategy × hardware × circuit × direction)
     plus reference laps (explicit brain, expert, the user's brains) per hardware × circuit × direction.
+A combination may name a BehaviorMetrics `world` instead of a circuit (pilotlab.worlds.planning): its laps
+are driven there, and a recorded offline test set is recorded there too.
 
 Relative paths in a recipe (bags, dataset folders, circuit CSVs) are relative to the recipe's folder.
 """
@@ -26,8 +28,9 @@ from pilotlab.specs.offline import OfflineSpec
 from pilotlab.specs.online import LapSettings, OnlineSpec
 from pilotlab.specs.optimize import OptimizeSpec
 from pilotlab.specs.record import RecordSettings, RecordSpec
+from pilotlab.worlds.planning import world_param
 
-AXES = ("model", "strategy", "hardware", "circuit")
+AXES = ("model", "strategy", "hardware", "circuit", "world")
 
 
 def job(kind: str, name: str, spec: Spec, **links) -> Job:
@@ -62,10 +65,11 @@ class Planner:
     def __init__(self, recipe: Recipe):
         self.recipe, self.config = recipe, recipe.config
         self.folder = Path(recipe.file).resolve().parent
-        self.datasets: dict[tuple[str, PreprocessConfig], list[Job]] = {}
+        self.datasets: dict[tuple[str, PreprocessConfig, str | None], list[Job]] = {}
         self.trained: dict[str, Job] = {}
         self.optimized: dict[tuple, Job] = {}
         self.shared_params: dict[tuple, dict] = {}
+        self.worlds_read: dict[str, tuple[dict, dict]] = {}     # pilotlab.worlds.planning.world_param
 
     def jobs(self) -> list[Job]:
         from pilotlab.definitions import check_definitions
@@ -81,23 +85,34 @@ class Planner:
         if missing:
             raise self.recipe.error(f"the combination {combination} has no {' and no '.join(missing)}; "
                                     "every combination needs a model and a strategy", ["matrix"])
+        if "circuit" in combination and "world" in combination:
+            raise self.recipe.error(f"the combination {combination} names a circuit and a world; a lap is driven on a "
+                                    "circuit of pilotlab's own world or in a BehaviorMetrics world (which has its own "
+                                    "circuit): use one axis per combination", ["matrix"])
         hardware = str(combination.get("hardware", "cpu"))
         optimize = self.optimize(str(combination["model"]), str(combination["strategy"]), hardware)
         jobs = [self.offline(optimize, combination, hardware)]
-        if "circuit" in combination:
+        if "circuit" in combination or "world" in combination:
             jobs += online_jobs(self, optimize, combination, hardware, timing=jobs[0])
         return jobs
 
     # datasets -----------------------------------------------------------------------------------
-    def dataset(self, name: str, used_by: list, preprocess: PreprocessConfig | None = None) -> list[Job]:
-        """The frames jobs of a dataset, preprocessed as `preprocess` says (default: pilotlab's)."""
+    def dataset(self, name: str, used_by: list, preprocess: PreprocessConfig | None = None,
+                world: str | None = None) -> list[Job]:
+        """The frames jobs of a dataset, preprocessed as `preprocess` says (default: pilotlab's); with
+        `world`, a recorded dataset is recorded in that BM world instead (the same settings and seeds)."""
         if name not in self.config.datasets:
             raise self.recipe.error(f"dataset {name!r} is not defined; datasets: "
                                     f"{', '.join(self.config.datasets) or '(none)'}", used_by)
         settings = preprocess or PreprocessConfig()
-        if (name, settings) not in self.datasets:
-            self.datasets[name, settings] = self._dataset_jobs(name, self.config.datasets[name], settings)
-        return self.datasets[name, settings]
+        spec = self.config.datasets[name]
+        if world is not None and spec.record is not None:
+            spec = spec.model_copy(update={"record": spec.record.model_copy(update={"circuits": [], "worlds": [world]})})
+        else:
+            world = None
+        if (name, settings, world) not in self.datasets:
+            self.datasets[name, settings, world] = self._dataset_jobs(name, spec, settings)
+        return self.datasets[name, settings, world]
 
     def _dataset_jobs(self, name: str, spec: DatasetSpec, settings: PreprocessConfig) -> list[Job]:
         topics = {"image_topic": spec.topics.image, "command_topic": spec.topics.command,
@@ -121,10 +136,13 @@ class Planner:
         record: RecordingsSpec = spec.record
         settings = {field: getattr(record, field) for field in RecordSettings.model_fields}
         jobs = []
-        for circuit in record.circuits:
-            params, inputs = self.circuit_param(circuit, ["datasets", name, "record", "circuits"])
+        places = [(circuit, self.circuit_param(circuit, ["datasets", name, "record", "circuits"]))
+                  for circuit in record.circuits]
+        places += [(world, world_param(self, world, ["datasets", name, "record", "worlds", i]))
+                   for i, world in enumerate(record.worlds)]
+        for place, (params, inputs) in places:
             for direction in record.directions:
-                label = f"{name}/{circuit} {direction}"
+                label = f"{name}/{place} {direction}"
                 jobs.append((label, job("record", f"record {label}", RecordSpec(
                     **settings, **params, direction=direction), inputs=inputs)))
         return jobs
@@ -226,14 +244,18 @@ class Planner:
     # evaluations ----------------------------------------------------------------------------------
     def offline(self, optimize: Job, combination: dict, hardware: str) -> Job:
         from pilotlab.hardware import host_fingerprint
-        model, strategy = combination["model"], combination["strategy"]
-        test = self.dataset(self.config.offline.data, ["offline", "data"], self.config.models[model].preprocess)
+        model, strategy, world = combination["model"], combination["strategy"], combination.get("world")
+        test = self.dataset(self.config.offline.data, ["offline", "data"], self.config.models[model].preprocess,
+                            world=None if world is None else str(world))
         params = self.params_once(("offline", hardware), lambda: OfflineSpec(
             hardware=self.profile(hardware).as_dict(), host=host_fingerprint(),
             batch=self.config.offline.batch).model_dump(mode="json"))
         labels = {"model": model, "strategy": strategy, "hardware": hardware,
                   "test_set": self.config.offline.data}
-        return Job("offline", f"offline {model}/{strategy} on {hardware}", params,
+        in_world = world is not None and self.config.datasets[self.config.offline.data].record is not None
+        if in_world:
+            labels |= {"test_set": f"{self.config.offline.data} in {world}", "world": str(world)}
+        return Job("offline", f"offline {model}/{strategy} on {hardware}{f' in {world}' if in_world else ''}", params,
                    deps={"artifact": optimize, "test": tuple(test)}, labels=labels)
 
     def reference_jobs(self) -> list[Job]:
@@ -287,12 +309,17 @@ def model_inputs(planner: Planner, name: str, spec: ModelSpec) -> dict[str, Inpu
 
 
 def online_jobs(planner: Planner, optimize: Job, combination: dict, hardware: str, timing: Job) -> list[Job]:
-    model, strategy, circuit = combination["model"], combination["strategy"], str(combination["circuit"])
+    model, strategy, place = combination["model"], combination["strategy"], lap_place(combination)
     labels = {"model": model, "strategy": strategy, "hardware": hardware}
     brain, deps, inputs = replay_inputs(planner, combination, hardware, timing)
-    return [_lap(planner, f"online {model}/{strategy} on {hardware}", labels, hardware, circuit, direction,
+    return [_lap(planner, f"online {model}/{strategy} on {hardware}", labels, hardware, place, direction,
                  brain, {"artifact": optimize, **deps}, inputs)
             for direction in planner.config.online.directions]
+
+
+def lap_place(combination: dict) -> tuple[str, str]:
+    """("circuit", name) or ("world", name): where a combination's laps are driven."""
+    return ("world", str(combination["world"])) if "world" in combination else ("circuit", str(combination["circuit"]))
 
 
 def replay_inputs(planner: Planner, combination: dict, hardware: str, timing: Job) -> tuple[dict, dict, dict]:
@@ -316,15 +343,15 @@ def replay_inputs(planner: Planner, combination: dict, hardware: str, timing: Jo
 def reference_jobs(planner: Planner) -> list[Job]:
     """The reference brains (explicit, expert, the user's) on every CPU profile and circuit the matrix
     drives (they use no GPU, so a CUDA profile adds nothing)."""
-    cells = {(str(c.get("hardware", "cpu")), str(c["circuit"])) for c in planner.recipe.combinations
-             if "circuit" in c and planner.profile(str(c.get("hardware", "cpu"))).device == "cpu"}
+    cells = {(str(c.get("hardware", "cpu")), lap_place(c)) for c in planner.recipe.combinations
+             if ("circuit" in c or "world" in c) and planner.profile(str(c.get("hardware", "cpu"))).device == "cpu"}
     jobs = []
     for index, reference in enumerate(planner.config.online.references):
         name, brain, inputs = reference_brain(planner, reference, index)
         jobs += [_lap(planner, f"online {name} on {hardware}", {"model": "reference", "strategy": name,
                                                                 "hardware": hardware},
-                      hardware, circuit, direction, brain, {}, inputs)
-                 for hardware, circuit in sorted(cells) for direction in planner.config.online.directions]
+                      hardware, place, direction, brain, {}, inputs)
+                 for hardware, place in sorted(cells) for direction in planner.config.online.directions]
     return jobs
 
 
@@ -345,10 +372,15 @@ def reference_brain(planner: Planner, reference: str | dict[str, str], index: in
     return name, brain, {"brain_source": InputFile(str(source), digest)}
 
 
-def _lap(planner: Planner, name: str, labels: dict, hardware: str, circuit: str, direction: str,
+def _lap(planner: Planner, name: str, labels: dict, hardware: str, place: tuple[str, str], direction: str,
          brain: dict, deps: dict, inputs: dict | None = None) -> Job:
     from pilotlab.hardware import host_fingerprint
-    params, circuit_inputs = planner.circuit_param(circuit, ["matrix", "circuit"])
+    axis, circuit = place
+    if axis == "world":
+        params, circuit_inputs = world_param(planner, circuit, ["matrix", "world"])
+        labels = {**labels, "world": circuit}
+    else:
+        params, circuit_inputs = planner.circuit_param(circuit, ["matrix", "circuit"])
 
     def lap_params() -> dict:
         online = planner.config.online
@@ -356,7 +388,7 @@ def _lap(planner: Planner, name: str, labels: dict, hardware: str, circuit: str,
         return OnlineSpec(**settings, **params, **brain, direction=direction, host=host_fingerprint(),
                           hardware=planner.profile(hardware).as_dict()).model_dump(mode="json")
     # The params of every lap of one (hardware, circuit, direction, brain) are equal: built once.
-    slot = ("online", hardware, circuit, direction, json.dumps(brain, sort_keys=True))
+    slot = ("online", hardware, axis, circuit, direction, json.dumps(brain, sort_keys=True))
     return Job("online", f"{name} at {circuit} {direction}", planner.params_once(slot, lap_params), deps=deps,
                inputs={**circuit_inputs, **(inputs or {})}, labels={**labels, "circuit": circuit, "direction": direction})
 
@@ -376,7 +408,9 @@ def after_run(recipe: Recipe, plan, summary, store) -> None:
 DOMAIN = Domain(
     name="pilotlab",
     sections=SECTIONS,
-    axes={"model": _models, "strategy": _strategies, "hardware": _hardware, "circuit": _circuits},
+    # worlds are checked when planned: their names depend on the assets folder, relative to the recipe
+    axes={"model": _models, "strategy": _strategies, "hardware": _hardware, "circuit": _circuits,
+          "world": lambda config: None},
     plan=plan,
     kind_modules=KIND_MODULES,
     store_env="PILOTLAB_STORE",

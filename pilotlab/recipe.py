@@ -11,6 +11,7 @@ so the recipe, the job and the CLI share one set of names and defaults.
     offline:     offline evaluation settings
     online:      closed-loop evaluation settings
     report:      where reports go
+    worlds:      where BehaviorMetrics' worlds are (the `world` axis, datasets recorded in them)
 """
 from __future__ import annotations
 
@@ -27,9 +28,24 @@ from pilotlab.specs.train import TrainSpec
 
 
 class RecordingsSpec(RecordSettings):
-    """Drive circuits with the expert in the simulator and record rosbags (one per circuit and direction)."""
-    circuits: list[str] = Field(min_length=1)
+    """Drive circuits (pilotlab's own world) or BehaviorMetrics' worlds with the expert in the simulator
+    and record rosbags (one per circuit or world and direction)."""
+    circuits: list[str] = []
+    worlds: list[str] = []
     directions: list[Direction] = Field(["cw"], min_length=1)
+
+    @model_validator(mode="after")
+    def _somewhere_to_drive(self):
+        if not self.circuits and not self.worlds:
+            raise ValueError("give `circuits` (pilotlab's own world) or `worlds` (BehaviorMetrics' worlds) to "
+                             "record in")
+        return self
+
+
+class WorldsSpec(Spec):
+    """Where BehaviorMetrics' worlds are (docs/worlds.md): relative to the recipe's folder; default
+    $PILOTLAB_BM_ASSETS."""
+    assets: str | None = None
 
 
 class TopicsSpec(Spec):
@@ -118,4 +134,5 @@ SECTIONS: dict[str, tuple[Any, Any]] = {
     "offline": (OfflineSection, OfflineSection()),
     "online": (OnlineSection, OnlineSection()),
     "report": (ReportSpec, ReportSpec()),
+    "worlds": (WorldsSpec, WorldsSpec()),
 }

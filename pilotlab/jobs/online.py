@@ -36,6 +36,7 @@ from pilotlab.online import brains, evaluate
 from pilotlab.online.latency import TimingSource, describe
 from pilotlab.online.perfect_lap import perfect_lap
 from pilotlab.specs.online import OnlineSpec
+from pilotlab.worlds.planning import world_assets
 
 
 def make_brain(ctx: JobContext, spec: OnlineSpec, profile) -> tuple[brains.Brain, str]:
@@ -56,7 +57,18 @@ def make_brain(ctx: JobContext, spec: OnlineSpec, profile) -> tuple[brains.Brain
     if spec.brain == "user":
         mine = spec.user_brain
         return brains.UserBrain(mine.spec, Path(mine.base), name=mine.name), mine.name
-    return brains.make_reference_brain(spec.brain, spec.brain_options), spec.brain
+    return brains.make_reference_brain(spec.brain, reference_options(ctx, spec)), spec.brain
+
+
+def reference_options(ctx: JobContext, spec: OnlineSpec) -> dict[str, Any]:
+    """A reference brain's options; in a BM world the explicit brain looks where BM's camera sees the
+    line, and follows the world's line colour (white in *_white_line), unless the recipe says otherwise."""
+    if spec.world is None or spec.brain != "explicit":
+        return spec.brain_options
+    from pilotlab.sim.explicit import bm_world_options
+    from pilotlab.worlds import load_world
+    assets, name = world_assets(ctx.inputs)
+    return {**bm_world_options(load_world(name, assets).line_colour), **spec.brain_options}
 
 
 def replayed_latency(ctx: JobContext, spec: OnlineSpec, brain) -> tuple[np.ndarray | None, dict[str, Any]]:
@@ -80,12 +92,13 @@ def run_online(ctx: JobContext) -> dict[str, Any]:
     cv2.setNumThreads(profile.cpu_threads)  # the explicit brain's and preprocessing's OpenCV calls
     host = check_host(ctx.name, spec.host)
     brain, strategy = make_brain(ctx, spec, profile)
-    ctx.log.info("%s on %s %s: %s timing at %g Hz, %d run(s)", strategy, spec.circuit, spec.direction,
+    ctx.log.info("%s on %s %s: %s timing at %g Hz, %d run(s)", strategy, spec.world or spec.circuit, spec.direction,
                  spec.timing, spec.control_hz, spec.runs)
     samples, replayed = replayed_latency(ctx, spec, brain)
     checkpoints = perfect_lap(spec.circuit, spec.direction, cache=ctx.cache / "perfect_laps")
     result = evaluate.evaluate_online(brain, spec, ctx.out, progress=lambda done, total, what: ctx.progress(
-        done, total, what), latency_ms=samples, tolerance=spec.tolerance, checkpoints=checkpoints)
+        done, total, what), latency_ms=samples, tolerance=spec.tolerance, checkpoints=checkpoints,
+        assets=world_assets(ctx.inputs)[0])
     result |= replayed
     ctx.log.info("%s: %s", strategy, ", ".join(f"{run['termination']} after {run['sim_seconds']:.1f} s"
                                                for run in result["runs"]))

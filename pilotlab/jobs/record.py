@@ -12,14 +12,17 @@ from pilotlab.data import topics
 from pilotlab.errors import PilotlabError
 from pilotlab.sim import record
 from pilotlab.specs.record import RecordSpec
+from pilotlab.worlds.planning import world_assets
 
 
 def run_record(ctx: JobContext) -> dict:
     spec: RecordSpec = ctx.spec
     name = "recording.bag" if spec.format == "ros1" else "recording"
-    label = f"recording {spec.circuit} {spec.direction}"
+    assets, _ = world_assets(ctx.inputs)
+    label = f"recording {spec.world or spec.circuit} {spec.direction}"
     ctx.log.info("%s: %s", label, spec)
-    summary = record.record(spec, ctx.out / name, lambda done, total, frames: ctx.progress(done, total, label))
+    summary = record.record(spec, ctx.out / name, lambda done, total, frames: ctx.progress(done, total, label),
+                            assets=assets)
     if summary.interrupted:
         raise PilotlabError(f"{label}: interrupted after {summary.frames} frames")
     result = summary.as_dict()

@@ -45,21 +45,23 @@ def start_points(spec: LapSettings, length: float) -> list[float]:
     return [float(s) % length for s in spec.starts]
 
 
-def make_env(spec: OnlineSpec, camera: bool, view=None) -> DrivingEnv:
-    """`view`: the brain's preprocessing, rendered directly instead of the camera image (sim.view)."""
-    return DrivingEnv(spec.circuit, direction=spec.direction,
+def make_env(spec: OnlineSpec, camera: bool, view=None, assets=None) -> DrivingEnv:
+    """`view`: the brain's preprocessing, rendered directly instead of the camera image (sim.view);
+    `assets`: the folder of BM's worlds, for a lap in one (`spec.world`)."""
+    place = {"world": spec.world, "assets": assets} if spec.world else {"circuit": spec.circuit}
+    return DrivingEnv(**place, direction=spec.direction,
                       camera=CameraSpec(width=spec.camera.width, height=spec.camera.height) if camera else None,
                       renderer=spec.renderer, control_period=spec.period_s, laps=spec.laps,
                       timeout_s=spec.timeout_s, stop_off_road=spec.stop_off_road, trapped_s=spec.trapped_s,
                       view=view)
 
 
-def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None, latency_ms=None
-            ) -> tuple[list[Trajectory], dict[str, Any], Circuit]:
+def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None, latency_ms=None,
+            assets=None) -> tuple[list[Trajectory], dict[str, Any], Circuit]:
     """Drive every repetition; returns the trajectories, the media written and the circuit driven."""
     wants_media = bool(spec.video or spec.camera_frames)
     # A network brain is given its preprocessed frame rendered directly (pilotlab.sim.view)
-    env = make_env(spec, camera=brain.needs_camera or wants_media, view=getattr(brain, "view", None))
+    env = make_env(spec, camera=brain.needs_camera or wants_media, view=getattr(brain, "view", None), assets=assets)
     recorder = CameraRecorder(out, control_hz=spec.control_hz, video_seconds=spec.video_length_s,
                               stills=spec.camera_frames) if wants_media else None
     trajectories = []
@@ -67,7 +69,7 @@ def run_all(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | No
         brain.warm_up()
         starts = start_points(spec, env.circuit.length)
         for i, start in enumerate(starts):
-            what = f"{brain.name} on {spec.circuit} {spec.direction}, run {i + 1}/{len(starts)} from {start:.0f} m"
+            what = f"{brain.name} on {spec.world or spec.circuit} {spec.direction}, run {i + 1}/{len(starts)} from {start:.0f} m"
             report = None if progress is None else (lambda done, total, what=what: progress(done, total, what))
             trajectories.append(drive(env, brain, spec, start=start, seed=spec.seed + i, render=brain.needs_camera,
                                       on_frame=media_frames(env, recorder) if recorder and i == 0 else None,
@@ -88,7 +90,7 @@ def media_frames(env: DrivingEnv, recorder: CameraRecorder):
 
 
 def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None,
-                    checkpoints=None, latency_ms=None, tolerance=None) -> dict[str, Any]:
+                    checkpoints=None, latency_ms=None, tolerance=None, assets=None) -> dict[str, Any]:
     """Drive, measure, and write the files; returns the result (see the module docstring). The
     BehaviorMetrics-compatible metrics are scored against `checkpoints` (default: the expert's lap on
     the same circuit and direction, `pilotlab.online.perfect_lap`); `latency_ms`: the samples the
@@ -99,18 +101,22 @@ def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: Progres
     started = time.perf_counter()
     if checkpoints is None:
         checkpoints = perfect_lap(spec.circuit, spec.direction)
-    trajectories, media, circuit = run_all(brain, spec, out, progress, latency_ms)
+    trajectories, media, circuit = run_all(brain, spec, out, progress, latency_ms, assets)
     runs = [{**run_metrics(t), **bm_run_metrics(t, checkpoints)} for t in trajectories]
     means, spread = aggregate(runs, METRICS + BM_METRICS)
     if tolerance is not None:
-        means |= cell_tolerance(make_env(spec, camera=brain.needs_camera), brain, spec, tolerance, trajectories[0],
-                                checkpoints, latency_ms, progress)
+        # in a BM world the search drives on the network's view too (full frames there cost 4× more); in
+        # pilotlab's own world it keeps the full frames its published figures were measured with
+        view = getattr(brain, "view", None) if spec.world else None
+        means |= cell_tolerance(make_env(spec, camera=brain.needs_camera, view=view, assets=assets), brain, spec,
+                                tolerance, trajectories[0], checkpoints, latency_ms, progress)
     save_npz(trajectories, out / "trajectory.npz")
     save_csv(trajectories, out / "trajectory.csv")
     title = picture_title(brain.name, spec, means, len(trajectories))
     plot_trajectories(circuit, trajectories, out / "trajectory.png", title=title)
     return {**means, "spread": spread, "runs": [run_summary(t, m) for t, m in zip(trajectories, runs)],
             "repetitions": len(trajectories), "brain": brain.name, "circuit": spec.circuit,
+            **({"world": spec.world} if spec.world else {}),
             "direction": spec.direction, "circuit_length_m": round(circuit.length, 3), "laps": spec.laps,
             "perfect_lap_checkpoints": len(checkpoints),
             "timeout_s": trajectories[0].meta["timeout_s"], **_drive_settings(spec),

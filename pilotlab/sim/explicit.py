@@ -1,4 +1,4 @@
-"""The "explicit brain": follows the red line in the camera image with OpenCV only.
+"""The "explicit brain": follows the red (or white) line in the camera image with OpenCV only.
 
 The classic BehaviorMetrics baseline: threshold red in HSV, find the line's centre in bands of rows
 below the horizon, steer with a PD controller on the nearest band that sees the line, and slow down
@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+
+from pilotlab.errors import PilotlabError
 
 
 @dataclass(frozen=True)
@@ -29,7 +31,26 @@ class ExplicitBrainConfig:
     slow_down: float = 10.0          # m/s of speed lost per unit of offset ahead (a lost far line counts 1)
     lost_speed: float = 2.0
     lost_turn: float = 1.0
-    version: int = 1
+    line: str = "red"                # the line's colour: red, or white (BM's *_white_line worlds)
+    version: int = 2
+
+    def __post_init__(self):
+        if self.line not in LINE_COLOURS:
+            raise PilotlabError(f"explicit brain: line {self.line!r} is not a colour it follows; use one of: "
+                                f"{', '.join(LINE_COLOURS)}")
+
+
+# BM's F1 camera (pilotlab.sim.camera.bm_camera) sits 0.104 m up with a 90° field of view: the ground a
+# few metres ahead is a few rows below the horizon, so its bands are there (rows measured as fractions
+# of the height; row 0.5 + 0.104·320/(d·480) sees the ground d metres ahead).
+BM_CAMERA_ROWS = {"near_rows": (0.535, 0.56), "low_rows": (0.56, 0.62), "mid_rows": (0.515, 0.525),
+                  "far_rows": (0.508, 0.513)}
+
+
+def bm_world_options(line_colour: tuple[int, int, int] | None) -> dict:
+    """The explicit brain's options in a BM world: the bands of BM's camera, the world's line colour."""
+    white = line_colour is not None and min(line_colour) > 200
+    return {**BM_CAMERA_ROWS, "line": "white" if white else "red"}
 
 
 def red_mask(image: np.ndarray) -> np.ndarray:
@@ -38,6 +59,15 @@ def red_mask(image: np.ndarray) -> np.ndarray:
     low = cv2.inRange(hsv, (0, 120, 70), (10, 255, 255))
     high = cv2.inRange(hsv, (170, 120, 70), (180, 255, 255))
     return cv2.bitwise_or(low, high)
+
+
+def white_mask(image: np.ndarray) -> np.ndarray:
+    """Pixels of a white line: bright and colourless (light grey road edges and walls stay out)."""
+    hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
+    return cv2.inRange(hsv, (0, 0, 235), (180, 30, 255))
+
+
+LINE_COLOURS = {"red": red_mask, "white": white_mask}
 
 
 def line_offset(mask: np.ndarray, rows: tuple[float, float]) -> float | None:
@@ -60,7 +90,7 @@ class ExplicitBrain:
 
     def act(self, image: np.ndarray) -> tuple[float, float]:
         config = self.config
-        mask = red_mask(image)
+        mask = LINE_COLOURS[config.line](image)
         band, offset = "near", line_offset(mask, config.near_rows)
         if offset is None:
             band, offset = "low", line_offset(mask, config.low_rows)

@@ -88,13 +88,15 @@ def stop_on_interrupt():
         signal.signal(signal.SIGINT, previous)
 
 
-def record(spec: RecordSpec, out: Path, progress: ProgressFn | None = None) -> RecordSummary:
+def record(spec: RecordSpec, out: Path, progress: ProgressFn | None = None, assets=None) -> RecordSummary:
     """Drive `spec.laps` laps with the expert and write them to a bag at `out` (a `.bag` file for
-    ROS1, a folder for ROS2). Returns what was written."""
+    ROS1, a folder for ROS2). Returns what was written. In a BM world (`spec.world`), `assets` is the
+    folder of BM's worlds (default $PILOTLAB_BM_ASSETS)."""
     check_rates(spec)
     path = bag_path(out, spec.format)
     camera = CameraSpec(width=spec.camera.width, height=spec.camera.height)
-    env = DrivingEnv(spec.circuit, direction=spec.direction, camera=camera, renderer=spec.renderer,
+    place = {"world": spec.world, "assets": assets} if spec.world else {"circuit": spec.circuit}
+    env = DrivingEnv(**place, direction=spec.direction, camera=camera, renderer=spec.renderer,
                      control_period=1.0 / spec.control_hz, laps=spec.laps, timeout_s=spec.max_seconds)
     started = time.perf_counter()
     try:

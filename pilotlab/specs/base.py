@@ -58,6 +58,22 @@ def _takes_numbers_not_bools(annotation: Any) -> bool:
     return bool(set(arms) & {int, float}) and bool not in arms
 
 
+class InWorld(pydantic.BaseModel):
+    """A job that may run in one of BehaviorMetrics' own worlds (pilotlab.worlds) instead of pilotlab's
+    own world. The world's files come as the job's input `world` (its .world file, keyed by the digest
+    of everything the world reads). Without a world the field is left out of the params, so the keys of
+    jobs in pilotlab's own world are what they were before worlds existed."""
+    world: str | None = Field(None, description="a BehaviorMetrics world (pilotlab world list) instead of the "
+                                                "circuit in pilotlab's own world")
+
+    @pydantic.model_serializer(mode="wrap")
+    def _no_world_no_key(self, handler):
+        data = handler(self)
+        if isinstance(data, dict) and data.get("world", 0) is None:
+            del data["world"]
+        return data
+
+
 class CameraSize(Spec):
     """The camera image the simulator renders (what the network's preprocessing crops and resizes)."""
     width: int = Field(640, ge=16, le=4096)

@@ -16,7 +16,7 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from matrix.kinds import register_kind
-from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, Spec
+from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, InWorld, Spec
 from pilotlab.specs.offline import gpu_resources
 
 
@@ -124,7 +124,7 @@ class UserBrainSpec(Spec):
     base: str = Field(".", description="the folder a relative file is in (the recipe's)")
 
 
-class OnlineSpec(LapSettings):
+class OnlineSpec(LapSettings, InWorld):
     circuit: str = Field(min_length=1, description="circuit name (built-in, ./circuits/NAME.csv) or CSV path")
     direction: Direction = "cw"
     brain: str = Field("network", description='"network" (runs the artifact dependency) | "explicit" (OpenCV '

@@ -10,7 +10,7 @@ from typing import Literal
 from pydantic import Field, field_validator
 
 from matrix.kinds import register_kind
-from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, Spec
+from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, InWorld, Spec
 
 BAG_FORMATS = ("ros1", "ros2")
 
@@ -38,8 +38,9 @@ class RecordSettings(Spec):
         return "jpeg" if value is True else (None if value is False else value)
 
 
-class RecordSpec(RecordSettings):
-    """One recording: the settings, plus where and from where to drive."""
+class RecordSpec(RecordSettings, InWorld):
+    """One recording: the settings, plus where and from where to drive (in a BM world, `circuit` is
+    the world's own)."""
     circuit: str = Field(min_length=1, description="circuit name (pilotlab circuit list) or CSV path")
     direction: Direction = "cw"
     start: float | Literal["random"] = Field(0.0, description="start point, metres along the lap, or 'random'")

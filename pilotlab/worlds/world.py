@@ -29,7 +29,7 @@ from pilotlab.worlds.raster import Grid, colour_raster, fill, signed_distance
 from pilotlab.worlds.scene import Layer, split_scene
 from pilotlab.worlds.sdf import WorldFile, read_world
 
-CACHE_VERSION = 4
+CACHE_VERSION = 5
 CACHE_ENV = "PILOTLAB_CACHE"
 # Gazebo lights BM's lambert materials by the scene's ambient (1.0) times a share (they declare no
 # ambient colour of their own) plus the sun's diffuse term; 0.4 is pilotlab's estimate of that share.
@@ -244,18 +244,18 @@ def _normals(points: np.ndarray) -> np.ndarray:
 
 
 def measure_road_width(grid: Grid, labels: np.ndarray, centreline: np.ndarray, layers: list[Layer]) -> float:
-    """Median width of what is neither the surrounding ground (the largest layer) nor the void, measured
-    across the centreline: where the car's centre must stay."""
-    outside = {0, 1 + max(range(len(layers)), key=lambda i: layers[i].area)}
+    """Median width, across the centreline, of what is neither the void nor the surrounding ground: the
+    largest layer (the grass), unless that is what the centreline runs on (BM's white_road has no grass).
+    The car's centre must stay within it."""
+    largest = 1 + max(range(len(layers)), key=lambda i: layers[i].area)
+    outside = {0} if np.mean(_sample(grid, labels, centreline) == largest) > 0.5 else {0, largest}
     steps = np.arange(0.0, 15.0, grid.resolution / 2)
-    normal = _normals(centreline)[::5]
-    points = centreline[::5]
+    normal, points = _normals(centreline)[::5], centreline[::5]
     widths = []
     for sign in (1, -1):
         samples = _sample(grid, labels, points[:, None, :] + sign * steps[None, :, None] * normal[:, None, :])
         off = np.isin(samples, list(outside))
-        first = np.where(off.any(axis=1), off.argmax(axis=1), len(steps) - 1)
-        widths.append(steps[first])
+        widths.append(steps[np.where(off.any(axis=1), off.argmax(axis=1), len(steps) - 1)])
     return float(np.median(widths[0] + widths[1]))
 
 

@@ -1,0 +1,51 @@
+"""How a recipe names BehaviorMetrics' worlds, for the planner (pilotlab.domain): the `world` axis,
+`datasets.NAME.record.worlds`, and the `worlds: {assets: DIR}` section.
+
+A job in a world gets params `world` (the name) and `circuit` (the world's own circuit) and an input
+`world`: its .world file, keyed by the digest of every file the world reads (SDF, meshes, textures,
+centreline), so editing any of them reruns what drove there and nothing else.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from matrix.errors import MatrixError
+from matrix.jobs import InputFile
+from pilotlab.worlds.assets import ASSETS_ENV
+
+
+def assets_folder(planner, where: list) -> Path:
+    """The recipe's assets folder (relative to the recipe), else $PILOTLAB_BM_ASSETS."""
+    configured = planner.config.worlds.assets
+    if configured is not None:
+        return planner.path(configured, ["worlds", "assets"])
+    if os.environ.get(ASSETS_ENV):
+        return Path(os.environ[ASSETS_ENV])
+    raise planner.recipe.error(f"BehaviorMetrics' worlds are named here but the recipe has no `worlds: {{assets: "
+                               f"DIR}}` (a folder like RoboticsInfrastructure/CustomRobots/f1) and ${ASSETS_ENV} "
+                               "is not set", where)
+
+
+def world_param(planner, name: str, where: list) -> tuple[dict, dict]:
+    """(params, inputs) of a job in world `name`; the world is read once per plan."""
+    cache = planner.worlds_read
+    if name not in cache:
+        from pilotlab.worlds.world import circuit_of, world_inputs
+        assets = assets_folder(planner, where)
+        try:
+            path, parsed, digest = world_inputs(name, assets)
+            circuit = circuit_of(name, path)
+        except MatrixError as error:
+            raise planner.recipe.error(str(error), where) from None
+        cache[name] = ({"world": name, "circuit": circuit}, {"world": InputFile(str(path), digest)})
+    return cache[name]
+
+
+def world_assets(inputs) -> tuple[Path | None, str | None]:
+    """(assets folder, world name) of a job from its `world` input (None, None: pilotlab's own world)."""
+    path = inputs.get("world")
+    if path is None:
+        return None, None
+    path = Path(path)
+    return path.parent.parent, path.stem
