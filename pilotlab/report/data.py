@@ -52,7 +52,8 @@ Status = Literal["ok", "not_applicable", "failed", "not_run"]
 MetricValue = StrictBool | int | float
 DEFAULT_PACKAGES = ("pilotlab", "torch", "torchao", "onnxruntime", "onnx", "numpy", "pybullet",
                     "opencv-python-headless")
-ROW_FIELDS = ("model", "strategy", "hardware", "circuit", "direction", "test_set", "kind", "status", "reason")
+# "world" last: results.csv's earlier columns keep their places
+ROW_FIELDS = ("model", "strategy", "hardware", "circuit", "direction", "test_set", "kind", "status", "reason", "world")
 TIMED = ("latency_ms", "throughput_ips")    # the figures an offline job may mark unstable
 UNSTABLE_COLUMNS = tuple(f"{name}_unstable" for name in TIMED)
 
@@ -129,7 +130,8 @@ class ReportRow(_Frozen):
     kind: Kind
     status: Status = "ok"
     reason: str = ""                         # one line; required unless status is "ok"
-    circuit: str | None = None               # online rows: the circuit driven
+    circuit: str | None = None               # online rows: the circuit driven (in a BM world: the world)
+    world: str | None = None                 # a BehaviorMetrics world the row was evaluated in (pilotlab.worlds)
     direction: str | None = None             # online rows: "cw" / "ccw" where it matters
     test_set: str | None = None              # offline rows: the held-out recordings' name
     job_keys: dict[str, str] = Field(default_factory=dict)   # job kind (or role) -> store key
@@ -248,6 +250,7 @@ class ReportData(_Frozen):
     sources: dict[str, str] = Field(default_factory=dict)   # model -> where a model the user brought came from
     comparison_title: str = ""               # "Compared with the 2022 study", when the recipe asks for one
     comparison: tuple[Claim, ...] = ()
+    training_worlds: dict[str, tuple[str, ...]] = Field(default_factory=dict)   # model -> worlds it was trained in
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> ReportData:

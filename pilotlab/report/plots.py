@@ -265,6 +265,7 @@ PLOTS: dict[str, Callable[[ReportData], Figure | None]] = {
     "closed_loop": draw_closed_loop,
     "latency_tolerance": draw_latency_tolerance,
     "training": draw_training,
+    "world_shift": lambda data: _world_shift(data),
 }
 CAPTIONS = {
     "pareto": "Latency vs MSE per hardware: the dashed line is the Pareto front, marker area is the model size, "
@@ -275,4 +276,11 @@ CAPTIONS = {
     "latency_tolerance": "Latency tolerance: each lap cell driven again with more latency injected; position "
                          "deviation against the injected latency, a cross marks a lost lap.",
     "training": "Training and validation loss per epoch for each model.",
+    "world_shift": "World shift: each strategy's offline MSE and BehaviorMetrics deviation in each world over its "
+                   "value in the training world; a hatched bar is a lap that was not completed.",
 }
+
+
+def _world_shift(data: ReportData) -> Figure | None:
+    from pilotlab.report.worlds import draw_world_shift   # it uses this module's colours
+    return draw_world_shift(data)

@@ -90,6 +90,7 @@ def build_report_data(recipe: Recipe, jobs: list, store: Store) -> ReportData:
         "recipe_name": recipe.name, "description": recipe.description, "recipe_text": recipe.text,
         "versions": package_versions(), "host": _host(jobs, store), "date": datetime.now().isoformat(timespec="seconds"),
         "rows": rows, "histories": {name: h for name, h in histories.items() if h},
+        "training_worlds": training_worlds(recipe),
         "sources": {job.name.removeprefix("train "): text for job in jobs if job.kind == "train"
                     and (text := model_source(store.result(job.key)))}})
     study = recipe.config.report.compare_with
@@ -98,6 +99,16 @@ def build_report_data(recipe: Recipe, jobs: list, store: Store) -> ReportData:
     title, checks = compare(data, study)
     return data.model_copy(update={"comparison_title": title,
                                    "comparison": tuple(Claim(**vars(check)) for check in checks)})
+
+
+def training_worlds(recipe: Recipe) -> dict[str, list[str]]:
+    """model -> the BM worlds its training recordings were made in (the world-shift section's reference)."""
+    config, found = recipe.config, {}
+    for name, model in config.models.items():
+        record = getattr(config.datasets.get(model.data), "record", None)
+        if record is not None and record.worlds:
+            found[name] = list(record.worlds)
+    return found
 
 
 def _row(job, store: Store) -> dict[str, Any]:

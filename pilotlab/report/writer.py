@@ -25,6 +25,7 @@ from pilotlab.report.data import ROW_FIELDS, UNSTABLE_COLUMNS, ReportData, Repor
 from pilotlab.report.plots import CAPTIONS, save_plots
 from pilotlab.report.summary import summarise
 from pilotlab.report.tables import all_results_cells, build_tables, method_label
+from pilotlab.report.worlds import shift_summary, world_tables
 
 
 @dataclass(frozen=True)
@@ -75,6 +76,8 @@ def build_context(data: ReportData, out_dir: Path, plots: dict[str, tuple[Path, 
         "counts": counts,
         "offline": build_tables(data, "offline"),
         "online": build_tables(data, "online"),
+        "worlds": world_tables(data),
+        "world_summary": shift_summary(data),
         "repeated": any((row.repetitions or 1) > 1 for row in data.of_kind("online")),
         "findings": summarise(data),
         "plots": [_plot_entry(name, png, svg, out_dir) for name, (png, svg) in plots.items()],

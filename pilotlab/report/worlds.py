@@ -1,0 +1,191 @@
+"""The world-shift section: how each strategy's network fares in BehaviorMetrics' world variants
+against the world it was trained in (pilotlab.worlds; recipes/bm_worlds.yaml).
+
+For every model × strategy × hardware and every world the recipe sweeps: the lap (completed or not),
+BM's position deviation, the latency tolerance and the offline MSE on recordings made in that world,
+each beside its value in the training world. The question it answers: does an optimized network lose
+more than the baseline when the world shifts?
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pilotlab.report.data import ReportData, ReportRow
+from pilotlab.report.tables import MISSING, Cell, Table, TableRow, format_value, lap_cell, tolerance_cell
+
+HEADERS = ("World", "Lap", "BM deviation MAE", "Latency tolerance (ms)", "Offline MSE", "MSE × training world",
+           "BM deviation × training world")
+
+
+@dataclass(frozen=True)
+class WorldCell:
+    """One model × strategy × hardware in one world: its lap (online) and offline rows."""
+    model: str
+    strategy: str
+    hardware: str
+    world: str
+    lap: ReportRow | None
+    offline: ReportRow | None
+    training: bool                  # the world its training recordings were made in
+
+    def metric(self, name: str):
+        for row in (self.lap, self.offline):
+            value = row.get(name) if row is not None else None
+            if value is not None:
+                return value
+        return None
+
+
+def world_cells(data: ReportData) -> list[WorldCell]:
+    """Every (model, strategy, hardware, world) that has a lap or an offline row in a world."""
+    found: dict[tuple, dict[str, ReportRow]] = {}
+    for row in data.rows:
+        if row.world is not None and row.model != "reference":
+            key = (row.model, row.strategy, row.hardware, row.world)
+            found.setdefault(key, {}).setdefault(row.kind, row)
+    return [WorldCell(*key, rows.get("online"), rows.get("offline"), key[3] in data.training_worlds.get(key[0], ()))
+            for key, rows in found.items()]
+
+
+def _training(cells: list[WorldCell], cell: WorldCell) -> WorldCell | None:
+    return next((c for c in cells if c.training and (c.model, c.strategy, c.hardware) ==
+                 (cell.model, cell.strategy, cell.hardware)), None)
+
+
+def _ratio(value, reference) -> float | None:
+    if value is None or reference is None or not reference:
+        return None
+    return float(value) / float(reference)
+
+
+def _ratio_cell(value: float | None, training: bool) -> Cell:
+    if training:
+        return Cell("training world", 1.0, "the world the network was trained in")
+    if value is None:
+        return Cell(MISSING, None, "not measured here or in the training world", missing=True)
+    return Cell(f"{value:.2f}×", value, "this world's value over the training world's (above 1× is worse)")
+
+
+def _metric(cell: WorldCell, name: str) -> Cell:
+    value = cell.metric(name)
+    if value is None:
+        return Cell(MISSING, None, "not measured", missing=True)
+    return Cell(format_value(name, value), float(value), name)
+
+
+def world_tables(data: ReportData) -> list[Table]:
+    """One table per model × hardware: a row per strategy and world, the training world first."""
+    cells = world_cells(data)
+    if not any(not c.training for c in cells):
+        return []
+    strategies = data.strategies()
+    tables = []
+    for model in data.models():
+        for hardware in data.hardware():
+            chosen = [c for c in cells if (c.model, c.hardware) == (model, hardware)]
+            if not chosen:
+                continue
+            chosen.sort(key=lambda c: (strategies.index(c.strategy) if c.strategy in strategies else 99,
+                                       not c.training, c.world))
+            tables.append(Table(f"{model} on {hardware}", "world", hardware, "", HEADERS,
+                                tuple(_table_row(cells, c) for c in chosen)))
+    return tables
+
+
+def _table_row(cells: list[WorldCell], cell: WorldCell) -> TableRow:
+    base = _training(cells, cell)
+    lap = lap_cell(cell.lap) if cell.lap is not None else Cell(MISSING, None, "no lap", missing=True)
+    tolerance = tolerance_cell(cell.lap) if cell.lap is not None else Cell(MISSING, None, "no lap", missing=True)
+    mse = _ratio(cell.metric("mse"), base.metric("mse") if base else None)
+    deviation = _ratio(cell.metric("bm_position_deviation_mae"), base.metric("bm_position_deviation_mae") if base else None)
+    row = cell.lap or cell.offline
+    return TableRow(cell.strategy, row, (Cell(cell.world), lap, _metric(cell, "bm_position_deviation_mae"), tolerance,
+                                         _metric(cell, "mse"), _ratio_cell(mse, cell.training),
+                                         _ratio_cell(deviation, cell.training)))
+
+
+def shift_summary(data: ReportData) -> list[str]:
+    """Per strategy: laps completed in the shifted worlds and the mean MSE ratio to the training world,
+    beside the baseline's; and a verdict on the question the section asks."""
+    cells = world_cells(data)
+    lines = []
+    for model in data.models():
+        figures = {}
+        for strategy in data.strategies():
+            shifted = [c for c in cells if c.model == model and c.strategy == strategy and not c.training]
+            if not shifted:
+                continue
+            ratios = [r for c in shifted if (r := _ratio(c.metric("mse"), (_training(cells, c) or c).metric("mse")))
+                      is not None and not c.training]
+            laps = [c.metric("lap_completed") for c in shifted if c.metric("lap_completed") is not None]
+            figures[strategy] = (sum(bool(x) for x in laps), len(laps),
+                                 sum(ratios) / len(ratios) if ratios else None)
+        lines += _lines(model, figures, data.baseline)
+    return lines
+
+
+def _lines(model: str, figures: dict, baseline: str) -> list[str]:
+    lines = []
+    base = figures.get(baseline)
+    for strategy, (done, runs, ratio) in figures.items():
+        mse = "offline MSE not measured" if ratio is None else f"offline MSE {ratio:.2f}× its training-world MSE"
+        lines.append(f"{model}/{strategy}: {done}/{runs} laps completed in the shifted worlds, {mse}")
+    if base is None:
+        return lines
+    worse = [s for s, (done, runs, ratio) in figures.items() if s != baseline and
+             (done < base[0] or (ratio is not None and base[2] is not None and ratio > base[2] * 1.1))]
+    others = [s for s in figures if s != baseline]
+    if others:
+        verdict = (f"{', '.join(worse)} lost more than the baseline when the world shifted (fewer laps, or MSE "
+                   "growing over 10 % more)" if worse else
+                   "no optimized network lost more than the baseline when the world shifted (laps completed, MSE "
+                   "growth within 10 % of the baseline's)")
+        lines.append(f"{model}: {verdict}")
+    return lines
+
+
+def draw_world_shift(data: ReportData):
+    """Per model: for each world (the training world first) and strategy, a bar of the offline MSE over
+    the training world's (left) and of BM's deviation over the training world's (right); a hatched bar
+    is a lap that was not completed. None when no world shifted."""
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+    from pilotlab.report.plots import strategy_colours
+    cells = world_cells(data)
+    if not any(not c.training for c in cells):
+        return None
+    models = [m for m in data.models() if any(c.model == m for c in cells)]
+    colours = strategy_colours(data)
+    figure = Figure(figsize=(11.0, 3.6 * len(models)), layout="constrained")
+    axes = figure.subplots(len(models), 2, squeeze=False)
+    for (left, right), model in zip(axes, models):
+        chosen = [c for c in cells if c.model == model]
+        worlds = sorted({c.world for c in chosen}, key=lambda w: (not any(c.training and c.world == w for c in chosen), w))
+        strategies = [s for s in data.strategies() if any(c.strategy == s for c in chosen)]
+        for ax, metric, label in ((left, "mse", "offline MSE × training world"),
+                                  (right, "bm_position_deviation_mae", "BM deviation × training world")):
+            _shift_bars(ax, chosen, cells, worlds, strategies, colours, metric)
+            ax.set(ylabel=label, title=f"{model}: {label.split(' ×')[0]}")
+            ax.axhline(1.0, color="0.5", lw=0.8, ls="--")
+    handles = [Patch(color=colours[s], label=s) for s in data.strategies()]
+    handles.append(Patch(facecolor="white", edgecolor="0.3", hatch="///", label="lap not completed"))
+    figure.legend(handles=handles, loc="outside right upper", frameon=False)
+    figure.suptitle("World shift: each world against the training world (above 1× is worse)", x=0.01, ha="left")
+    return figure
+
+
+def _shift_bars(ax, chosen, cells, worlds, strategies, colours, metric) -> None:
+    width = 0.8 / max(len(strategies), 1)
+    for i, strategy in enumerate(strategies):
+        for j, world in enumerate(worlds):
+            cell = next((c for c in chosen if c.strategy == strategy and c.world == world), None)
+            base = _training(cells, cell) if cell is not None else None
+            ratio = _ratio(cell.metric(metric), base.metric(metric)) if cell and base else None
+            if ratio is None:
+                continue
+            lost = cell.metric("lap_completed") is False
+            ax.bar(j + (i - (len(strategies) - 1) / 2) * width, ratio, width, color=colours[strategy],
+                   hatch="///" if lost else None, edgecolor="0.3" if lost else colours[strategy])
+    ax.set_xticks(range(len(worlds)), [w.replace("simple_circuit_", "").replace("_", " ") for w in worlds],
+                  rotation=20, ha="right")
