@@ -5,15 +5,12 @@ no user file is hashed, so an unused definition costs planning next to nothing."
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from matrix.errors import MatrixError
 
-if TYPE_CHECKING:
-    from pilotlab.domain import Planner
 
-
-def check_definitions(planner: Planner) -> None:
+def check_definitions(planner) -> None:
+    """Each definition of `planner`'s recipe (a pilotlab.domain.Planner), as it would be checked in use."""
     config = planner.config
     for name in config.strategies:
         planner.strategy(name)
@@ -32,9 +29,8 @@ def check_definitions(planner: Planner) -> None:
         planner.path(circuit.csv, ["circuits", name, "csv"], "file")
 
 
-def _check_model(planner: Planner, name: str, spec) -> None:
+def _check_model(planner, name: str, spec) -> None:
     from pilotlab import usercode
-    from pilotlab.domain import _check_model as check_arch
     check_arch(planner.recipe, name, spec)
     if spec.data not in planner.config.datasets:
         raise planner.recipe.error(f"dataset {spec.data!r} is not defined; datasets: "
@@ -49,7 +45,22 @@ def _check_model(planner: Planner, name: str, spec) -> None:
             raise planner.recipe.error(str(error), ["models", name, "network"]) from None
 
 
-def _check_dataset(planner: Planner, name: str, spec) -> None:
+def check_arch(recipe, name: str, spec) -> None:
+    """A built-in arch's name and options (a model the user brings is checked by its files)."""
+    from pilotlab.models import make_config
+    from pilotlab.models.imported import IMPORTED_ARCHS
+    if spec.source != "arch":
+        return
+    if spec.arch in IMPORTED_ARCHS:
+        raise recipe.error(f"arch {spec.arch!r} names checkpoints of models you bring; write `{spec.arch}: ...` "
+                           f"(e.g. network: nets/mine.py:MyNet) instead of `arch`", ["models", name, "arch"])
+    try:
+        make_config(spec.arch, spec.options)
+    except MatrixError as error:
+        raise recipe.error(str(error), ["models", name]) from None
+
+
+def _check_dataset(planner, name: str, spec) -> None:
     for key in ("bags", "folders"):
         for path in getattr(spec, key):
             planner.path(path, ["datasets", name, key], "recording")

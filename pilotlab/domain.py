@@ -180,10 +180,11 @@ class Planner:
 
     # models and strategies ------------------------------------------------------------------------
     def train(self, model: str) -> Job:
+        from pilotlab.definitions import check_arch
         if model not in self.trained:
             spec: ModelSpec = self.config.models[model]
             frames = self.dataset(spec.data, ["models", model, "data"], spec.preprocess)
-            _check_model(self.recipe, model, spec)
+            check_arch(self.recipe, model, spec)
             params = spec.model_dump(mode="json", exclude={"data"})
             self.trained[model] = Job("train", f"train {model}", params, deps={"frames": tuple(frames)},
                                       inputs=model_inputs(self, model, spec))
@@ -266,20 +267,6 @@ class Planner:
         if slot not in self.shared_params:
             self.shared_params[slot] = build()
         return self.shared_params[slot]
-
-
-def _check_model(recipe: Recipe, name: str, spec: ModelSpec) -> None:
-    from pilotlab.models import make_config
-    from pilotlab.models.imported import IMPORTED_ARCHS
-    if spec.source != "arch":
-        return
-    if spec.arch in IMPORTED_ARCHS:
-        raise recipe.error(f"arch {spec.arch!r} names checkpoints of models you bring; write `{spec.arch}: ...` "
-                           f"(e.g. network: nets/mine.py:MyNet) instead of `arch`", ["models", name, "arch"])
-    try:
-        make_config(spec.arch, spec.options)
-    except MatrixError as error:
-        raise recipe.error(str(error), ["models", name]) from None
 
 
 def model_inputs(planner: Planner, name: str, spec: ModelSpec) -> dict[str, InputFile]:
