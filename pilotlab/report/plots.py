@@ -14,7 +14,10 @@ import matplotlib
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from matplotlib.patches import Patch
+
 from pilotlab.report.data import TIMED, ReportData, ReportRow, timing_issue
+from pilotlab.report.worlds import WorldCell, ratio, training_cell, world_cells
 
 MARKERS = "osD^vP*h"
 STYLE = {"font.size": 10, "axes.titlesize": 11, "axes.spines.top": False, "axes.spines.right": False,
@@ -259,13 +262,56 @@ def draw_training(data: ReportData) -> Figure | None:
     return figure
 
 
+def draw_world_shift(data: ReportData):
+    """Per model: for each world (the training world first) and strategy, a bar of the offline MSE over
+    the training world's (left) and of BM's deviation over the training world's (right); a hatched bar
+    is a lap that was not completed. None when no world shifted."""
+    cells = world_cells(data)
+    if not any(not c.training for c in cells):
+        return None
+    models = [m for m in data.models() if any(c.model == m for c in cells)]
+    colours = strategy_colours(data)
+    figure = Figure(figsize=(11.0, 3.6 * len(models)), layout="constrained")
+    axes = figure.subplots(len(models), 2, squeeze=False)
+    for (left, right), model in zip(axes, models):
+        chosen = [c for c in cells if c.model == model]
+        worlds = sorted({c.world for c in chosen}, key=lambda w: (not any(c.training and c.world == w for c in chosen), w))
+        strategies = [s for s in data.strategies() if any(c.strategy == s for c in chosen)]
+        for ax, metric, label in ((left, "mse", "offline MSE × training world"),
+                                  (right, "bm_position_deviation_mae", "BM deviation × training world")):
+            _shift_bars(ax, chosen, cells, worlds, strategies, colours, metric)
+            ax.set(ylabel=label, title=f"{model}: {label.split(' ×')[0]}")
+            ax.axhline(1.0, color="0.5", lw=0.8, ls="--")
+    handles = [Patch(color=colours[s], label=s) for s in data.strategies()]
+    handles.append(Patch(facecolor="white", edgecolor="0.3", hatch="///", label="lap not completed"))
+    figure.legend(handles=handles, loc="outside right upper", frameon=False)
+    figure.suptitle("World shift: each world against the training world (above 1× is worse)", x=0.01, ha="left")
+    return figure
+
+
+def _shift_bars(ax, chosen: list[WorldCell], cells: list[WorldCell], worlds, strategies, colours, metric) -> None:
+    width = 0.8 / max(len(strategies), 1)
+    for i, strategy in enumerate(strategies):
+        for j, world in enumerate(worlds):
+            cell = next((c for c in chosen if c.strategy == strategy and c.world == world), None)
+            base = training_cell(cells, cell) if cell is not None else None
+            ratio = ratio(cell.metric(metric), base.metric(metric)) if cell and base else None
+            if ratio is None:
+                continue
+            lost = cell.metric("lap_completed") is False
+            ax.bar(j + (i - (len(strategies) - 1) / 2) * width, ratio, width, color=colours[strategy],
+                   hatch="///" if lost else None, edgecolor="0.3" if lost else colours[strategy])
+    ax.set_xticks(range(len(worlds)), [w.replace("simple_circuit_", "").replace("_", " ") for w in worlds],
+                  rotation=20, ha="right")
+
+
 PLOTS: dict[str, Callable[[ReportData], Figure | None]] = {
     "pareto": draw_pareto,
     "ratios": draw_ratios,
     "closed_loop": draw_closed_loop,
     "latency_tolerance": draw_latency_tolerance,
     "training": draw_training,
-    "world_shift": lambda data: _world_shift(data),
+    "world_shift": lambda data: draw_world_shift(data),
 }
 CAPTIONS = {
     "pareto": "Latency vs MSE per hardware: the dashed line is the Pareto front, marker area is the model size, "
@@ -280,7 +326,3 @@ CAPTIONS = {
                    "value in the training world; a hatched bar is a lap that was not completed.",
 }
 
-
-def _world_shift(data: ReportData) -> Figure | None:
-    from pilotlab.report.worlds import draw_world_shift   # it uses this module's colours
-    return draw_world_shift(data)

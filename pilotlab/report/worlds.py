@@ -47,12 +47,12 @@ def world_cells(data: ReportData) -> list[WorldCell]:
             for key, rows in found.items()]
 
 
-def _training(cells: list[WorldCell], cell: WorldCell) -> WorldCell | None:
+def training_cell(cells: list[WorldCell], cell: WorldCell) -> WorldCell | None:
     return next((c for c in cells if c.training and (c.model, c.strategy, c.hardware) ==
                  (cell.model, cell.strategy, cell.hardware)), None)
 
 
-def _ratio(value, reference) -> float | None:
+def ratio(value, reference) -> float | None:
     if value is None or reference is None or not reference:
         return None
     return float(value) / float(reference)
@@ -93,11 +93,11 @@ def world_tables(data: ReportData) -> list[Table]:
 
 
 def _table_row(cells: list[WorldCell], cell: WorldCell) -> TableRow:
-    base = _training(cells, cell)
+    base = training_cell(cells, cell)
     lap = lap_cell(cell.lap) if cell.lap is not None else Cell(MISSING, None, "no lap", missing=True)
     tolerance = tolerance_cell(cell.lap) if cell.lap is not None else Cell(MISSING, None, "no lap", missing=True)
-    mse = _ratio(cell.metric("mse"), base.metric("mse") if base else None)
-    deviation = _ratio(cell.metric("bm_position_deviation_mae"), base.metric("bm_position_deviation_mae") if base else None)
+    mse = ratio(cell.metric("mse"), base.metric("mse") if base else None)
+    deviation = ratio(cell.metric("bm_position_deviation_mae"), base.metric("bm_position_deviation_mae") if base else None)
     row = cell.lap or cell.offline
     return TableRow(cell.strategy, row, (Cell(cell.world), lap, _metric(cell, "bm_position_deviation_mae"), tolerance,
                                          _metric(cell, "mse"), _ratio_cell(mse, cell.training),
@@ -115,7 +115,7 @@ def shift_summary(data: ReportData) -> list[str]:
             shifted = [c for c in cells if c.model == model and c.strategy == strategy and not c.training]
             if not shifted:
                 continue
-            ratios = [r for c in shifted if (r := _ratio(c.metric("mse"), (_training(cells, c) or c).metric("mse")))
+            ratios = [r for c in shifted if (r := ratio(c.metric("mse"), (training_cell(cells, c) or c).metric("mse")))
                       is not None and not c.training]
             laps = [c.metric("lap_completed") for c in shifted if c.metric("lap_completed") is not None]
             figures[strategy] = (sum(bool(x) for x in laps), len(laps),
@@ -143,49 +143,3 @@ def _lines(model: str, figures: dict, baseline: str) -> list[str]:
         lines.append(f"{model}: {verdict}")
     return lines
 
-
-def draw_world_shift(data: ReportData):
-    """Per model: for each world (the training world first) and strategy, a bar of the offline MSE over
-    the training world's (left) and of BM's deviation over the training world's (right); a hatched bar
-    is a lap that was not completed. None when no world shifted."""
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Patch
-
-    from pilotlab.report.plots import strategy_colours
-    cells = world_cells(data)
-    if not any(not c.training for c in cells):
-        return None
-    models = [m for m in data.models() if any(c.model == m for c in cells)]
-    colours = strategy_colours(data)
-    figure = Figure(figsize=(11.0, 3.6 * len(models)), layout="constrained")
-    axes = figure.subplots(len(models), 2, squeeze=False)
-    for (left, right), model in zip(axes, models):
-        chosen = [c for c in cells if c.model == model]
-        worlds = sorted({c.world for c in chosen}, key=lambda w: (not any(c.training and c.world == w for c in chosen), w))
-        strategies = [s for s in data.strategies() if any(c.strategy == s for c in chosen)]
-        for ax, metric, label in ((left, "mse", "offline MSE × training world"),
-                                  (right, "bm_position_deviation_mae", "BM deviation × training world")):
-            _shift_bars(ax, chosen, cells, worlds, strategies, colours, metric)
-            ax.set(ylabel=label, title=f"{model}: {label.split(' ×')[0]}")
-            ax.axhline(1.0, color="0.5", lw=0.8, ls="--")
-    handles = [Patch(color=colours[s], label=s) for s in data.strategies()]
-    handles.append(Patch(facecolor="white", edgecolor="0.3", hatch="///", label="lap not completed"))
-    figure.legend(handles=handles, loc="outside right upper", frameon=False)
-    figure.suptitle("World shift: each world against the training world (above 1× is worse)", x=0.01, ha="left")
-    return figure
-
-
-def _shift_bars(ax, chosen, cells, worlds, strategies, colours, metric) -> None:
-    width = 0.8 / max(len(strategies), 1)
-    for i, strategy in enumerate(strategies):
-        for j, world in enumerate(worlds):
-            cell = next((c for c in chosen if c.strategy == strategy and c.world == world), None)
-            base = _training(cells, cell) if cell is not None else None
-            ratio = _ratio(cell.metric(metric), base.metric(metric)) if cell and base else None
-            if ratio is None:
-                continue
-            lost = cell.metric("lap_completed") is False
-            ax.bar(j + (i - (len(strategies) - 1) / 2) * width, ratio, width, color=colours[strategy],
-                   hatch="///" if lost else None, edgecolor="0.3" if lost else colours[strategy])
-    ax.set_xticks(range(len(worlds)), [w.replace("simple_circuit_", "").replace("_", " ") for w in worlds],
-                  rotation=20, ha="right")
