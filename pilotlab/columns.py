@@ -19,6 +19,8 @@ class Column:
 
 OFFLINE = (
     Column("size_mb", "MB", "artifact size on disk", "lower"),
+    Column("size_gz_mb", "MB", "artifact size gzip-compressed (what pruning's zeros and clustering's shared "
+           "values save in storage and download; TF-MOT's measure)", "lower"),
     Column("params", "", "number of parameters (non-zero for pruned models: see nonzero_params)"),
     Column("nonzero_params", "", "parameters that are not zero"),
     Column("sparsity", "", "fraction of prunable weights that are exactly zero"),

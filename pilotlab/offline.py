@@ -1,6 +1,6 @@
 """Offline evaluation of one artifact on one hardware profile and one test FrameSet.
 
-Metric names are those of `pilotlab.columns` (mse, mse_v, mse_w, mse_v_phys, mse_w_phys, size_mb,
+Metric names are those of `pilotlab.columns` (mse, mse_v, mse_w, mse_v_phys, mse_w_phys, size_mb, size_gz_mb,
 latency_ms and its percentiles, latency_runs, throughput_ips and its percentiles, throughput_batch,
 peak_mem_mb, threads, test_frames, and the timing_* figures that say how the timings were taken).
 
@@ -27,7 +27,7 @@ from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.errors import PilotlabError
 from pilotlab.hardware import HardwareProfile
 from pilotlab.predictor import Predictor, load_predictor, resolve_profile
-from pilotlab.strategies.artifact import artifact_size_mb
+from pilotlab.strategies.artifact import artifact_size_gz_mb, artifact_size_mb
 
 
 @dataclass(frozen=True)
@@ -78,7 +78,8 @@ def evaluate_offline(artifact_dir: Path, hardware: HardwareProfile | dict | str,
     memory = PeakMemory()
     predictor = load_predictor(artifact_dir, profile)
     frames = max(1, predictor.meta.input_shape[1] // 3)
-    result = {"size_mb": artifact_size_mb(artifact_dir), "threads": predictor.threads,
+    result = {"size_mb": artifact_size_mb(artifact_dir), "size_gz_mb": artifact_size_gz_mb(artifact_dir),
+              "threads": predictor.threads,
               "test_frames": len(test), **mse_metrics(predictor, test, frames, settings.mse_batch)}
     throughput = measure_throughput(predictor, sample_batch(test, settings.throughput_batch, frames), settings)
     result["peak_mem_mb"] = memory.peak_mb()

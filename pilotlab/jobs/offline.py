@@ -1,6 +1,6 @@
 """The `offline` job's handler (params: pilotlab.specs.offline.OfflineSpec).
 
-result: the pilotlab.columns names: mse, mse_v, mse_w, mse_v_phys, mse_w_phys, size_mb, latency_ms,
+result: the pilotlab.columns names: mse, mse_v, mse_w, mse_v_phys, mse_w_phys, size_mb, size_gz_mb, latency_ms,
 latency_p90_ms, latency_p99_ms, latency_runs, throughput_ips, throughput_batch, peak_mem_mb,
 threads, test_frames, their percentiles and timing_* figures (pilotlab.offline); unstable
 ({metric: reason} for a timing that stayed disturbed; absent when none did); latency_samples

@@ -2,7 +2,7 @@
 (params: pilotlab.specs.optimize.OptimizeSpec).
 
 result: strategy, strategy_version, options (the full config), format, runtime, dtype, device, file,
-size_mb, plus the strategy's own figures (sparsity, params, nonzero_params, layer_sparsity,
+size_mb, size_gz_mb (gzip-compressed), plus the strategy's own figures (sparsity, params, nonzero_params, layer_sparsity,
 calibration_frames, finetune history, kept_channels, distinct_weights, native...)
 artifacts: the artifact folder (model file + artifact.json), loadable with
 pilotlab.predictor.load_predictor.

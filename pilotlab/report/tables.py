@@ -171,7 +171,7 @@ def ratio_cell(value: float | None, baseline: float | None, how: str) -> Cell:
     return Cell(f"{ratio:.2f}×", ratio, f"baseline / this ({how} above 1×)")
 
 
-OFFLINE_COLUMNS = (("Model size (MB)", "size_mb"), ("MSE", "mse"), ("Inference time (ms)", "latency_ms"),
+OFFLINE_COLUMNS = (("Model size (MB)", "size_mb"), ("Compressed (MB, gzip)", "size_gz_mb"), ("MSE", "mse"), ("Inference time (ms)", "latency_ms"),
                    ("Throughput (images/s)", "throughput_ips"))
 ONLINE_COLUMNS = (("Average speed (m/s)", "average_speed"), ("Position deviation MAE (m)", "position_deviation_mae_m"),
                   ("Brain iteration frequency (Hz)", "brain_frequency_sim_hz"),

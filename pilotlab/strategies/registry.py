@@ -44,7 +44,7 @@ from pilotlab.errors import PilotlabError
 from pilotlab.hardware import BUILTIN, HardwareProfile
 from pilotlab.models import load_checkpoint
 from pilotlab.specs.base import build_config
-from pilotlab.strategies.artifact import ArtifactMeta, artifact_size_mb, read_meta, write_meta
+from pilotlab.strategies.artifact import ArtifactMeta, artifact_size_gz_mb, artifact_size_mb, read_meta, write_meta
 
 if TYPE_CHECKING:
     import torch
@@ -193,7 +193,7 @@ def apply_strategy(name: str, options: dict[str, Any] | None, source: StrategySo
     return {"strategy": name, "strategy_version": meta.strategy_version,
             "options": dataclasses.asdict(config), "format": meta.format, "runtime": meta.runtime,
             "dtype": meta.dtype, "device": meta.device, "file": meta.file,
-            "size_mb": artifact_size_mb(source.out), **specifics}
+            "size_mb": artifact_size_mb(source.out), "size_gz_mb": artifact_size_gz_mb(source.out), **specifics}
 
 
 def _run_handler(entry: StrategyEntry, config, source: StrategySource) -> dict[str, Any]:

@@ -43,6 +43,24 @@ def test_offline_metrics_of_the_baseline(baseline, trained, test_frames):
     assert result["timing_blocks"] >= 2 and "reference_ms" not in result   # no kernel beside: it meant nothing
     assert result["latency_runs"] >= 30 and result["throughput_ips"] > 0 and result["size_mb"] > 5
     assert result["peak_mem_mb"] >= 0
+    assert 0 < result["size_gz_mb"] < result["size_mb"]    # random fp32 weights compress a little (~8 %)
+
+
+def test_the_compressed_size_shows_zeros_and_shared_values(tmp_path):
+    from pilotlab.strategies.artifact import artifact_size_gz_mb, artifact_size_mb
+    rng = np.random.default_rng(0)
+    weights = rng.standard_normal(2**18).astype(np.float32)          # 1 MB of fp32
+    sparse, shared = weights.copy(), rng.choice(rng.standard_normal(16), 2**18).astype(np.float32)
+    sparse[rng.random(sparse.size) < 0.5] = 0.0
+    for name, values in {"dense": weights, "sparse": sparse, "shared": shared}.items():
+        (tmp_path / name).mkdir()
+        values.tofile(tmp_path / name / "model.bin")
+        (tmp_path / name / "artifact.json").write_text("{}" * 10000)   # metadata is not the model
+    assert [artifact_size_mb(tmp_path / n) for n in ("dense", "sparse", "shared")] == [1.0, 1.0, 1.0]
+    dense, sparse, shared = (artifact_size_gz_mb(tmp_path / n) for n in ("dense", "sparse", "shared"))
+    assert 0.9 < dense < 1.0 and sparse < 0.75 * dense and shared < 0.6 * dense, (dense, sparse, shared)
+    import gzip
+    assert artifact_size_gz_mb(tmp_path / "dense") * 2**20 == len(gzip.compress(weights.tobytes(), 9, mtime=0))
 
 
 def test_latency_stops_when_the_median_is_stable():

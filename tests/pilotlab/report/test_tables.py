@@ -24,8 +24,9 @@ def test_ratios_are_taken_against_the_baseline_of_the_same_table():
     size, speed, delta = (cell.text for cell in by_method["static_quant"].cells[-3:])
     assert (size, speed, delta) == ("3.80×", "2.00×", "−0.012")
     assert by_method["qat"].note == "not applicable: needs a GPU"
-    assert table.headers[:4] == ("Model size (MB)", "MSE", "Inference time (ms)", "Throughput (images/s)")
-    assert by_method["static_quant"].cells[3].text == "—" and by_method["static_quant"].cells[3].missing
+    assert table.headers[:5] == ("Model size (MB)", "Compressed (MB, gzip)", "MSE", "Inference time (ms)",
+                                 "Throughput (images/s)")
+    assert by_method["static_quant"].cells[4].text == "—" and by_method["static_quant"].cells[4].missing
 
 
 def test_without_a_baseline_ratios_are_missing_and_the_table_says_why():
@@ -104,7 +105,7 @@ def timed_rows(**baseline_fields) -> list[dict]:
 def test_timings_show_their_spread_and_how_they_were_measured():
     [table] = build_tables(ReportData.from_dict(small_dict(timed_rows())), "offline")
     base, quant = table.rows
-    assert base.cells[2].text == "2.30 (2.20–2.60)" and quant.cells[-2].text == "5.75×"
+    assert base.cells[3].text == "2.30 (2.20–2.60)" and quant.cells[-2].text == "5.75×"
     assert table.notes == ()
     assert table.method.startswith("Timings on 2 thread(s), one method at a time: inference time is the median of "
                                    "1,200–5,000 timed batch-1 calls per method")
@@ -115,7 +116,7 @@ def test_an_unstable_timing_and_the_speed_ups_drawn_from_it_are_marked_with_the_
     rows = timed_rows(unstable={"latency_ms": DISTURBED})
     [table] = build_tables(ReportData.from_dict(small_dict(rows)), "offline")
     base, quant = table.rows
-    assert base.cells[2].text == "2.30 (2.20–2.60) ⚠" and DISTURBED in base.cells[2].title
+    assert base.cells[3].text == "2.30 (2.20–2.60) ⚠" and DISTURBED in base.cells[3].title
     assert quant.cells[-2].text == "5.75× ⚠" and "baseline (cpu1): unstable" in quant.cells[-2].title
     assert table.notes == (f"⚠ baseline: inference time unstable: {DISTURBED}.",)
 

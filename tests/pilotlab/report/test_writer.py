@@ -9,7 +9,7 @@ from pilotlab.columns import BY_NAME
 from pilotlab.report import ReportData, write_report
 from tests.pilotlab.report.toy import draw_trajectory, offline_row, repeated_rows, small_dict
 
-OFFLINE_HEADER = ("| Method | Model size (MB) | MSE | Inference time (ms) | Throughput (images/s) "
+OFFLINE_HEADER = ("| Method | Model size (MB) | Compressed (MB, gzip) | MSE | Inference time (ms) | Throughput (images/s) "
                   "| Size × | Speed-up × | MSE Δ |")
 ONLINE_HEADER = ("| Method | Lap | Average speed (m/s) | Position deviation MAE (m) | Brain iteration frequency (Hz) "
                  "| Mean inference time (ms) | Real-time factor |")
@@ -75,7 +75,7 @@ def test_readme_has_the_study_shaped_tables_summary_and_plots(study_report):
     assert "### cpu4 · test set simple_circuit+montreal" in readme
     assert "| static_quant | *not applicable: static quantization kernels need 1 thread here* |" in readme
     assert "*failed: simulator crashed: pybullet lost its connection*" in readme
-    assert "| qat | 1.61 | 0.0708 | 2.79 | — | 3.80× | 0.78× | −0.0080 |" in readme
+    assert "| qat | 1.61 | — | 0.0708 | 2.79 | — | 3.80× | 0.78× | −0.0080 |" in readme
     assert "| local_prune | ✗ 63 % | 7.74 | 1.42 | 20.0 | 2.10 | 0.960 |" in readme
     assert "- **Lowest MSE**: prune_quant — 0.0672 (−0.012 against baseline)" in readme
     assert "lost the lap: local_prune (63 %)" in readme
@@ -88,7 +88,7 @@ def test_readme_has_the_study_shaped_tables_summary_and_plots(study_report):
     assert "```yaml\nname: study-2022\n" in readme
     assert "![trajectory of local_prune](trajectories/pilotnet_local_prune_cpu1_montreal_cw.png)" in readme
     shapes = table_shapes(render_markdown(readme))
-    assert [shape[0] for shape in shapes[:4]] == [8, 8, 7, 7] and len(shapes) == 4 + 4     # + trajectory tables
+    assert [shape[0] for shape in shapes[:4]] == [9, 9, 7, 7] and len(shapes) == 4 + 4     # + trajectory tables
     assert all(len(set(shape)) == 1 for shape in shapes)     # n/a and failed rows keep the table's shape
 
 
@@ -105,10 +105,12 @@ def test_html_is_self_contained(study_report):
 
 
 def test_a_missing_baseline_a_single_row_and_no_online_part(tmp_path):
-    rows = [offline_row("static_quant", size_mb=1.61, mse=0.07, latency_ms=1.2, job_keys={"offline": "k1"})]
+    rows = [offline_row("static_quant", size_mb=1.61, size_gz_mb=1.42, mse=0.07, latency_ms=1.2,
+                        job_keys={"offline": "k1"})]
     paths = write_report(ReportData.from_dict(small_dict(rows)), tmp_path / "report")
     readme = paths.readme.read_text()
-    assert "| static_quant | 1.61 | 0.0700 | 1.20 | — | — | — | — |" in readme
+    assert "| static_quant | 1.61 | 1.42 | 0.0700 | 1.20 | — | — | — | — |" in readme
+    assert read_csv(paths.csv)[0]["size_gz_mb"] == "1.42"
     assert "No usable 'baseline' row for pilotnet here: ratios are not shown." in readme
     assert "No closed-loop runs in this recipe." in readme
     assert set(paths.plots) == {"pareto"}                      # no baseline: no ratio bars; no laps, no history
@@ -203,7 +205,7 @@ def test_an_unstable_timing_is_marked_in_the_results_files_and_both_pages(tmp_pa
     assert [r["latency_ms_unstable"] for r in csv_rows] == [reason, ""] and csv_rows[0]["throughput_ips_unstable"] == ""
     assert json.loads(paths.json.read_text())["rows"][0]["latency_ms_unstable"] == reason
     readme = paths.readme.read_text()
-    assert "| baseline | — | — | 2.30 (2.20–9.50) ⚠ |" in readme
+    assert "| baseline | — | — | — | 2.30 (2.20–9.50) ⚠ |" in readme
     assert f"⚠ baseline: inference time unstable: {reason}." in readme
     assert "Timings on 2 thread(s), one method at a time: inference time is the median of 24–900" in readme
     assert "**Fastest on cpu1**: not drawn: baseline (cpu1): unstable" in readme
