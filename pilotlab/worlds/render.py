@@ -105,15 +105,15 @@ class SolidCells:
     view between the near and far planes, farthest first."""
 
     def __init__(self, triangles: np.ndarray, colours: np.ndarray):
-        self.triangles, self.colours = triangles, colours
-        cross = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]) if len(triangles) \
+        # quads where two triangles make one (SketchUp's walls): half the polygons to paint
+        self.polygons, self.colours = merge_quads(triangles, colours)
+        polygons = self.polygons
+        self.normals = np.cross(polygons[:, 1] - polygons[:, 0], polygons[:, 2] - polygons[:, 0]) if len(polygons) \
             else np.zeros((0, 3))
-        self.normals = cross
-        self.cells: dict[tuple[int, int], np.ndarray] = {}
         cells: dict[tuple[int, int], list[int]] = {}
-        if len(triangles):
-            lows = np.floor(triangles[:, :, :2].min(axis=1) / CELL_M).astype(int)
-            highs = np.floor(triangles[:, :, :2].max(axis=1) / CELL_M).astype(int)
+        if len(polygons):
+            lows = np.floor(polygons[:, :, :2].min(axis=1) / CELL_M).astype(int)
+            highs = np.floor(polygons[:, :, :2].max(axis=1) / CELL_M).astype(int)
             for index, (low, high) in enumerate(zip(lows, highs)):
                 for cx in range(low[0], high[0] + 1):
                     for cy in range(low[1], high[1] + 1):
@@ -123,7 +123,7 @@ class SolidCells:
     def near(self, eye: np.ndarray, reach: float) -> np.ndarray:
         low = np.floor((eye[:2] - reach) / CELL_M).astype(int)
         high = np.floor((eye[:2] + reach) / CELL_M).astype(int)
-        chosen = np.zeros(len(self.triangles), bool)
+        chosen = np.zeros(len(self.polygons), bool)
         for cx in range(low[0], high[0] + 1):
             for cy in range(low[1], high[1] + 1):
                 found = self.cells.get((cx, cy))
@@ -136,9 +136,9 @@ class SolidCells:
         chosen = self.near(eye, spec.far_m)
         if not len(chosen):
             return
-        facing = np.einsum("ij,ij->i", self.normals[chosen], eye - self.triangles[chosen, 0]) > 0
+        facing = np.einsum("ij,ij->i", self.normals[chosen], eye - self.polygons[chosen, 0]) > 0
         chosen = chosen[facing]
-        camera = (self.triangles[chosen] - eye) @ rotation.T          # (n, 3, 3) camera coordinates
+        camera = (self.polygons[chosen] - eye) @ rotation.T           # (n, 4, 3) camera coordinates
         depth = camera[:, :, 2]
         visible = (depth.max(axis=1) > spec.near_m) & (depth.min(axis=1) < spec.far_m)
         slope = abs(intrinsics[0, 2] / intrinsics[0, 0]) + 1.0           # beyond the horizontal view: skip
@@ -162,6 +162,40 @@ class SolidCells:
                 projected_polygon = polygon @ intrinsics.T
                 points = np.round(projected_polygon[:, :2] / projected_polygon[:, 2:] * 16).astype(np.int32)
             cv2.fillConvexPoly(image, points, colours[k], lineType=cv2.LINE_8, shift=4)
+
+
+def merge_quads(triangles: np.ndarray, colours: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 4, 3) convex polygons: each pair of consecutive triangles of one colour that share an edge and
+    a plane becomes a quad; a triangle left alone repeats its last corner."""
+    polygons, kept, i = [], [], 0
+    while i < len(triangles):
+        quad = _quad(triangles[i], triangles[i + 1]) if i + 1 < len(triangles) and \
+            np.array_equal(colours[i], colours[i + 1]) else None
+        polygons.append(quad if quad is not None else np.vstack([triangles[i], triangles[i][2:]]))
+        kept.append(colours[i])
+        i += 2 if quad is not None else 1
+    if not polygons:
+        return np.zeros((0, 4, 3)), np.zeros((0, 3), np.uint8)
+    return np.array(polygons), np.array(kept, dtype=np.uint8)
+
+
+def _quad(first: np.ndarray, second: np.ndarray, tolerance: float = 1e-6) -> np.ndarray | None:
+    shared = [(i, j) for i in range(3) for j in range(3) if np.abs(first[i] - second[j]).max() < tolerance]
+    if len(shared) != 2:
+        return None
+    normal_a = np.cross(first[1] - first[0], first[2] - first[0])
+    normal_b = np.cross(second[1] - second[0], second[2] - second[0])
+    if np.linalg.norm(np.cross(normal_a, normal_b)) > 1e-6 * np.linalg.norm(normal_a) * np.linalg.norm(normal_b) \
+            or np.dot(normal_a, normal_b) <= 0:
+        return None
+    lone_a = next(i for i in range(3) if i not in (a for a, _ in shared))
+    lone_b = next(j for j in range(3) if j not in (b for _, b in shared))
+    # walk the first triangle from its lone corner; the second's lone corner goes between the shared ones
+    quad = [first[lone_a], first[(lone_a + 1) % 3], second[lone_b], first[(lone_a + 2) % 3]]
+    corners = np.array(quad)
+    turns = [np.dot(np.cross(corners[k + 1 & 3] - corners[k], corners[k + 2 & 3] - corners[k + 1 & 3]), normal_a)
+             for k in range(4)]
+    return corners if all(t > 0 for t in turns) else None
 
 
 def clip_depth(polygon: np.ndarray, near: float, far: float) -> np.ndarray:

@@ -29,7 +29,7 @@ from pilotlab.worlds.raster import Grid, colour_raster, fill, signed_distance
 from pilotlab.worlds.scene import Layer, split_scene
 from pilotlab.worlds.sdf import WorldFile, read_world
 
-CACHE_VERSION = 5
+CACHE_VERSION = 6
 CACHE_ENV = "PILOTLAB_CACHE"
 # Gazebo lights BM's lambert materials by the scene's ambient (1.0) times a share (they declare no
 # ambient colour of their own) plus the sun's diffuse term; 0.4 is pilotlab's estimate of that share.
@@ -164,14 +164,15 @@ def build_world(parsed: WorldFile, digest: str) -> BMWorld:
     lighting = Lighting.of(parsed)
     ground_shade = lighting.shade((0.0, 0.0, 1.0))
     grid = Grid.around(layers)
-    sharp = sharp_layers(layers)
-    # the colour raster holds what lies under the sharp layers (they are drawn over it per frame)
-    under = [layer for i, layer in enumerate(layers) if i not in sharp]
-    colour = colour_raster(grid, under, [ground_shade] * len(under), VOID)
     labels = label_raster(grid, layers)
     circuit_name = circuit_of(parsed.name, parsed.path)
     centreline = get_circuit(circuit_name).points
     line = find_line(grid, labels, centreline)
+    # The line (what a brain follows, 10 cm wide) is drawn per frame with sharp edges from a fine
+    # signed-distance raster; everything else comes from the colour raster (edges blurred over 5 cm).
+    sharp = [] if line is None else [line]
+    under = [layer for i, layer in enumerate(layers) if i not in sharp]
+    colour = colour_raster(grid, under, [ground_shade] * len(under), VOID)
     solid_triangles, solid_colours = _solids(solids, lighting)
     collisions = [part.triangles for mesh in parsed.collisions for part in read_mesh(mesh)]
     line_grid = line_raster_grid(grid)
@@ -192,15 +193,6 @@ def build_world(parsed: WorldFile, digest: str) -> BMWorld:
     return BMWorld(parsed.name, digest, grid, colour, labels, meta["sharp"], distances, solid_triangles,
                    solid_colours, np.concatenate(collisions) if collisions else np.zeros((0, 3, 3)),
                    meta["layers"], meta)
-
-
-def sharp_layers(layers: list[Layer]) -> list[int]:
-    """The flat-coloured layers painted over a textured one (the line, road marks): drawn per frame from
-    signed-distance rasters with sharp edges. The ones below every texture (a plain grass) stay in the
-    colour raster."""
-    textured = [i for i, layer in enumerate(layers) if layer.texture is not None]
-    first = textured[0] if textured else len(layers)
-    return [i for i, layer in enumerate(layers) if layer.texture is None and i > first]
 
 
 def line_raster_grid(grid: Grid) -> Grid:
