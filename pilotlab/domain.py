@@ -89,6 +89,8 @@ class Planner:
             raise self.recipe.error(f"the combination {combination} names a circuit and a world; a lap is driven on a "
                                     "circuit of pilotlab's own world or in a BehaviorMetrics world (which has its own "
                                     "circuit): use one axis per combination", ["matrix"])
+        if "world" in combination:    # read (and checked) here, so an unknown world is the matrix's error
+            world_param(self, str(combination["world"]), ["matrix", "world"])
         hardware = str(combination.get("hardware", "cpu"))
         optimize = self.optimize(str(combination["model"]), str(combination["strategy"]), hardware)
         jobs = [self.offline(optimize, combination, hardware)]

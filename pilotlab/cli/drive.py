@@ -12,6 +12,7 @@ import shutil
 from pathlib import Path
 
 from pilotlab.cli._options import add_spec_options, spec_from_args
+from pilotlab.cli._world import add_world_options, place_of
 from pilotlab.errors import PilotlabError
 from pilotlab.specs.online import OnlineSpec
 
@@ -31,7 +32,9 @@ def register(subparsers) -> None:
     which.add_argument("--brain", metavar="BRAIN",
                        help="a reference brain (explicit, expert) or yours: file.py:Class or module:Class, a class "
                             "with act(image) -> (v, w) (docs/brains.md)")
-    parser.add_argument("--circuit", required=True, help="circuit name (pilotlab circuit list) or CSV path")
+    place = parser.add_mutually_exclusive_group(required=True)
+    place.add_argument("--circuit", help="circuit name (pilotlab circuit list) or CSV path")
+    add_world_options(parser, place)
     parser.add_argument("--out", type=Path, required=True, help="folder for the pictures, data and result.json")
     parser.add_argument("--hardware", default="cpu", help="hardware profile: cpu, cpu1 or cuda (default cpu)")
     add_spec_options(parser, OnlineSpec, LAP_OPTIONS, flags={"timeout_s": ["--timeout"]})
@@ -68,9 +71,10 @@ def check_arguments(args: argparse.Namespace) -> None:
         raise PilotlabError(f"--out {args.out} {what}; give a new folder (drive does not mix two runs' files)")
 
 
-def brain_params(brain: str | None) -> dict:
+def brain_params(brain: str | None, world=None) -> dict:
     """The online job's brain params for --brain: a reference brain's name, or the user's
-    `file.py:Class` (relative to the current folder), its row named after the class."""
+    `file.py:Class` (relative to the current folder), its row named after the class. In a BM `world`
+    the explicit brain gets the options for BM's camera and the world's line colour."""
     from matrix.errors import did_you_mean
     from pilotlab.online.brains import REFERENCE_BRAINS
     if brain is None:
@@ -82,6 +86,9 @@ def brain_params(brain: str | None) -> dict:
         known = REFERENCE_BRAINS.names()
         raise PilotlabError(f"--brain {brain}: unknown brain{did_you_mean(brain, known)}; give {', '.join(known)}, "
                             "or your own as file.py:Class or module:Class")
+    if brain == "explicit" and world is not None:
+        from pilotlab.sim.explicit import bm_world_options
+        return {"brain": brain, "brain_options": bm_world_options(world.line_colour)}
     return {"brain": brain}
 
 
@@ -90,7 +97,7 @@ def make_brain(spec: OnlineSpec):
     if spec.user_brain is not None:
         mine = spec.user_brain
         return UserBrain(mine.spec, Path(mine.base), name=mine.name)
-    return make_reference_brain(spec.brain)
+    return make_reference_brain(spec.brain, spec.brain_options)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -105,9 +112,10 @@ def run(args: argparse.Namespace) -> int:
 
     from pilotlab.circuits import get_circuit
     check_arguments(args)
-    spec = spec_from_args(OnlineSpec, args, circuit=args.circuit, **brain_params(args.brain),
-                          tolerance=args.tolerance)
-    get_circuit(spec.circuit, spec.direction)   # an unknown or broken circuit: before the progress bar
+    place, assets, world = place_of(args)
+    spec = spec_from_args(OnlineSpec, args, **place, **brain_params(args.brain, world), tolerance=args.tolerance)
+    if world is None:
+        get_circuit(spec.circuit, spec.direction)   # an unknown or broken circuit: before the progress bar
     profile = make_profile(args.hardware)
     check_available(profile)
     brain = (NetworkBrain(load_predictor(args.artifact, profile)) if args.artifact is not None
@@ -121,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
             task = progress.add_task("starting", total=1.0)
             result = evaluate_online(brain, spec, args.out, lambda done, total, what: progress.update(
                 task, completed=done, total=total, description=what), latency_ms=samples,
-                tolerance=spec.tolerance)
+                tolerance=spec.tolerance, assets=assets)
     except BaseException:
         if created:   # a failed or interrupted drive leaves no half-written --out behind
             shutil.rmtree(args.out, ignore_errors=True)

@@ -6,6 +6,7 @@ import re
 from pathlib import Path
 
 from pilotlab.cli._options import add_spec_options, spec_from_args
+from pilotlab.cli._world import add_world_options, place_of
 from pilotlab.errors import PilotlabError
 from pilotlab.specs.base import CameraSize
 from pilotlab.specs.record import RecordSpec
@@ -18,7 +19,9 @@ def register(subparsers) -> None:
                     "go to a rosbag stamped in simulated time. Raw 640x480 frames at 10 Hz take about 9 MB per "
                     "simulated second (a lap of simple_circuit: ~430 MB); --compressed png keeps them lossless "
                     "in ~1% of that. Ctrl-C stops early and leaves a valid bag.")
-    parser.add_argument("--circuit", required=True, help=RecordSpec.model_fields["circuit"].description)
+    place = parser.add_mutually_exclusive_group(required=True)
+    place.add_argument("--circuit", help=RecordSpec.model_fields["circuit"].description)
+    add_world_options(parser, place)
     parser.add_argument("--out", type=Path, required=True,
                         help="bag to write: a folder (ros2, the default format) or a file ending in .bag "
                              "(then ros1 unless --format says otherwise)")
@@ -53,16 +56,18 @@ def run(args: argparse.Namespace) -> int:
     from pilotlab.sim.env import describe_end
     from pilotlab.sim.record import record
     from pilotlab.sim.record import check_rates
-    spec = spec_from_args(RecordSpec, args, circuit=args.circuit, **camera_of(args),
+    place, assets, world = place_of(args)
+    spec = spec_from_args(RecordSpec, args, **place, **camera_of(args),
                           **({"format": "ros1"} if args.out.suffix == ".bag" and not hasattr(args, "format") else {}))
     check_rates(spec)   # before the progress bar: an error is then the only line printed
     columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:.0f} m"),
                TextColumn("{task.fields[frames]} frames"), TimeElapsedColumn(), TimeRemainingColumn())
-    total = get_circuit(spec.circuit, spec.direction).length * spec.laps
+    circuit = world.circuit(spec.direction) if world is not None else get_circuit(spec.circuit, spec.direction)
     with Progress(*columns) as progress:
-        task = progress.add_task(f"recording {spec.circuit} {spec.direction}", total=total, frames=0)
+        task = progress.add_task(f"recording {spec.world or spec.circuit} {spec.direction}",
+                                 total=circuit.length * spec.laps, frames=0)
         summary = record(spec, args.out, lambda done, total, frames: progress.update(
-            task, completed=done, total=total, frames=frames))
+            task, completed=done, total=total, frames=frames), assets=assets)
     print(f"{summary.path}: {summary.frames} frames, {summary.commands} commands, {summary.sim_seconds:.1f} s "
           f"simulated in {summary.wall_seconds:.1f} s, {summary.distance_m:.0f} m at {summary.average_speed:.1f} m/s, "
           f"{summary.bytes / 1e6:.1f} MB ({describe_end(summary.termination, spec.laps)})")

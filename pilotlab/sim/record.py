@@ -149,7 +149,10 @@ def metadata(spec: RecordSpec, env: DrivingEnv) -> dict[str, Any]:
             "road_width_m": circuit.road_width, "seed": spec.seed, "laps": spec.laps, "noise": spec.noise,
             "camera": {**spec.camera.as_dict(), "hfov_deg": env.camera.hfov_deg},
             "rate_hz": spec.rate_hz, "control_hz": spec.control_hz, "renderer": spec.renderer,
-            "compressed": spec.compressed, "start": spec.start, "driver": "expert"}
+            "compressed": spec.compressed, "start": spec.start, "driver": "expert",
+            **({"world": spec.world, "world_digest": env.bm.digest,
+                "camera_mount_m": [env.camera.forward_m, env.camera.lateral_m, env.camera.height_m]}
+               if env.bm is not None else {})}
 
 
 def size_on_disk(path: Path) -> int:
