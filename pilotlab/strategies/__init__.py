@@ -6,7 +6,7 @@ with `apply_strategy(name, options, source)`; the artifact it writes is loaded w
 """
 from matrix.fingerprint import module_closure
 from pilotlab.strategies import (  # noqa: F401  (each module registers its strategies)
-    baseline, cluster, cuda, half, litert, onnx_runtime, prune, prune_quant, pt2e,
+    baseline, cluster, cuda, half, litert, mot, onnx_runtime, prune, prune_quant, pt2e,
     structured_prune, structured_prune_int8, structured_prune_xnnpack, torchscript,
 )
 from pilotlab.strategies.registry import (  # noqa: F401

@@ -16,6 +16,8 @@ TEST_OPTIONS = {
     "structured_prune_int8": {"finetune_epochs": 1, "batch_size": 16, "calibration_frames": 32},
     "structured_prune_litert_int8": {"finetune_epochs": 1, "batch_size": 16, "calibration_frames": 32},
     "cluster": {"finetune_epochs": 1, "batch_size": 16},
+    "prune_litert": {"finetune_epochs": 1, "batch_size": 16},
+    "prune_litert_int8": {"finetune_epochs": 1, "batch_size": 16, "calibration_frames": 32},
     "qat": {"finetune_epochs": 1, "batch_size": 16},
     "prune_quant": {"finetune_epochs": 1, "batch_size": 16},
     "bf16": {"allow_emulated": True},
