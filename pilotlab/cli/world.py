@@ -84,9 +84,15 @@ def show_world(args: argparse.Namespace) -> int:
     pose = args.pose or _spawn_pose(world)
     image = render_at(world, pose, view=args.view, renderer=args.renderer, own=args.own)
     out = args.out or Path(f"{args.world}{'_own' if args.own else ''}.png")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(out), image[:, :, ::-1]):
-        raise PilotlabError(f"cannot write {out}: give a .png path in a writable folder")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        written = cv2.imwrite(str(out), image[:, :, ::-1])
+    except (OSError, cv2.error) as error:
+        written, reason = False, getattr(error, "strerror", None) or str(error).splitlines()[-1]
+    else:
+        reason = "OpenCV could not write it"
+    if not written:
+        raise PilotlabError(f"cannot write {out} ({reason}): give a .png path in a writable folder")
     what = "pilotlab's own world" if args.own else f"world {args.world}"
     print(f"{what} at x={pose[0]:g}, y={pose[1]:g}, yaw={pose[2]:g}: {image.shape[1]}×{image.shape[0]} "
           f"{'network view' if args.view else 'camera frame'} written to {out}")

@@ -1,0 +1,56 @@
+"""`pilotlab world list | show`, `record --world`, `drive --world`, through the real command line, on the
+test-written world."""
+from __future__ import annotations
+
+import json
+
+import cv2
+import pytest
+
+from pilotlab.cli import main
+
+
+def test_list_shows_the_worlds_with_their_circuit_sun_and_camera(oval_assets, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "160")      # rich wraps cells to the terminal's width
+    assert main(["world", "list", "--assets", str(oval_assets)]) == 0
+    out = capsys.readouterr().out
+    assert "oval_no_sun" in out and "oval.csv" in out and "0.10 m, 90°, 15 m" in out
+
+
+def test_show_writes_the_frame_the_view_and_pilotlab_s_own_world(oval_assets, tmp_path, capsys):
+    frame, view, own = tmp_path / "f.png", tmp_path / "v.png", tmp_path / "own.png"
+    for extra, out in (([], frame), (["--view"], view), (["--own"], own)):
+        assert main(["world", "show", "oval", "--assets", str(oval_assets), "--pose", "0,8,0", "-o", str(out),
+                     *extra]) == 0
+    assert cv2.imread(str(frame)).shape == (480, 640, 3) and cv2.imread(str(view)).shape == (66, 200, 3)
+    red = cv2.imread(str(frame))[240:, :, ::-1]
+    assert ((red[..., 0] > 150) & (red[..., 1] < 80)).sum() > 1000
+    assert cv2.imread(str(own)).shape == (480, 640, 3)
+    assert "640×480 camera frame written" in capsys.readouterr().out
+
+
+def test_show_without_a_pose_uses_the_spawn_pose(oval_assets, tmp_path):
+    assert main(["world", "show", "oval", "--assets", str(oval_assets), "-o", str(tmp_path / "f.png")]) == 0
+
+
+@pytest.mark.parametrize("args, message", [
+    (["world", "show", "ovl"], "did you mean 'oval'"),
+    (["world", "show", "oval", "-o", "/proc/nope/f.png"], "cannot write"),
+    (["record", "--world", "ovl", "--out", "x"], "did you mean 'oval'"),
+])
+def test_errors_are_one_line(oval_assets, capsys, args, message):
+    assert main([*args, "--assets", str(oval_assets)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
+
+
+def test_record_and_drive_in_a_world(oval_assets, tmp_path, capsys):
+    bag = tmp_path / "bag"
+    assert main(["record", "--world", "oval", "--assets", str(oval_assets), "--laps", "0.05", "--size", "160x120",
+                 "--compressed", "png", "--out", str(bag)]) == 0
+    assert "drove the 0.05 lap asked for" in capsys.readouterr().out
+    out = tmp_path / "drive"
+    assert main(["drive", "--brain", "expert", "--world", "oval", "--assets", str(oval_assets),
+                 "--out", str(out)]) == 0
+    result = json.loads((out / "result.json").read_text())
+    assert result["world"] == "oval" and result["lap_completed"] is True and result["runs"][0]["termination"] == "lap_completed"
