@@ -295,11 +295,11 @@ def _shift_bars(ax, chosen: list[WorldCell], cells: list[WorldCell], worlds, str
         for j, world in enumerate(worlds):
             cell = next((c for c in chosen if c.strategy == strategy and c.world == world), None)
             base = training_cell(cells, cell) if cell is not None else None
-            ratio = ratio(cell.metric(metric), base.metric(metric)) if cell and base else None
-            if ratio is None:
+            value = ratio(cell.metric(metric), base.metric(metric)) if cell and base else None
+            if value is None:
                 continue
             lost = cell.metric("lap_completed") is False
-            ax.bar(j + (i - (len(strategies) - 1) / 2) * width, ratio, width, color=colours[strategy],
+            ax.bar(j + (i - (len(strategies) - 1) / 2) * width, value, width, color=colours[strategy],
                    hatch="///" if lost else None, edgecolor="0.3" if lost else colours[strategy])
     ax.set_xticks(range(len(worlds)), [w.replace("simple_circuit_", "").replace("_", " ") for w in worlds],
                   rotation=20, ha="right")

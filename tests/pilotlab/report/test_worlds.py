@@ -1,0 +1,52 @@
+"""The world-shift section: tables, summary and plot from rows evaluated in BM worlds."""
+from __future__ import annotations
+
+from pilotlab.report.data import ReportData
+from pilotlab.report.plots import save_plots
+from pilotlab.report.worlds import shift_summary, world_tables
+
+
+def rows(strategy: str, world: str, mse: float, deviation: float, completed: bool) -> list[dict]:
+    base = {"model": "pilotnet", "strategy": strategy, "hardware": "cpu", "world": world}
+    return [{**base, "kind": "offline", "test_set": f"test in {world}", "mse": mse},
+            {**base, "kind": "online", "circuit": world, "direction": "cw", "lap_completed": completed,
+             "percentage_completed": 100.0 if completed else 40.0, "bm_position_deviation_mae": deviation,
+             "latency_tolerance_ms": 120.0 if completed else None}]
+
+
+def data(int8_mse_shifted: float = 0.06, int8_completes: bool = True) -> ReportData:
+    table = (rows("baseline", "simple_circuit", 0.02, 2.0, True) + rows("baseline", "white_line", 0.05, 3.0, True)
+             + rows("int8", "simple_circuit", 0.02, 2.0, True) + rows("int8", "white_line", int8_mse_shifted, 3.0,
+                                                                     int8_completes))
+    return ReportData.from_dict({"recipe_name": "w", "date": "2026-11-25T10:00:00", "rows": table,
+                                 "training_worlds": {"pilotnet": ["simple_circuit"]}})
+
+
+def test_table_puts_each_world_beside_the_training_world():
+    (table,) = world_tables(data())
+    cells = {(row.method, row.cells[0].text): [cell.text for cell in row.cells] for row in table.rows}
+    assert [key for key in cells][:2] == [("baseline", "simple_circuit"), ("baseline", "white_line")]
+    assert cells["baseline", "simple_circuit"][5] == "training world"
+    assert cells["baseline", "white_line"][5] == "2.50×" and cells["baseline", "white_line"][6] == "1.50×"
+    assert cells["int8", "white_line"][5] == "3.00×"
+
+
+def test_summary_says_who_lost_more_than_the_baseline():
+    worse = shift_summary(data(int8_mse_shifted=0.06))
+    assert "int8 lost more than the baseline" in worse[-1]
+    same = shift_summary(data(int8_mse_shifted=0.05))
+    assert "no optimized network lost more" in same[-1]
+    lost = shift_summary(data(int8_mse_shifted=0.05, int8_completes=False))
+    assert "int8 lost more" in lost[-1] and "0/1 laps completed" in lost[1]
+
+
+def test_the_plot_is_drawn(tmp_path):
+    plots = save_plots(data(int8_completes=False), tmp_path)
+    assert "world_shift" in plots and plots["world_shift"][0].stat().st_size > 5000
+
+
+def test_no_section_without_a_shifted_world():
+    only = ReportData.from_dict({"recipe_name": "w", "date": "2026-11-25T10:00:00",
+                                 "rows": rows("baseline", "simple_circuit", 0.02, 2.0, True),
+                                 "training_worlds": {"pilotnet": ["simple_circuit"]}})
+    assert world_tables(only) == [] and shift_summary(only) == []
