@@ -107,7 +107,8 @@ def describe_end(termination: str | None, laps: float) -> str:
         if laps < 1:
             return f"drove the {laps:g} lap asked for"
         return f"{laps:g} lap{'' if laps == 1 else 's'} completed"
-    words = {"off_road": "left the road", "hit_wall": "hit a wall", "trapped": "trapped: no progress", "timeout": "timed out"}
+    words = {"off_road": "left the road", "hit_wall": "hit a wall", "trapped": "trapped: no progress",
+             "timeout": "timed out"}
     return words.get(termination or "", "stopped")
 
 
@@ -146,7 +147,7 @@ class DrivingEnv(gymnasium.Env):
         self.car: Car | None = None
         self._renderer = self._view = None
         self._camera_renderer = None   # with a `view`: the camera's full image (camera_image)
-        self._wall_body = None
+        self._wall_bodies: list[int] = []   # a BM world's solid walls (pybullet bodies)
         self.circuit = self._load_circuit(circuit or "simple_circuit", direction)
 
     # -- Gymnasium API ----------------------------------------------------------------------
@@ -225,7 +226,7 @@ class DrivingEnv(gymnasium.Env):
                                road_meshes=meshes and self.bm is None)
             if self.bm is not None:
                 from pilotlab.worlds.bullet import add_collisions, add_visuals
-                self._wall_body = add_collisions(self.world.client, self.bm)
+                self._wall_bodies = add_collisions(self.world.client, self.bm)
                 if meshes:
                     add_visuals(self.world.client, self.bm)
             self._renderer, self._camera_renderer = self._make_renderer(canonical, self.view), None
@@ -304,7 +305,7 @@ class DrivingEnv(gymnasium.Env):
             return "lap_completed"
         if self.stop_off_road and self._off_road():
             return "off_road"
-        if self._wall_body is not None and self._hit_wall():
+        if self._wall_bodies and self._hit_wall():
             return "hit_wall"
         if self._trapped():
             return "trapped"
@@ -314,7 +315,7 @@ class DrivingEnv(gymnasium.Env):
 
     def _hit_wall(self) -> bool:
         return any(p.getContactPoints(bodyA=self.car.body, bodyB=wall, physicsClientId=self.world.client)
-                   for wall in self._wall_body)
+                   for wall in self._wall_bodies)
 
     def _off_road(self) -> bool:
         return self._projection.distance > self.circuit.road_width / 2
