@@ -200,10 +200,13 @@ def bake(model: nn.Module) -> nn.Module:
 
 
 def weight_figures(model: nn.Module) -> dict:
-    """Per layer: the fraction of weights that are zero and the number of distinct values."""
+    """Per layer: the fraction of weights that are zero, the number of distinct values, and the
+    most distinct values in one output channel (what per-channel int8 keeps of clusters)."""
     layers = {name: layer.weight.detach() for name, layer in weight_layers(model)}
     total = sum(w.numel() for w in layers.values())
     zeros = {name: int((w == 0).sum()) for name, w in layers.items()}
     return {"sparsity": sum(zeros.values()) / total,
             "layer_sparsity": {name: zeros[name] / w.numel() for name, w in layers.items()},
-            "distinct_weights": {name: int(w.unique().numel()) for name, w in layers.items()}}
+            "distinct_weights": {name: int(w.unique().numel()) for name, w in layers.items()},
+            "channel_distinct_weights": {name: max(int(c.unique().numel()) for c in w.flatten(1))
+                                         for name, w in layers.items()}}

@@ -18,6 +18,7 @@ TEST_OPTIONS = {
     "cluster": {"finetune_epochs": 1, "batch_size": 16},
     "prune_litert": {"finetune_epochs": 1, "batch_size": 16},
     "prune_litert_int8": {"finetune_epochs": 1, "batch_size": 16, "calibration_frames": 32},
+    "qat_litert_int8": {"qat_epochs": 1, "batch_size": 16, "calibration_frames": 32},
     "qat": {"finetune_epochs": 1, "batch_size": 16},
     "prune_quant": {"finetune_epochs": 1, "batch_size": 16},
     "bf16": {"allow_emulated": True},

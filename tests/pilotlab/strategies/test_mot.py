@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
+from torch import nn
 
 from pilotlab.export import export_artifact
 from pilotlab.predictor import load_predictor
+from pilotlab.strategies import StrategySource, apply_strategy
 from tests.pilotlab.strategies.test_strategies import runnable
 
-NEW = ["prune_litert", "prune_litert_int8"]
+NEW = ["prune_litert", "prune_litert_int8", "qat_litert_int8"]
 LAYERS = 10                  # PilotNet: 5 convs, 5 dense layers
 
 
@@ -59,6 +62,54 @@ def test_prune_litert_int8_keeps_the_zeros_through_quantization(artifacts):
     # symmetric int8 maps 0.0 to 0; weights below half a step become zero too (a few per cent)
     assert all(0.49 < z < 0.56 for z in zeros(weights)), zeros(weights)
     assert result["size_gz_mb"] < 0.85 * artifacts["litert_int8"][1]["size_gz_mb"]
+
+
+def on_int8_grid(weight: torch.Tensor) -> bool:
+    """Every output channel's weights are whole multiples of max|w| / 127 (the converter's scale)."""
+    steps = weight.flatten(1) / (weight.flatten(1).abs().amax(1, keepdim=True) / 127)
+    return bool(torch.allclose(steps, steps.round(), atol=1e-3))
+
+
+def test_quantization_aware_training_leaves_the_weights_on_the_int8_grid():
+    from pilotlab.strategies.mot_torch import add_fake_quant, bake, calibrate, remove_hooks
+    torch.manual_seed(0)
+    model = nn.Sequential(nn.Conv2d(3, 8, 3), nn.ReLU(), nn.Flatten(), nn.Linear(8 * 6 * 6, 2))
+    quant = add_fake_quant(model)
+    assert len(quant[1]) == 3                    # the input, the ReLU, the output layer (no ReLU after it)
+    images = torch.rand(16, 3, 8, 8)
+    calibrate(model, quant, [images])
+    optimizer = torch.optim.Adam(model.parameters(), lr=1e-2)
+    for _ in range(5):
+        optimizer.zero_grad()
+        model.train()(images).square().mean().backward()
+        optimizer.step()
+    remove_hooks(quant)
+    bake(model)
+    assert on_int8_grid(model[0].weight) and on_int8_grid(model[3].weight)
+    assert not on_int8_grid(model[3].weight + 1e-3)
+
+
+def test_qat_quantizes_the_weights_as_the_converter_does(artifacts, trained, frames, tmp_path):
+    """With no fine-tuning, QAT's fake-quantized weights are litert_int8's int8 weights, value for value
+    (per output channel; the layouts differ): the torch side trains on the grid the converter uses."""
+    runnable(artifacts, "qat_litert_int8")
+    apply_strategy("qat_litert_int8", {"qat_epochs": 0, "calibration_frames": 16},
+                   StrategySource(trained / "model.pt", tmp_path / "qat0", (frames,)))
+    ours, theirs = (tflite_weights(folder / "model.tflite")
+                    for folder in (tmp_path / "qat0", artifacts["litert_int8"][0]))
+    for (a, scale_a), (b, scale_b) in zip(ours, theirs, strict=True):
+        np.testing.assert_allclose(scale_a, scale_b, rtol=1e-5)
+        same = np.sort(a.reshape(len(a), -1), axis=1) == np.sort(b.reshape(len(b), -1), axis=1)
+        assert same.mean() > 0.999, same.mean()
+
+
+def test_qat_litert_int8_is_int8_with_its_weights_on_the_grid(artifacts):
+    runnable(artifacts, "qat_litert_int8")
+    folder, result = artifacts["qat_litert_int8"]
+    weights = tflite_weights(folder / "model.tflite")
+    assert len(weights) == LAYERS and all(w.dtype == np.int8 and abs(w).max() == 127 for w, _ in weights)
+    assert result["size_mb"] == pytest.approx(artifacts["litert_int8"][1]["size_mb"], rel=0.03)
+    assert result["sparsity"] < 0.05          # only the weights that round to zero
 
 
 @pytest.mark.parametrize("name", NEW)
