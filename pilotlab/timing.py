@@ -14,7 +14,11 @@ when this process was on a CPU at least 90 % of its wall time and others left th
 Disturbed calls are re-measured, up to `attempts` times the time budget. A figure is *stable* when at
 least `min_calls` clean calls were had and they make at least `min_clean_share` of the calls (so a
 few lucky calls never stand for a loaded run); otherwise it is the median of every call, marked
-unstable with the reason, and a report draws no conclusion from it.
+unstable with the reason, and a report draws no conclusion from it. Except on a single thread: there
+(`cpu_clock`) each call's CPU time of the thread that makes it is taken too, and where the wall-clock
+figure is not stable the figure is the median of those CPU times (clock "thread_cpu", said with the
+reason): that time does not grow while the thread waits for a core. It stands for the calls only when
+their work runs on that thread (its CPU time at least CPU_SHARE of their wall time less our waits).
 
 As pyperf does, a figure comes with its spread (10th and 90th percentiles: interference only adds
 time, so a mean ± std says less), how many calls it is made of, and why it is unstable where it is.
@@ -29,6 +33,8 @@ from functools import cache
 from pathlib import Path
 
 import numpy as np
+
+CPU_SHARE = 0.8   # thread CPU time over (wall time - waits) of calls whose work runs on the calling thread
 
 
 @dataclass(frozen=True)
@@ -75,6 +81,8 @@ class Block:
     times_ns: list[int]
     clean: list[bool]                 # per call: no wait of our threads for a CPU overlapped it
     load: Load
+    cpu_ns: list[int] = field(default_factory=list)   # per call: CPU time of the calling thread (when asked)
+    waited_ns: list[int] = field(default_factory=list)  # ... and our threads' run-queue wait read after it
 
 
 @dataclass
@@ -85,6 +93,7 @@ class Measurement:
     limits: Limits = Limits()
     min_calls: int = 300
     blocks: list[Block] = field(default_factory=list)
+    cpu_clock: bool = False           # each call's thread CPU time was taken too (single-thread profiles)
 
     def times(self, clean_only: bool) -> np.ndarray:
         return np.asarray([t for b in self.blocks for t, ok in zip(b.times_ns, b.clean) if ok or not clean_only],
@@ -102,9 +111,36 @@ class Measurement:
     def stable(self) -> bool:
         return self.clean_calls >= self.min_calls and self.clean_calls >= self.limits.min_clean_share * self.calls
 
+    def cpu_times(self) -> np.ndarray:
+        return np.asarray([t for b in self.blocks for t in b.cpu_ns], np.int64)
+
+    @property
+    def clock(self) -> str:
+        """"wall", or "thread_cpu" where too few calls were clean and each call's work ran on the thread
+        that made it (a single-thread profile): that thread's CPU time does not grow while it waits for
+        a core, so it stands for the call where the wall clock cannot."""
+        if self.stable or not self.cpu_clock or not self.calls:
+            return "wall"
+        cpu = self.cpu_times()
+        waited = np.asarray([w for b in self.blocks for w in b.waited_ns], np.int64)
+        if len(cpu) != self.calls or len(waited) != self.calls:
+            return "wall"
+        running = np.maximum(self.times(clean_only=False) - waited, 0).sum()   # wall time not spent waiting
+        return "thread_cpu" if cpu.sum() >= CPU_SHARE * running else "wall"
+
     def samples_ns(self) -> np.ndarray:
-        """The calls the figure is made of, in measurement order: the clean ones, or all when unstable."""
+        """The calls the figure is made of, in measurement order: the clean ones; or, too few of them, every
+        call's thread CPU time (clock "thread_cpu") or wall time (unstable)."""
+        if self.clock == "thread_cpu":
+            return self.cpu_times()
         return self.times(clean_only=self.stable)
+
+    def cpu_time_reason(self) -> str | None:
+        """Why the figure is the calls' thread CPU time (None when it is wall-clock time)."""
+        if self.clock != "thread_cpu":
+            return None
+        return (f"{self.reason()}; so the figure is the CPU time of the thread that ran each call, which does not "
+                "grow while the thread waits for a core (on a quiet machine it is wall-clock time)")
 
     def reason(self) -> str | None:
         """Why the figure is unstable (None when it is not)."""
@@ -136,49 +172,56 @@ class Measurement:
                 "steal_cores": mean("steal_cores")}
 
 
-def measure(call: Callable[[], object], needed_cores: int, plan: Plan = Plan(), limits: Limits = Limits()
-            ) -> Measurement:
-    """Time `call` in blocks (see the module docstring) until `plan` is met or its budget is spent."""
-    result = Measurement(len(our_cpus()), needed_cores, limits, plan.min_calls)
+def measure(call: Callable[[], object], needed_cores: int, plan: Plan = Plan(), limits: Limits = Limits(),
+            cpu_clock: bool = False) -> Measurement:
+    """Time `call` in blocks (see the module docstring) until `plan` is met or its budget is spent;
+    `cpu_clock` (single-thread timings): each call's thread CPU time too."""
+    result = Measurement(len(our_cpus()), needed_cores, limits, plan.min_calls, cpu_clock=cpu_clock)
     start = time.perf_counter()
     previous = None
     while True:
-        result.blocks.append(timed_block(call, plan.block_seconds, needed_cores, limits))
+        result.blocks.append(timed_block(call, plan.block_seconds, needed_cores, limits, cpu_clock))
         elapsed = time.perf_counter() - start
         if result.calls >= plan.max_calls or elapsed > plan.seconds * plan.attempts:
             return result
-        if len(result.blocks) >= plan.min_blocks and result.stable:
-            median = float(np.median(result.times(clean_only=True)))
+        if len(result.blocks) >= plan.min_blocks and (result.stable or result.clock == "thread_cpu"):
+            median = float(np.median(result.samples_ns()))
             settled = previous is not None and abs(median - previous) <= plan.stable_within * median
             if settled or elapsed > plan.seconds:
                 return result
             previous = median
 
 
-def timed_block(call: Callable[[], object], seconds: float, needed_cores: int, limits: Limits) -> Block:
-    """Calls of `call` for at least `seconds`, each timed with its threads' run-queue wait; the block's load."""
+def timed_block(call: Callable[[], object], seconds: float, needed_cores: int, limits: Limits,
+                cpu_clock: bool = False) -> Block:
+    """Calls of `call` for at least `seconds`, each timed with its threads' run-queue wait (and with
+    `cpu_clock`, its thread CPU time); the block's load."""
     before = snapshot()
     with ThreadWaits() as waits:
         per_call = waits.available
-        times, clean = _timed_calls(call, waits, limits, seconds=seconds)
+        times, clean, cpu, waited = _timed_calls(call, waits, limits, seconds=seconds, cpu_clock=cpu_clock)
     load = load_between(before, snapshot())
     if not per_call:    # no per-thread waits: judge the block by the cores others used
         ok = block_is_quiet(load, needed_cores, len(our_cpus()), limits)
         clean = [ok] * len(times)
-    return Block(times, clean, load)
+    return Block(times, clean, load, cpu, waited if cpu_clock else [])
 
 
-def _timed_calls(call: Callable[[], object], waits: ThreadWaits, limits: Limits, seconds: float
-                 ) -> tuple[list[int], list[bool]]:
-    """Each call's wall time, and whether it is clean: no wait of our threads overlapped it."""
-    clock = time.perf_counter_ns
-    begins, ends, waited = [], [], []
+def _timed_calls(call: Callable[[], object], waits: ThreadWaits, limits: Limits, seconds: float,
+                 cpu_clock: bool = False) -> tuple[list[int], list[bool], list[int], list[int]]:
+    """Each call's wall time, whether it is clean (no wait of our threads overlapped it), with
+    `cpu_clock` its thread CPU time (else []), and the wait of our threads read after it."""
+    clock, thread_clock = time.perf_counter_ns, time.thread_time_ns
+    begins, ends, waited, cpu = [], [], [], []
     end = clock() + int(seconds * 1e9)
     total = waits.total()
     while True:
+        thread_begin = thread_clock() if cpu_clock else 0
         begin = clock()
         call()
         finished = clock()
+        if cpu_clock:
+            cpu.append(thread_clock() - thread_begin)
         now = waits.total()
         begins.append(begin)
         ends.append(finished)
@@ -186,7 +229,7 @@ def _timed_calls(call: Callable[[], object], waits: ThreadWaits, limits: Limits,
         total = now
         if finished >= end:
             times = [e - b for b, e in zip(begins, ends)]
-            return times, clean_calls(np.asarray(begins), np.asarray(ends), np.asarray(waited), limits)
+            return times, clean_calls(np.asarray(begins), np.asarray(ends), np.asarray(waited), limits), cpu, waited
 
 
 def clean_calls(begins: np.ndarray, ends: np.ndarray, waited: np.ndarray, limits: Limits) -> list[bool]:

@@ -3,9 +3,11 @@
 result: the pilotlab.columns names: mse, mse_v, mse_w, mse_v_phys, mse_w_phys, size_mb, size_gz_mb, latency_ms,
 latency_p90_ms, latency_p99_ms, latency_runs, throughput_ips, throughput_batch, peak_mem_mb,
 threads, test_frames, their percentiles and timing_* figures (pilotlab.offline); unstable
-({metric: reason} for a timing that stayed disturbed; absent when none did); latency_samples
-("latency_ms.npy" in the artifacts: the batch-1 calls the latency is made of, float64 ms, in
-measurement order: the clean calls, or every call when unstable); plus strategy, hardware (the
+({metric: reason} for a timing that stayed disturbed; absent when none did); cpu_time ({metric:
+reason} for a single-thread timing that is the calls' thread CPU time, the wall clock being disturbed;
+absent when none is); latency_samples ("latency_ms.npy" in the artifacts: the batch-1 calls the latency
+is made of, float64 ms, in measurement order: the clean calls, or every call's thread CPU time or wall
+time); plus strategy, hardware (the
 profile) and host (the fingerprint).
 """
 from __future__ import annotations

@@ -6,12 +6,13 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from pilotlab import timing
+from pilotlab import offline, timing
 from pilotlab.timing import Block, Limits, Load, Measurement
 
 QUIET = Load(0.2, 1.0, 0.05, 0.0)
@@ -56,6 +57,47 @@ def test_without_per_thread_waits_a_block_is_judged_by_its_cpu_time_and_the_core
     assert timing.block_is_quiet(Load(0.2, 1.0, 1.2, 0.0), needed_cores=1, cores=2)   # one core is free for them
     assert not timing.block_is_quiet(Load(0.2, 0.6, None, None), needed_cores=1, cores=2)  # off the CPU 40 %
     assert timing.block_is_quiet(Load(0.2, 0.6, None, None), 1, 2, Limits(min_cpu_per_wall=0.0))  # waits on a GPU
+
+
+def test_a_disturbed_single_thread_figure_is_its_thread_cpu_time_with_the_reason():
+    # calls of 1 ms of work that waited 2 ms each for a core
+    waited = [Block([3_000_000] * 8, [False] * 8, BUSY, cpu_ns=[1_000_000] * 7 + [1_100_000],
+                    waited_ns=[2_000_000] * 8)]
+    single = Measurement(2, 1, Limits(), min_calls=4, blocks=waited, cpu_clock=True)
+    assert not single.stable and single.clock == "thread_cpu"
+    assert list(single.samples_ns()) == [1_000_000] * 7 + [1_100_000]
+    assert single.cpu_time_reason().startswith(single.reason() + "; so the figure is the CPU time of the thread")
+    assert offline.clock_notes(single, "latency_ms") == {"unstable": {}, "cpu_time": {
+        "latency_ms": single.cpu_time_reason()}}
+    # the work ran on other threads (the calling one only waited): its CPU time says nothing of the call
+    elsewhere = Measurement(2, 1, Limits(), min_calls=4, cpu_clock=True,
+                            blocks=[Block([3_000_000] * 8, [False] * 8, BUSY, cpu_ns=[50_000] * 8,
+                                          waited_ns=[1_000_000] * 8)])
+    assert elsewhere.clock == "wall" and elsewhere.cpu_time_reason() is None
+    assert offline.clock_notes(elsewhere, "latency_ms")["unstable"] == {"latency_ms": elsewhere.reason()}
+    quiet = Measurement(2, 1, Limits(), min_calls=4, cpu_clock=True,
+                        blocks=[Block([3_000_000] * 8, [True] * 8, QUIET, cpu_ns=[1_000_000] * 8)])
+    assert quiet.clock == "wall" and list(quiet.samples_ns()) == [3_000_000] * 8      # the default when quiet
+
+
+def spin(microseconds: int):
+    """A call whose work is on the calling thread: it spins until that thread used `microseconds` of CPU."""
+    started = time.thread_time_ns()
+    while time.thread_time_ns() - started < microseconds * 1000:
+        pass
+
+
+def test_thread_cpu_time_is_taken_per_call_and_stands_only_for_work_on_the_calling_thread():
+    every_call_waited = Limits(max_wait_ns=-1, max_wait_share=-1.0)   # as if another process held the core
+    plan = timing.Plan(min_calls=20, max_calls=200, min_blocks=2, block_seconds=0.01, seconds=0.2, attempts=1)
+    spun = timing.measure(lambda: spin(300), 1, plan, every_call_waited, cpu_clock=True)
+    assert spun.clean_calls == 0 and spun.clock == "thread_cpu"
+    assert all(len(b.cpu_ns) == len(b.times_ns) for b in spun.blocks)
+    assert np.median(spun.samples_ns()) >= 300_000
+    slept = timing.measure(lambda: time.sleep(0.001), 1, plan, every_call_waited, cpu_clock=True)
+    assert slept.clock == "wall" and not slept.stable                  # asleep, the thread used no CPU: unstable
+    wall_only = timing.measure(lambda: spin(300), 1, plan, every_call_waited)
+    assert wall_only.clock == "wall" and not wall_only.blocks[0].cpu_ns
 
 
 def test_cpu_stat_sums_busy_and_steal_of_our_cores(tmp_path):

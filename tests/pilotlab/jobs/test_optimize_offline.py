@@ -48,7 +48,7 @@ def test_optimize_then_offline(tmp_path, trained, frames, test_frames):
                       {"artifact": dep("optimize", ctx.out, result), "test": (dep("frames", test_frames),)})
     metrics = KINDS.get("offline").handler(offline)
     assert {"mse", "mse_v", "mse_w", "latency_ms", "throughput_ips", "size_mb", "peak_mem_mb"} <= set(metrics)
-    assert set(metrics) - {"strategy", "hardware", "host", "latency_samples", "unstable"} <= set(BY_NAME)
+    assert set(metrics) - {"strategy", "hardware", "host", "latency_samples", "unstable", "cpu_time"} <= set(BY_NAME)
     assert metrics["host"] == host_fingerprint() and metrics["threads"] == 1 and json.dumps(metrics)
     samples = np.load(offline.out / metrics["latency_samples"])
     assert samples.dtype == np.float64 and samples.shape == (metrics["latency_runs"],)
