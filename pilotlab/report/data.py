@@ -28,6 +28,8 @@ metrics are then the means, and the report shows `mean ± std` and how many laps
 An offline row whose timing stayed disturbed carries the offline job's `unstable` ({metric: reason},
 `pick_unstable(job_result)`): the report marks those figures, shows their spread, and draws no
 summary line or verdict from them (`timing_issue` says why two rows' timings cannot be compared).
+One whose single-thread timing is the calls' thread CPU time, the wall clock being disturbed, carries
+the job's `cpu_time` ({metric: reason}, `pick_cpu_time(job_result)`): the report labels those figures.
 `baseline` (default "baseline") names the strategy the ratios are taken against.
 """
 from __future__ import annotations
@@ -41,7 +43,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
+from pydantic import (BaseModel, ConfigDict, Field, StrictBool, ValidationError, ValidationInfo, field_validator,
+                      model_validator)
 
 from pilotlab.columns import BY_NAME
 from pilotlab.errors import PilotlabError
@@ -56,6 +59,7 @@ DEFAULT_PACKAGES = ("pilotlab", "torch", "torchao", "onnxruntime", "onnx", "nump
 ROW_FIELDS = ("model", "strategy", "hardware", "circuit", "direction", "test_set", "kind", "status", "reason", "world")
 TIMED = ("latency_ms", "throughput_ips")    # the figures an offline job may mark unstable
 UNSTABLE_COLUMNS = tuple(f"{name}_unstable" for name in TIMED)
+CPU_TIME_COLUMNS = tuple(f"{name}_cpu_time" for name in TIMED)
 
 
 class ReportDataError(PilotlabError):
@@ -139,6 +143,7 @@ class ReportRow(_Frozen):
     trajectory: Path | None = None           # online rows: PNG of the path over the red line
     spread: dict[str, Spread] = Field(default_factory=dict)  # online rows: metric -> its spread over runs
     unstable: dict[str, str] = Field(default_factory=dict)   # offline rows: timed metric -> why it is unstable
+    cpu_time: dict[str, str] = Field(default_factory=dict)   # offline rows: timed metric -> why it is CPU time
     tolerance: tuple[TolerancePoint, ...] = ()              # online rows: the laps of the tolerance search
     tolerance_at_least: bool = False         # the lap was still completed at the search's largest latency
     latency_source: str | None = None        # online rows: where the replayed latencies came from
@@ -174,13 +179,14 @@ class ReportRow(_Frozen):
                                  f"metric names are those of pilotlab/columns.py")
         return dict(spread or {})
 
-    @field_validator("unstable", mode="before")
+    @field_validator("unstable", "cpu_time", mode="before")
     @classmethod
-    def _known_unstable_metrics(cls, unstable: Mapping[str, Any] | None) -> dict[str, Any]:
-        for name in unstable or {}:
+    def _known_timed_metrics(cls, reasons: Mapping[str, Any] | None, info: ValidationInfo) -> dict[str, Any]:
+        for name in reasons or {}:
             if name not in TIMED:
-                raise ValueError(f"unstable: {name!r} is not a timed metric{did_you_mean(name, list(TIMED))}")
-        return {name: " ".join(str(reason).split()) for name, reason in (unstable or {}).items()}
+                raise ValueError(f"{info.field_name}: {name!r} is not a timed metric"
+                                 f"{did_you_mean(name, list(TIMED))}")
+        return {name: " ".join(str(reason).split()) for name, reason in (reasons or {}).items()}
 
     @field_validator("reason")
     @classmethod
@@ -200,6 +206,10 @@ class ReportRow(_Frozen):
     def unstable_reason(self, name: str) -> str | None:
         """Why the timed metric `name` is unstable (its timing stayed disturbed), or None."""
         return self.unstable.get(name) if self.status == "ok" else None
+
+    def cpu_time_reason(self, name: str) -> str | None:
+        """Why the timed metric `name` is the calls' thread CPU time (the wall clock was disturbed), or None."""
+        return self.cpu_time.get(name) if self.status == "ok" else None
 
     def spread_of(self, name: str) -> Spread | None:
         """The metric's spread when more than one run measured it (else None: a single value)."""
@@ -233,7 +243,8 @@ class ReportRow(_Frozen):
             if spread is not None and name != "lap_completed":
                 repeated |= {f"{name}_std": spread.std, f"{name}_min": spread.min, f"{name}_max": spread.max}
         unstable = {f"{name}_unstable": self.unstable_reason(name) for name in TIMED}
-        return {**base, **{name: self.get(name) for name in BY_NAME}, **unstable, **repeated}
+        cpu_time = {f"{name}_cpu_time": self.cpu_time_reason(name) for name in TIMED}
+        return {**base, **{name: self.get(name) for name in BY_NAME}, **unstable, **cpu_time, **repeated}
 
 
 class ReportData(_Frozen):
@@ -300,12 +311,17 @@ def pick_spread(result: Mapping[str, Any]) -> dict[str, Any]:
     return {name: dict(value) for name, value in spread.items() if name in BY_NAME and isinstance(value, Mapping)}
 
 
-def pick_unstable(result: Mapping[str, Any]) -> dict[str, str]:
+def pick_unstable(result: Mapping[str, Any], key: str = "unstable") -> dict[str, str]:
     """The offline job's timed metrics that stayed disturbed, with the reasons ({} when none)."""
-    unstable = result.get("unstable")
+    unstable = result.get(key)
     if not isinstance(unstable, Mapping):
         return {}
     return {name: str(reason) for name, reason in unstable.items() if name in TIMED}
+
+
+def pick_cpu_time(result: Mapping[str, Any]) -> dict[str, str]:
+    """The offline job's timed metrics that are the calls' thread CPU time, with the reasons ({} when none)."""
+    return pick_unstable(result, "cpu_time")
 
 
 def timing_issue(rows: Iterable[ReportRow], metric: str = "latency_ms") -> str | None:

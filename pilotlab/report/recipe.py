@@ -24,7 +24,8 @@ from matrix.fingerprint import code_fingerprint
 from matrix.recipe import Recipe
 from matrix.store import Store, read_json, result_token
 from pilotlab.errors import PilotlabError
-from pilotlab.report.data import Claim, Host, ReportData, package_versions, pick_metrics, pick_spread, pick_unstable
+from pilotlab.report.data import (Claim, Host, ReportData, package_versions, pick_cpu_time, pick_metrics,
+                                  pick_spread, pick_unstable)
 from pilotlab.report.studies import compare
 
 STAMP = ".stamp"
@@ -134,6 +135,8 @@ def row_from_result(result: dict[str, Any], artifacts: Path) -> dict[str, Any]:
         row["spread"] = spread
     if unstable := pick_unstable(value):
         row["unstable"] = unstable
+    if cpu_time := pick_cpu_time(value):
+        row["cpu_time"] = cpu_time
     if value.get("trajectory"):
         row["trajectory"] = str(artifacts / value["trajectory"])
     if value.get("latency_source"):

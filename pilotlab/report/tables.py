@@ -22,6 +22,7 @@ from pilotlab.report.data import ReportData, ReportRow, timing_issue
 
 MISSING = "—"
 UNSTABLE = "⚠"
+CPU_TIME = "CPU"   # after a timing that is the calls' thread CPU time (the wall clock was disturbed)
 PERCENTILES = {"latency_ms": ("latency_p10_ms", "latency_p90_ms"),
                "throughput_ips": ("throughput_p10_ips", "throughput_p90_ips")}
 COUNT_COLUMNS = {"params", "nonzero_params", "throughput_batch", "threads", "test_frames", "off_road_events"}
@@ -119,6 +120,8 @@ def timed_cell(row: ReportRow, name: str) -> Cell:
         title += "; 10th–90th percentile in brackets"
     if reason := row.unstable_reason(name):
         text, title = f"{text} {UNSTABLE}", f"{title}; UNSTABLE: {reason}"
+    elif reason := row.cpu_time_reason(name):
+        text, title = f"{text} {CPU_TIME}", f"{title}; CPU time: {reason}"
     return Cell(text, cell.sort, title)
 
 
@@ -262,6 +265,8 @@ def _timing_notes(data: ReportData, rows: list[ReportRow], baselines: dict[str, 
         for name, label in (("latency_ms", "inference time"), ("throughput_ips", "throughput")):
             if reason := row.unstable_reason(name):
                 notes.append(f"{UNSTABLE} {method_label(row, data)}: {label} unstable: {reason}.")
+            elif reason := row.cpu_time_reason(name):
+                notes.append(f"{CPU_TIME} {method_label(row, data)}: {label} in CPU time: {reason}.")
         base = baselines.get(row.model)
         if base is not None and base is not row and not row.unstable_reason("latency_ms") \
                 and not base.unstable_reason("latency_ms") and (issue := timing_issue([base, row])):

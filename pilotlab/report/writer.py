@@ -21,7 +21,7 @@ from typing import Any
 import pilotlab
 from pilotlab.columns import BY_NAME
 import pilotlab.report.render as render
-from pilotlab.report.data import ROW_FIELDS, UNSTABLE_COLUMNS, ReportData, ReportRow
+from pilotlab.report.data import CPU_TIME_COLUMNS, ROW_FIELDS, UNSTABLE_COLUMNS, ReportData, ReportRow
 from pilotlab.report.plots import CAPTIONS, save_plots
 from pilotlab.report.summary import summarise
 from pilotlab.report.tables import all_results_cells, build_tables, method_label
@@ -110,13 +110,14 @@ def copy_trajectories(data: ReportData, folder: Path) -> tuple[dict[int, Picture
 
 def result_fields(data: ReportData) -> list[str]:
     """The columns of results.csv (and keys of results.json's rows), in order."""
-    return [*ROW_FIELDS, *BY_NAME, *UNSTABLE_COLUMNS, *data.spread_columns(),
+    return [*ROW_FIELDS, *BY_NAME, *UNSTABLE_COLUMNS, *CPU_TIME_COLUMNS, *data.spread_columns(),
             *(f"job_{role}" for role in job_roles(data)), "trajectory"]
 
 
 def results_rows(data: ReportData, pictures: dict[int, Picture]) -> list[dict[str, Any]]:
     """The tidy rows: identity, status and reason, every metric of pilotlab/columns.py, why a timed
-    metric is unstable (`latency_ms_unstable`, empty when stable), the spread over repeated runs,
+    metric is unstable (`latency_ms_unstable`, empty when stable), why it is thread CPU time
+    (`latency_ms_cpu_time`, empty when wall-clock time), the spread over repeated runs,
     job keys, picture; every row has every column (None where there is nothing)."""
     roles, fields = job_roles(data), result_fields(data)
     rows = []

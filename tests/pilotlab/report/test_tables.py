@@ -1,3 +1,5 @@
+from pathlib import Path
+
 from pilotlab.report import ReportData
 from pilotlab.report.render import code_block, markdown_escape
 from pilotlab.report.tables import build_tables, format_value, plus_minus, significant
@@ -119,6 +121,20 @@ def test_an_unstable_timing_and_the_speed_ups_drawn_from_it_are_marked_with_the_
     assert base.cells[3].text == "2.30 (2.20–2.60) ⚠" and DISTURBED in base.cells[3].title
     assert quant.cells[-2].text == "5.75× ⚠" and "baseline (cpu1): unstable" in quant.cells[-2].title
     assert table.notes == (f"⚠ baseline: inference time unstable: {DISTURBED}.",)
+
+
+def test_a_timing_in_thread_cpu_time_is_labelled_with_the_reason_and_its_speed_ups_stand():
+    busy = f"{DISTURBED}; so the figure is the CPU time of the thread that ran each call"
+    rows = timed_rows(cpu_time={"latency_ms": busy})
+    [table] = build_tables(ReportData.from_dict(small_dict(rows)), "offline")
+    base, quant = table.rows
+    assert base.cells[3].text == "2.30 (2.20–2.60) CPU" and f"CPU time: {busy}" in base.cells[3].title
+    assert quant.cells[-2].text == "5.75×"
+    assert table.notes == (f"CPU baseline: inference time in CPU time: {busy}.",)
+    from pilotlab.report.recipe import row_from_result
+    stored = row_from_result({"status": "ok", "value": {"latency_ms": 2.3, "cpu_time": {"latency_ms": busy,
+                                                                                       "bogus": "x"}}}, Path("."))
+    assert stored["cpu_time"] == {"latency_ms": busy}
 
 
 def test_an_old_result_with_a_reference_kernel_time_still_reports():

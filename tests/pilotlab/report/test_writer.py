@@ -203,6 +203,7 @@ def test_an_unstable_timing_is_marked_in_the_results_files_and_both_pages(tmp_pa
     paths = write_report(ReportData.from_dict(small_dict(rows)), tmp_path)
     csv_rows = read_csv(paths.csv)
     assert [r["latency_ms_unstable"] for r in csv_rows] == [reason, ""] and csv_rows[0]["throughput_ips_unstable"] == ""
+    assert {r["latency_ms_cpu_time"] for r in csv_rows} == {""}
     assert json.loads(paths.json.read_text())["rows"][0]["latency_ms_unstable"] == reason
     readme = paths.readme.read_text()
     assert "| baseline | — | — | — | 2.30 (2.20–9.50) ⚠ |" in readme
