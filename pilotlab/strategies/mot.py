@@ -6,6 +6,9 @@
 | `prune_litert` | "Weight pruning" | `sparsity` of every conv/dense layer's weights exactly zero (fp32) |
 | `prune_litert_int8` | "Weight pruning + Q" | the same zeros, through int8 (symmetric weights map 0 to 0) |
 | `qat_litert_int8` | "Q aware training" | weights on the converter's own int8 grid, so conversion does not move them |
+| `pqat_litert_int8` | "PQAT" | pruning, then QAT with the mask held: the zeros stay zero through QAT and int8 |
+| `cqat_litert_int8` | "CQAT" | `clusters` shared values per layer, then QAT on the centroids: ≤ `clusters` int8 values per channel |
+| `pcqat_litert_int8` | "PCQAT" | pruning, sparsity-preserving clustering (zero is one of the `clusters`), then QAT: both |
 
 Magnitude pruning is TF-MOT's `prune_low_magnitude` at a constant sparsity: in each conv and
 linear layer the smallest weights are masked, the network is fine-tuned with the mask held (masked
@@ -19,6 +22,11 @@ activations per tensor after each ReLU, observed on calibration frames first), t
 weights onto the int8 grid and converts as `litert_int8` does (representative dataset, int8 with
 float input/output).
 
+Clustering (TF-MOT's `cluster_weights`, linear centroid initialisation) gives each layer `clusters`
+trainable shared values (k-means on its weights); fine-tuning trains the centroids, so the weights
+stay on them, and QAT then fake-quantizes the clustered weights. Per-channel int8 maps a layer's
+centroids to at most `clusters` int8 values in each output channel (each channel has its own scale).
+
 Every strategy starts from the trained network with its input batch-norm folded into the first
 conv (as the export does), so the weights pruned are the weights that reach the artifact.
 """
@@ -27,6 +35,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from pilotlab.errors import PilotlabError
 from pilotlab.strategies.common import finetune
 from pilotlab.strategies.edge import LITERT_CONVERTER, require
 from pilotlab.strategies.prune import check_fraction
@@ -57,6 +66,37 @@ class QatLiteRTConfig:
 @dataclass(frozen=True)
 class PruneLiteRTInt8Config(PruneLiteRTConfig):
     calibration_frames: int = 512    # the representative dataset of the int8 conversion
+
+
+@dataclass(frozen=True)
+class PqatConfig(PruneLiteRTInt8Config):
+    qat_epochs: int = 2              # QAT after the pruning fine-tune, with the mask held
+
+
+@dataclass(frozen=True)
+class CqatConfig(QatLiteRTConfig):
+    clusters: int = 16               # shared values per layer (TF-MOT's example uses 16)
+    iterations: int = 30             # k-means (Lloyd) iterations
+    finetune_epochs: int = 2         # fine-tuning the centroids, before QAT
+
+    def __post_init__(self) -> None:
+        check_clusters(self.clusters)
+
+
+@dataclass(frozen=True)
+class PcqatConfig(PqatConfig):
+    clusters: int = 16               # shared values per layer, zero one of them
+    iterations: int = 30
+    cluster_epochs: int = 2          # fine-tuning the centroids, between pruning and QAT
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_clusters(self.clusters)
+
+
+def check_clusters(clusters: int) -> None:
+    if not 2 <= clusters <= 256:
+        raise PilotlabError(f"clusters: {clusters} must be between 2 and 256 (int8 has 256 values)")
 
 
 def pruned(config: PruneLiteRTConfig, source: StrategySource):
@@ -119,3 +159,30 @@ def qat_litert_int8(config: QatLiteRTConfig, source: StrategySource) -> dict:
     require(source, LITERT_CONVERTER)
     from pilotlab.strategies.mot_torch import fold
     return quantization_aware(fold(source.load_model()), source, config, [])
+
+
+@register_strategy("pqat_litert_int8", PqatConfig)
+def pqat_litert_int8(config: PqatConfig, source: StrategySource) -> dict:
+    require(source, LITERT_CONVERTER)
+    model, history = pruned(config, source)
+    return quantization_aware(model, source, config, history)
+
+
+@register_strategy("cqat_litert_int8", CqatConfig)
+def cqat_litert_int8(config: CqatConfig, source: StrategySource) -> dict:
+    require(source, LITERT_CONVERTER)
+    from pilotlab.strategies.mot_torch import add_clusters, fold
+    model = fold(source.load_model())
+    add_clusters(model, config.clusters, config.iterations)
+    history = tune(model, source, config, config.finetune_epochs)
+    return quantization_aware(model, source, config, history)
+
+
+@register_strategy("pcqat_litert_int8", PcqatConfig)
+def pcqat_litert_int8(config: PcqatConfig, source: StrategySource) -> dict:
+    require(source, LITERT_CONVERTER)
+    from pilotlab.strategies.mot_torch import add_clusters, bake
+    model, history = pruned(config, source)
+    add_clusters(bake(model), config.clusters, config.iterations, keep_zeros=True)
+    history += tune(model, source, config, config.cluster_epochs)
+    return quantization_aware(model, source, config, history)

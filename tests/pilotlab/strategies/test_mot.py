@@ -13,7 +13,8 @@ from pilotlab.predictor import load_predictor
 from pilotlab.strategies import StrategySource, apply_strategy
 from tests.pilotlab.strategies.test_strategies import runnable
 
-NEW = ["prune_litert", "prune_litert_int8", "qat_litert_int8"]
+NEW = ["prune_litert", "prune_litert_int8", "qat_litert_int8", "pqat_litert_int8", "cqat_litert_int8",
+       "pcqat_litert_int8"]
 LAYERS = 10                  # PilotNet: 5 convs, 5 dense layers
 
 
@@ -110,6 +111,90 @@ def test_qat_litert_int8_is_int8_with_its_weights_on_the_grid(artifacts):
     assert len(weights) == LAYERS and all(w.dtype == np.int8 and abs(w).max() == 127 for w, _ in weights)
     assert result["size_mb"] == pytest.approx(artifacts["litert_int8"][1]["size_mb"], rel=0.03)
     assert result["sparsity"] < 0.05          # only the weights that round to zero
+
+
+def tiny() -> nn.Module:
+    torch.manual_seed(0)
+    return nn.Sequential(nn.Conv2d(3, 8, 3), nn.ReLU(), nn.Flatten(), nn.Linear(8 * 6 * 6, 2))
+
+
+def train(model: nn.Module, steps: int = 5) -> None:
+    images = torch.rand(16, 3, 8, 8)
+    optimizer = torch.optim.Adam(model.parameters(), lr=1e-2)
+    for _ in range(steps):
+        optimizer.zero_grad()
+        model.train()(images).square().mean().backward()
+        optimizer.step()
+
+
+def test_pruned_weights_stay_zero_through_quantization_aware_training():
+    from pilotlab.strategies.mot_torch import add_fake_quant, add_masks, bake, magnitude_masks, remove_hooks
+    model = tiny()
+    masks = magnitude_masks(model, 0.5)
+    add_masks(model, masks)
+    train(model)
+    quant = add_fake_quant(model)                  # on top of the mask: PQAT
+    train(model)
+    remove_hooks(quant)
+    bake(model)
+    for layer, mask in zip((model[0], model[3]), masks.values()):
+        assert bool((layer.weight[mask == 0] == 0).all())        # every pruned weight, and few others
+        assert 0.5 <= float((layer.weight == 0).float().mean()) < 0.55
+        assert on_int8_grid(layer.weight)
+
+
+@pytest.mark.parametrize("keep_zeros", [False, True])
+def test_clustered_weights_stay_on_their_centroids_through_training(keep_zeros):
+    from pilotlab.strategies.mot_torch import add_clusters, add_fake_quant, bake, remove_hooks
+    model = tiny()
+    zeros_before = None
+    if keep_zeros:
+        with torch.no_grad():
+            for layer in (model[0], model[3]):
+                layer.weight[layer.weight.abs() < layer.weight.abs().median()] = 0
+        zeros_before = [layer.weight == 0 for layer in (model[0], model[3])]
+    add_clusters(model, 8, 20, keep_zeros=keep_zeros)
+    train(model)
+    assert all(len(layer.weight.unique()) <= 8 for layer in (model[0], model[3]))
+    quant = add_fake_quant(model)                  # on top of the clusters: CQAT / PCQAT
+    train(model)
+    remove_hooks(quant)
+    bake(model)
+    for i, layer in enumerate((model[0], model[3])):
+        assert max(len(channel.unique()) for channel in layer.weight.flatten(1)) <= 8
+        if zeros_before:
+            assert torch.equal(layer.weight == 0, zeros_before[i])
+
+
+@pytest.mark.parametrize("name, sparsity, clusters", [("pqat_litert_int8", 0.5, None),
+                                                      ("cqat_litert_int8", None, 16),
+                                                      ("pcqat_litert_int8", 0.5, 16)])
+def test_collaborative_optimizations_keep_zeros_and_clusters_in_the_tflite(name, sparsity, clusters, artifacts):
+    """Read back from the .tflite: PQAT keeps the pruned zeros, CQAT at most `clusters` int8 values in
+    each output channel, PCQAT both (zero being one of the clusters)."""
+    runnable(artifacts, name)
+    folder, result = artifacts[name]
+    weights = tflite_weights(folder / "model.tflite")
+    assert len(weights) == LAYERS and all(w.dtype == np.int8 for w, _ in weights)
+    if sparsity:
+        assert all(sparsity - 0.01 < z < sparsity + 0.06 for z in zeros(weights)), zeros(weights)
+    else:
+        assert max(zeros(weights)) < 0.2, zeros(weights)
+    if clusters:
+        assert max(distinct_per_channel(weights)) <= clusters, distinct_per_channel(weights)
+        assert max(result["channel_distinct_weights"].values()) <= clusters
+    else:
+        assert max(distinct_per_channel(weights)) > 2 * 16      # nothing shares values
+    assert result["size_gz_mb"] < 0.85 * artifacts["litert_int8"][1]["size_gz_mb"]
+
+
+def test_clustering_and_pruning_compress_best_together(artifacts):
+    for name in ("pqat_litert_int8", "cqat_litert_int8", "pcqat_litert_int8"):
+        runnable(artifacts, name)
+    size = {name: artifacts[name][1]["size_gz_mb"] for name in ("litert_int8", "pqat_litert_int8",
+                                                               "cqat_litert_int8", "pcqat_litert_int8")}
+    assert size["pcqat_litert_int8"] < min(size["pqat_litert_int8"], size["cqat_litert_int8"]), size
+    assert max(size.values()) == size["litert_int8"], size
 
 
 @pytest.mark.parametrize("name", NEW)

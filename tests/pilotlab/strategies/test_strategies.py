@@ -18,7 +18,8 @@ from pilotlab.strategies import STRATEGIES
 
 CUDA_ONLY = {"tensorrt"}
 INT8 = {"static_quant", "qat", "prune_quant", "onnxruntime_int8", "litert_dynamic_range",
-        "litert_int8", "litert_full_int8", "prune_litert_int8", "qat_litert_int8"}
+        "litert_int8", "litert_full_int8", "prune_litert_int8", "qat_litert_int8",
+        "pqat_litert_int8", "cqat_litert_int8", "pcqat_litert_int8"}
 EDGE = {name: STRATEGIES.get(name).module for name in STRATEGIES
         if STRATEGIES.get(name).module.rsplit(".", 1)[-1] in ("litert", "structured_prune_xnnpack", "mot")}
 ROOT = Path(__file__).resolve().parents[3]
