@@ -10,7 +10,7 @@ from matrix.errors import MatrixError
 
 
 def check_definitions(planner) -> None:
-    """Each definition of `planner`'s recipe (a pilotlab.domain.Planner), as it would be checked in use."""
+    """Each definition of `planner`'s recipe (a pilotlab.planning.Planner), as it would be checked in use."""
     config = planner.config
     for name in config.strategies:
         planner.strategy(name)

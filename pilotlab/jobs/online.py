@@ -36,7 +36,7 @@ from pilotlab.online import brains, evaluate
 from pilotlab.online.latency import TimingSource, describe
 from pilotlab.online.perfect_lap import perfect_lap
 from pilotlab.specs.online import OnlineSpec
-from pilotlab.worlds.planning import world_assets
+from pilotlab.worlds.assets import world_assets
 
 
 def make_brain(ctx: JobContext, spec: OnlineSpec, profile) -> tuple[brains.Brain, str]:

@@ -12,7 +12,7 @@ from pilotlab.data import topics
 from pilotlab.errors import PilotlabError
 from pilotlab.sim import record
 from pilotlab.specs.record import RecordSpec
-from pilotlab.worlds.planning import world_assets
+from pilotlab.worlds.assets import world_assets
 
 
 def run_record(ctx: JobContext) -> dict:

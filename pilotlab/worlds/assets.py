@@ -53,3 +53,12 @@ def content_digest(paths) -> str:
         digest.update(path.name.encode() + b"\0")
         digest.update(hashlib.sha256(path.read_bytes()).digest())
     return digest.hexdigest()
+
+
+def world_assets(inputs) -> tuple[Path | None, str | None]:
+    """(assets folder, world name) of a job from its `world` input (None, None: pilotlab's own world)."""
+    path = inputs.get("world")
+    if path is None:
+        return None, None
+    path = Path(path)
+    return path.parent.parent, path.stem

@@ -1,4 +1,4 @@
-"""How a recipe names BehaviorMetrics' worlds, for the planner (pilotlab.domain): the `world` axis,
+"""How a recipe names BehaviorMetrics' worlds, for the planner (pilotlab.planning): the `world` axis,
 `datasets.NAME.record.worlds`, and the `worlds: {assets: DIR}` section.
 
 A job in a world gets params `world` (the name) and `circuit` (the world's own circuit) and an input
@@ -40,12 +40,3 @@ def world_param(planner, name: str, where: list) -> tuple[dict, dict]:
             raise planner.recipe.error(str(error), where) from None
         cache[name] = ({"world": name, "circuit": circuit}, {"world": InputFile(str(path), digest)})
     return cache[name]
-
-
-def world_assets(inputs) -> tuple[Path | None, str | None]:
-    """(assets folder, world name) of a job from its `world` input (None, None: pilotlab's own world)."""
-    path = inputs.get("world")
-    if path is None:
-        return None, None
-    path = Path(path)
-    return path.parent.parent, path.stem

@@ -1,0 +1,97 @@
+"""The closed-loop laps of a plan: each combination's laps (on its circuit, or in its BM world) in every
+direction, replaying the latencies of its offline job (or a device's latency file), and the reference
+brains' laps on every CPU profile and place the matrix drives."""
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from matrix.errors import MatrixError
+from matrix.jobs import InputFile, Job, input_file
+from pilotlab.planning.worlds import world_param
+from pilotlab.specs.online import LapSettings, OnlineSpec
+
+
+def online_jobs(planner, optimize: Job, combination: dict, hardware: str, timing: Job) -> list[Job]:
+    model, strategy, place = combination["model"], combination["strategy"], lap_place(combination)
+    labels = {"model": model, "strategy": strategy, "hardware": hardware}
+    brain, deps, inputs = replay_inputs(planner, combination, hardware, timing)
+    return [_lap(planner, f"online {model}/{strategy} on {hardware}", labels, hardware, place, direction,
+                 brain, {"artifact": optimize, **deps}, inputs)
+            for direction in planner.config.online.directions]
+
+
+def lap_place(combination: dict) -> tuple[str, str]:
+    """("circuit", name) or ("world", name): where a combination's laps are driven."""
+    return ("world", str(combination["world"])) if "world" in combination else ("circuit", str(combination["circuit"]))
+
+
+def replay_inputs(planner, combination: dict, hardware: str, timing: Job) -> tuple[dict, dict, dict]:
+    """(params, deps, inputs) of a network lap for the latencies it replays: the offline job's samples
+    (and the baseline's, to scale them to latency_scale_to_ms), or the hardware profile's latency file."""
+    online, model = planner.config.online, str(combination["model"])
+    params: dict[str, Any] = {"brain": "network"}
+    if online.timing != "replay":
+        return params, {}, {}
+    latency_file = planner.latency_file(hardware)
+    if latency_file is not None:
+        params["latency_for"] = {"model": model, "strategy": str(combination["strategy"])}
+        return params, {}, {"latency_file": input_file(str(latency_file))}
+    deps: dict[str, Job] = {"timing": timing}
+    if online.latency_scale_to_ms is not None:
+        base = {**combination, "strategy": "baseline"}
+        deps["scale_reference"] = planner.offline(planner.optimize(model, "baseline", hardware), base, hardware)
+    return params, deps, {}
+
+
+def reference_jobs(planner) -> list[Job]:
+    """The reference brains (explicit, expert, the user's) on every CPU profile and circuit the matrix
+    drives (they use no GPU, so a CUDA profile adds nothing)."""
+    cells = {(str(c.get("hardware", "cpu")), lap_place(c)) for c in planner.recipe.combinations
+             if ("circuit" in c or "world" in c) and planner.profile(str(c.get("hardware", "cpu"))).device == "cpu"}
+    jobs = []
+    for index, reference in enumerate(planner.config.online.references):
+        name, brain, inputs = reference_brain(planner, reference, index)
+        jobs += [_lap(planner, f"online {name} on {hardware}", {"model": "reference", "strategy": name,
+                                                                "hardware": hardware},
+                      hardware, place, direction, brain, {}, inputs)
+                 for hardware, place in sorted(cells) for direction in planner.config.online.directions]
+    return jobs
+
+
+def reference_brain(planner, reference: str | dict[str, str], index: int) -> tuple[str, dict, dict]:
+    """(row name, the online job's brain params, its input files) of a reference: a built-in brain's
+    name, or {name: file.py:Class} for a brain the user wrote (its source hash goes into the key;
+    planning reads the files, never runs them)."""
+    if isinstance(reference, str):
+        return reference, {"brain": reference}, {}
+    from pilotlab import usercode
+    (name, spec), = reference.items()
+    try:
+        source = usercode.source_files(spec, planner.folder)[0]
+        digest = usercode.source_hash(spec, planner.folder)
+    except MatrixError as error:
+        raise planner.recipe.error(str(error), ["online", "references", index, name]) from None
+    brain = {"brain": "user", "user_brain": {"name": name, "spec": spec, "base": str(planner.folder)}}
+    return name, brain, {"brain_source": InputFile(str(source), digest)}
+
+
+def _lap(planner, name: str, labels: dict, hardware: str, place: tuple[str, str], direction: str,
+         brain: dict, deps: dict, inputs: dict | None = None) -> Job:
+    from pilotlab.hardware import host_fingerprint
+    axis, circuit = place
+    if axis == "world":
+        params, circuit_inputs = world_param(planner, circuit, ["matrix", "world"])
+        labels = {**labels, "world": circuit}
+    else:
+        params, circuit_inputs = planner.circuit_param(circuit, ["matrix", "circuit"])
+
+    def lap_params() -> dict:
+        online = planner.config.online
+        settings = {field: getattr(online, field) for field in LapSettings.model_fields}
+        return OnlineSpec(**settings, **params, **brain, direction=direction, host=host_fingerprint(),
+                          hardware=planner.profile(hardware).as_dict()).model_dump(mode="json")
+    # The params of every lap of one (hardware, circuit, direction, brain) are equal: built once.
+    slot = ("online", hardware, axis, circuit, direction, json.dumps(brain, sort_keys=True))
+    return Job("online", f"{name} at {circuit} {direction}", planner.params_once(slot, lap_params), deps=deps,
+               inputs={**circuit_inputs, **(inputs or {})}, labels={**labels, "circuit": circuit, "direction": direction})

@@ -1,0 +1,276 @@
+"""The planner: a validated recipe -> jobs, shared wherever their inputs are equal.
+
+    record (per recording) -> frames (per recording) -> train (per model)
+        -> optimize (per model × strategy) -> offline (per model × strategy × hardware)
+                                           -> online  (per model × strategy × hardware × circuit × direction)
+    plus reference laps (explicit brain, expert, the user's brains) per hardware × circuit × direction.
+
+A combination may name a BehaviorMetrics `world` instead of a circuit (pilotlab.planning.worlds): its laps
+are driven there, and a recorded offline test set is recorded there too. The laps are planned in
+pilotlab.planning.laps. Relative paths in a recipe (bags, dataset folders, circuit CSVs) are relative to
+the recipe's folder.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from matrix.errors import MatrixError, did_you_mean
+from matrix.jobs import InputFile, Job, input_file
+from matrix.recipe import Recipe
+from pilotlab.planning.laps import online_jobs, reference_jobs
+from pilotlab.planning.worlds import world_param
+from pilotlab.recipe import DatasetSpec, ModelSpec, RecordingsSpec
+from pilotlab.specs.base import Spec
+from pilotlab.specs.frames import FramesSpec, PreprocessConfig
+from pilotlab.specs.offline import OfflineSpec
+from pilotlab.specs.optimize import OptimizeSpec
+from pilotlab.specs.record import RecordSettings, RecordSpec
+
+
+def job(kind: str, name: str, spec: Spec, **links) -> Job:
+    """A job whose params are `spec`, every default written out (so the key says what ran)."""
+    return Job(kind, name, spec.model_dump(mode="json"), **links)
+
+
+# --- axes: which names a combination may carry -------------------------------------------------
+
+
+class Planner:
+    def __init__(self, recipe: Recipe):
+        self.recipe, self.config = recipe, recipe.config
+        self.folder = Path(recipe.file).resolve().parent
+        self.datasets: dict[tuple[str, PreprocessConfig, str | None], list[Job]] = {}
+        self.trained: dict[str, Job] = {}
+        self.optimized: dict[tuple, Job] = {}
+        self.shared_params: dict[tuple, dict] = {}
+        self.worlds_read: dict[str, tuple[dict, dict]] = {}     # pilotlab.planning.worlds.world_param
+
+    def jobs(self) -> list[Job]:
+        from pilotlab.definitions import check_definitions
+        check_definitions(self)
+        jobs: list[Job] = []
+        for combination in self.recipe.combinations:
+            jobs += self.combination_jobs(combination)
+        jobs += self.reference_jobs()
+        return jobs
+
+    def combination_jobs(self, combination: dict[str, Any]) -> list[Job]:
+        missing = [axis for axis in ("model", "strategy") if axis not in combination]
+        if missing:
+            raise self.recipe.error(f"the combination {combination} has no {' and no '.join(missing)}; "
+                                    "every combination needs a model and a strategy", ["matrix"])
+        if "circuit" in combination and "world" in combination:
+            raise self.recipe.error(f"the combination {combination} names a circuit and a world; a lap is driven on a "
+                                    "circuit of pilotlab's own world or in a BehaviorMetrics world (which has its own "
+                                    "circuit): use one axis per combination", ["matrix"])
+        if "world" in combination:    # read (and checked) here, so an unknown world is the matrix's error
+            world_param(self, str(combination["world"]), ["matrix", "world"])
+        hardware = str(combination.get("hardware", "cpu"))
+        optimize = self.optimize(str(combination["model"]), str(combination["strategy"]), hardware)
+        jobs = [self.offline(optimize, combination, hardware)]
+        if "circuit" in combination or "world" in combination:
+            jobs += online_jobs(self, optimize, combination, hardware, timing=jobs[0])
+        return jobs
+
+    # datasets -----------------------------------------------------------------------------------
+    def dataset(self, name: str, used_by: list, preprocess: PreprocessConfig | None = None,
+                world: str | None = None) -> list[Job]:
+        """The frames jobs of a dataset, preprocessed as `preprocess` says (default: pilotlab's); with
+        `world`, a recorded dataset is recorded in that BM world instead (the same settings and seeds)."""
+        if name not in self.config.datasets:
+            raise self.recipe.error(f"dataset {name!r} is not defined; datasets: "
+                                    f"{', '.join(self.config.datasets) or '(none)'}", used_by)
+        settings = preprocess or PreprocessConfig()
+        spec = self.config.datasets[name]
+        if world is not None and spec.record is not None:
+            spec = spec.model_copy(update={"record": spec.record.model_copy(update={"circuits": [], "worlds": [world]})})
+        else:
+            world = None
+        if (name, settings, world) not in self.datasets:
+            self.datasets[name, settings, world] = self._dataset_jobs(name, spec, settings)
+        return self.datasets[name, settings, world]
+
+    def _dataset_jobs(self, name: str, spec: DatasetSpec, settings: PreprocessConfig) -> list[Job]:
+        topics = {"image_topic": spec.topics.image, "command_topic": spec.topics.command,
+                  **settings.model_dump(exclude={"version"})}
+        shown = "" if settings == PreprocessConfig() else \
+            f" ({settings.width}x{settings.height} {settings.interpolation}, rows {settings.crop_top}-{settings.crop_bottom})"
+        jobs = []
+        if spec.record is not None:
+            for label, record in self._recordings(name, spec):
+                jobs.append(job("frames", f"frames {label}{shown}", FramesSpec(**topics, label=label),
+                                deps={"bag": record}))
+        for i, path in enumerate(spec.bags + spec.folders):
+            source = self.path(path, ["datasets", name, "bags" if i < len(spec.bags) else "folders"], "recording")
+            label = f"{name}/{Path(path).name}"
+            jobs.append(job("frames", f"frames {label}{shown}", FramesSpec(**topics, label=label),
+                            inputs={"bag": input_file(str(source))}))
+        return jobs
+
+    def _recordings(self, name: str, spec: DatasetSpec) -> list[tuple[str, Job]]:
+        """(label, record job) for every circuit and direction of the dataset."""
+        record: RecordingsSpec = spec.record
+        settings = {field: getattr(record, field) for field in RecordSettings.model_fields}
+        jobs = []
+        places = [(circuit, self.circuit_param(circuit, ["datasets", name, "record", "circuits"]))
+                  for circuit in record.circuits]
+        places += [(world, world_param(self, world, ["datasets", name, "record", "worlds", i]))
+                   for i, world in enumerate(record.worlds)]
+        for place, (params, inputs) in places:
+            for direction in record.directions:
+                label = f"{name}/{place} {direction}"
+                jobs.append((label, job("record", f"record {label}", RecordSpec(
+                    **settings, **params, direction=direction), inputs=inputs)))
+        return jobs
+
+    def circuit_param(self, circuit: str, where: list) -> tuple[dict, dict]:
+        """(params, inputs) naming a circuit: a recipe-defined CSV is an input file (content hashed)."""
+        if circuit in self.config.circuits:
+            csv = self.path(self.config.circuits[circuit].csv, ["circuits", circuit, "csv"], "file")
+            return {"circuit": str(csv)}, {"circuit_csv": input_file(str(csv))}
+        from pilotlab.circuits import csv_path_of
+        try:
+            csv = csv_path_of(circuit)
+        except MatrixError as error:
+            raise self.recipe.error(str(error), where) from None
+        return {"circuit": circuit}, ({"circuit_csv": input_file(str(csv))} if csv else {})
+
+    def path(self, value: str, where: list, expect: str = "any") -> Path:
+        """The path a recipe value names (relative to the recipe's folder); it must exist, and be what
+        `expect` says ("file", "recording": see pilotlab.definitions.path_problem), checked before hashing."""
+        from matrix.fingerprint import shown_path
+        from pilotlab.definitions import path_problem
+        try:
+            path = Path(value).expanduser()
+            path = path if path.is_absolute() else self.folder / path
+            exists = path.exists()
+        except (OSError, ValueError, RuntimeError) as error:   # too long, a NUL byte, an unknown ~user
+            raise self.recipe.error(f"{shown_path(Path(value))} cannot be a path: "
+                                    f"{getattr(error, 'strerror', None) or error}", where) from None
+        if not exists:
+            raise self.recipe.error(f"{shown_path(Path(value))} does not exist (looked for {shown_path(path)}; relative "
+                                    "paths are relative to the recipe's folder)", where)
+        if problem := path_problem(path, expect):
+            raise self.recipe.error(f"{shown_path(Path(value))} {problem}", where)
+        return path
+
+    # models and strategies ------------------------------------------------------------------------
+    def train(self, model: str) -> Job:
+        from pilotlab.definitions import check_arch
+        if model not in self.trained:
+            spec: ModelSpec = self.config.models[model]
+            frames = self.dataset(spec.data, ["models", model, "data"], spec.preprocess)
+            check_arch(self.recipe, model, spec)
+            params = spec.model_dump(mode="json", exclude={"data"})
+            self.trained[model] = Job("train", f"train {model}", params, deps={"frames": tuple(frames)},
+                                      inputs=model_inputs(self, model, spec))
+        return self.trained[model]
+
+    def optimize(self, model: str, strategy: str, hardware: str) -> Job:
+        from pilotlab.strategies import STRATEGIES
+        base, options = self.strategy(strategy)
+        spec = OptimizeSpec(strategy=base, options=options)
+        if STRATEGIES.get(base).hardware_dependent:
+            from pilotlab.hardware import host_fingerprint
+            device = self.profile(hardware).device
+            spec = OptimizeSpec(strategy=base, options=options, host=host_fingerprint(),
+                                hardware={"name": device, "device": device, "threads": None})
+        device = spec.hardware["device"] if spec.hardware else None
+        if (model, strategy, device) not in self.optimized:
+            train = self.train(model)
+            suffix = f" for {device}" if device else ""
+            self.optimized[model, strategy, device] = job(
+                "optimize", f"optimize {model}/{strategy}{suffix}", spec,
+                deps={"model": train, "calibration": train.deps["frames"]})
+        return self.optimized[model, strategy, device]
+
+    def strategy(self, name: str) -> tuple[str, dict[str, Any]]:
+        """(registered strategy, options) for a strategy name of the recipe (aliases via `use:`)."""
+        from pilotlab.strategies import STRATEGIES, make_strategy_config
+        options = dict(self.config.strategies.get(name, {}))
+        base = options.pop("use", name)
+        where = ["strategies", name]
+        if not isinstance(base, str):
+            kind = {list: "a list", dict: "a mapping", type(None): "nothing"}.get(type(base), type(base).__name__)
+            raise self.recipe.error(f"`use` names one strategy (got {kind}); e.g. use: local_prune", where + ["use"])
+        if base not in STRATEGIES:
+            raise self.recipe.error(f"unknown strategy {base!r}{did_you_mean(base, STRATEGIES.names())}; "
+                                    f"known: {', '.join(sorted(STRATEGIES.names()))}", where + ["use"])
+        if base != name and name in STRATEGIES:
+            raise self.recipe.error(f"{name!r} is a built-in strategy; give the variant of {base} a new name",
+                                    where + ["use"])
+        try:
+            make_strategy_config(base, options)
+        except MatrixError as error:   # said of `base`: say it of this recipe's name
+            message = str(error).removeprefix(f"strategies.{base}").lstrip(".: ")
+            raise self.recipe.error(message + (f" (an option of {base})" if base != name else ""), where) from None
+        return base, options
+
+    def profile(self, name: str):
+        from pilotlab.hardware import make_profile
+        options = self.config.hardware.get(name)
+        return make_profile(name, options.model_dump(exclude_none=True, exclude={"latency_file"}) if options else None)
+
+    def latency_file(self, hardware: str) -> Path | None:
+        """The device's latency file a hardware profile names (replayed in its laps), if any."""
+        options = self.config.hardware.get(hardware)
+        if options is None or options.latency_file is None:
+            return None
+        return self.path(options.latency_file, ["hardware", hardware, "latency_file"], "file")
+
+    # evaluations ----------------------------------------------------------------------------------
+    def offline(self, optimize: Job, combination: dict, hardware: str) -> Job:
+        from pilotlab.hardware import host_fingerprint
+        model, strategy, world = combination["model"], combination["strategy"], combination.get("world")
+        test = self.dataset(self.config.offline.data, ["offline", "data"], self.config.models[model].preprocess,
+                            world=None if world is None else str(world))
+        params = self.params_once(("offline", hardware), lambda: OfflineSpec(
+            hardware=self.profile(hardware).as_dict(), host=host_fingerprint(),
+            batch=self.config.offline.batch).model_dump(mode="json"))
+        labels = {"model": model, "strategy": strategy, "hardware": hardware,
+                  "test_set": self.config.offline.data}
+        in_world = world is not None and self.config.datasets[self.config.offline.data].record is not None
+        if in_world:
+            labels |= {"test_set": f"{self.config.offline.data} in {world}", "world": str(world)}
+        return Job("offline", f"offline {model}/{strategy} on {hardware}{f' in {world}' if in_world else ''}", params,
+                   deps={"artifact": optimize, "test": tuple(test)}, labels=labels)
+
+    def reference_jobs(self) -> list[Job]:
+        return reference_jobs(self)
+
+    def params_once(self, slot: tuple, build) -> dict:
+        """Job params shared by many jobs (every strategy's laps on one circuit), validated once."""
+        if slot not in self.shared_params:
+            self.shared_params[slot] = build()
+        return self.shared_params[slot]
+
+
+def model_inputs(planner: Planner, name: str, spec: ModelSpec) -> dict[str, InputFile]:
+    """The files a model is made from, content-hashed into its train job's key: the network's source
+    (the file and the user's modules it imports), the weights, the TorchScript or ONNX file.
+    Planning reads them; it never runs them (a syntax error is reported here, with its line)."""
+    from pilotlab import usercode
+    inputs = {}
+    for key in ("weights", "torchscript", "onnx"):
+        if getattr(spec, key) is not None:
+            inputs[key] = input_file(str(planner.path(getattr(spec, key), ["models", name, key], "file")))
+    if spec.onnx is not None:   # its weights kept in files beside it ("external data") are inputs too
+        from pilotlab.models.onnx_data import planned_data_files
+        try:
+            data = planned_data_files(Path(inputs["onnx"].path))
+        except MatrixError as error:
+            raise planner.recipe.error(str(error), ["models", name, "onnx"]) from None
+        inputs.update({f"onnx data {location}": input_file(str(file)) for location, file in data.items()})
+    if spec.network is not None:
+        try:
+            files = usercode.source_files(spec.network, planner.folder)
+            usercode.check_syntax(files[0])
+            inputs["network_source"] = InputFile(str(files[0]), usercode.source_hash(spec.network, planner.folder))
+        except MatrixError as error:
+            raise planner.recipe.error(str(error), ["models", name, "network"]) from None
+    return inputs
+
+
+def plan(recipe: Recipe) -> list[Job]:
+    return Planner(recipe).jobs()
