@@ -16,17 +16,46 @@ if TYPE_CHECKING:  # torch only inside the functions: strategy modules import th
 
 
 def finetune(model: nn.Module, source: StrategySource, *, epochs: int, lr: float,
-             batch_size: int) -> list[dict]:
-    """Fine-tune in place on the training frames with the shared loop; [] when epochs == 0."""
+             batch_size: int, distill: float = 0.0) -> list[dict]:
+    """Fine-tune in place on the training frames with the shared loop; [] when epochs == 0.
+
+    `distill` > 0 is knowledge distillation from the trained baseline: the loss is
+    (1 - distill) · MSE(labels) + distill · MSE(the baseline's outputs), its outputs the soft targets.
+    With an MSE loss that is, gradient for gradient, MSE against the blended target
+    (1 - distill) · label + distill · baseline output, so the fine-tune trains on frames relabelled so
+    (fine-tuning augments nothing, so the baseline's output on each frame is computed once)."""
     if epochs <= 0:
         return []
     from pilotlab.training import FitConfig, fit
-    source.log.info("fine-tuning %d epoch(s) on %d frames", epochs, len(source.calibration))
+    source.log.info("fine-tuning %d epoch(s) on %d frames%s", epochs, len(source.calibration),
+                    f", distilling the baseline (weight {distill:g})" if distill else "")
 
     def on_epoch(row: dict) -> None:
         source.progress(row["epoch"], epochs, f"fine-tune epoch {row['epoch']}/{epochs}")
     config = FitConfig(epochs=epochs, batch_size=batch_size, lr=lr, frames=source.frames)
-    return fit(model, source.calibration, source.labels, config, on_epoch=on_epoch)
+    data = soft_targets(source, distill) if distill else source.calibration
+    return fit(model, data, source.labels, config, on_epoch=on_epoch)
+
+
+def soft_targets(source: StrategySource, distill: float):
+    """The training frames with labels (1 - distill) · label + distill · the trained baseline's output."""
+    import dataclasses
+
+    import numpy as np
+    import torch
+    check_distill(distill)
+    data, teacher = source.calibration, source.load_model().eval()
+    with torch.no_grad():
+        outputs = np.concatenate([teacher(inputs).numpy() for inputs, _ in data.batches(256, frames=source.frames)])
+    soft = source.labels.denormalise(outputs)
+    labels = ((1 - distill) * np.asarray(data.labels, np.float32) + distill * soft).astype(np.float32)
+    return dataclasses.replace(data, labels=labels, meta={**data.meta, "distill": distill})
+
+
+def check_distill(distill: float) -> None:
+    if not 0.0 <= distill <= 1.0:
+        raise PilotlabError(f"distill: {distill} is not a weight in [0, 1] (0: the labels alone, 1: the trained "
+                            "baseline's outputs alone)")
 
 
 def save_float_model(model: nn.Module, source: StrategySource, fmt: str,

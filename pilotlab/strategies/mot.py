@@ -27,6 +27,9 @@ trainable shared values (k-means on its weights); fine-tuning trains the centroi
 stay on them, and QAT then fake-quantizes the clustered weights. Per-channel int8 maps a layer's
 centroids to at most `clusters` int8 values in each output channel (each channel has its own scale).
 
+Every fine-tune here (pruning, clustering, QAT) can distill the trained baseline (`distill`: the
+weight of its outputs as soft targets beside the labels; common.finetune).
+
 Every strategy starts from the trained network with its input batch-norm folded into the first
 conv (as the export does), so the weights pruned are the weights that reach the artifact.
 """
@@ -36,7 +39,7 @@ import dataclasses
 from dataclasses import dataclass
 
 from pilotlab.errors import PilotlabError
-from pilotlab.strategies.common import finetune
+from pilotlab.strategies.common import check_distill, finetune
 from pilotlab.strategies.edge import LITERT_CONVERTER, require
 from pilotlab.strategies.prune import check_fraction
 from pilotlab.strategies.registry import StrategySource, register_strategy
@@ -49,9 +52,11 @@ class PruneLiteRTConfig:
     finetune_epochs: int = 2         # fine-tuning with the mask held
     lr: float = 1e-4
     batch_size: int = 64
+    distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs
 
     def __post_init__(self) -> None:
         check_fraction("sparsity", self.sparsity)
+        check_distill(self.distill)
 
 
 @dataclass(frozen=True)
@@ -61,6 +66,10 @@ class QatLiteRTConfig:
     lr: float = 1e-4
     batch_size: int = 64
     calibration_frames: int = 512    # ranges observed before QAT; the conversion's representative dataset
+    distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs
+
+    def __post_init__(self) -> None:
+        check_distill(self.distill)
 
 
 @dataclass(frozen=True)
@@ -80,6 +89,7 @@ class CqatConfig(QatLiteRTConfig):
     finetune_epochs: int = 2         # fine-tuning the centroids, before QAT
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         check_clusters(self.clusters)
 
 
@@ -121,7 +131,8 @@ def quantization_aware(model, source: StrategySource, config, history: list[dict
 
 
 def tune(model, source: StrategySource, config, epochs: int) -> list[dict]:
-    return finetune(model, source, epochs=epochs, lr=config.lr, batch_size=config.batch_size)
+    return finetune(model, source, epochs=epochs, lr=config.lr, batch_size=config.batch_size,
+                    distill=config.distill)
 
 
 def save(model, source: StrategySource, mode: str, calibration_frames: int, history: list[dict]) -> dict:

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pilotlab.errors import PilotlabError
-from pilotlab.strategies.common import finetune, save_float_model
+from pilotlab.strategies.common import check_distill, finetune, save_float_model
 from pilotlab.strategies.prune import check_fraction
 from pilotlab.strategies.registry import StrategySource, register_strategy
 
@@ -28,8 +28,10 @@ class StructuredPruneConfig:
     batch_size: int = 64
     format: str = "torchscript"      # torchscript | onnx (the shapes change: no checkpoint)
     multiple_of: int = 8             # round kept counts to a multiple of this: whole SIMD blocks (1: exact)
+    distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs (0-1)
 
     def __post_init__(self) -> None:
+        check_distill(self.distill)
         check_fraction("amount", self.amount)
         check_multiple(self.multiple_of)
 
@@ -41,7 +43,8 @@ def structured_prune(config: StructuredPruneConfig, source: StrategySource) -> d
     params_before = sum(p.numel() for p in model.parameters())
     macs_before = multiply_accumulates(model, source.input_shape)
     kept = remove_channels(model, config.amount, source.input_shape, config.multiple_of)
-    history = finetune(model, source, epochs=config.finetune_epochs, lr=config.lr, batch_size=config.batch_size)
+    history = finetune(model, source, epochs=config.finetune_epochs, lr=config.lr, batch_size=config.batch_size,
+                       distill=config.distill)
     macs = multiply_accumulates(model, source.input_shape)
     save_float_model(model, source, config.format, extra={"kept_channels": kept, "macs": macs},
                      same_arch=False)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pilotlab.strategies.common import finetune
+from pilotlab.strategies.common import check_distill, finetune
 from pilotlab.strategies.onnx_runtime import OnnxRuntimeInt8Config, quantize_int8
 from pilotlab.strategies.prune import check_fraction
 from pilotlab.strategies.registry import StrategySource, register_strategy
@@ -31,8 +31,10 @@ class StructuredPruneInt8Config:
     calibration_frames: int = 512    # training frames fed to ONNX Runtime's calibrator
     calibrate_method: str = "minmax"  # minmax | entropy | percentile
     float_first_conv: bool = True    # the 3-channel input conv stays fp32 (faster here)
+    distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs (0-1)
 
     def __post_init__(self) -> None:
+        check_distill(self.distill)
         check_fraction("amount", self.amount)
         check_multiple(self.multiple_of)
 
@@ -43,7 +45,8 @@ def structured_prune_int8(config: StructuredPruneInt8Config, source: StrategySou
     model = source.load_model()
     params_before, macs_before = _params(model), multiply_accumulates(model, source.input_shape)
     kept = remove_channels(model, config.amount, source.input_shape, config.multiple_of)
-    history = finetune(model, source, epochs=config.finetune_epochs, lr=config.lr, batch_size=config.batch_size)
+    history = finetune(model, source, epochs=config.finetune_epochs, lr=config.lr, batch_size=config.batch_size,
+                       distill=config.distill)
     quantization = OnnxRuntimeInt8Config(calibration_frames=config.calibration_frames,
                                          calibrate_method=config.calibrate_method,
                                          float_first_conv=config.float_first_conv)

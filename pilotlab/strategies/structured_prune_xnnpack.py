@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pilotlab.strategies.edge import LITERT_CONVERTER, require
-from pilotlab.strategies.common import finetune
+from pilotlab.strategies.common import check_distill, finetune
 from pilotlab.strategies.prune import check_fraction
 from pilotlab.strategies.registry import StrategySource, register_strategy
 from pilotlab.strategies.structured_prune import check_multiple
@@ -30,8 +30,10 @@ class StructuredPruneXnnpackConfig:
     lr: float = 1e-3
     batch_size: int = 64
     calibration_frames: int = 512
+    distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs (0-1)
 
     def __post_init__(self) -> None:
+        check_distill(self.distill)
         check_fraction("amount", self.amount)
         check_multiple(self.multiple_of)
 
@@ -41,7 +43,8 @@ def _pruned(config: StructuredPruneXnnpackConfig, source: StrategySource):
     model = source.load_model()
     macs_before = multiply_accumulates(model, source.input_shape)
     kept = remove_channels(model, config.amount, source.input_shape, config.multiple_of)
-    history = finetune(model, source, epochs=config.finetune_epochs, lr=config.lr, batch_size=config.batch_size)
+    history = finetune(model, source, epochs=config.finetune_epochs, lr=config.lr, batch_size=config.batch_size,
+                       distill=config.distill)
     figures = {"kept_channels": kept, "macs": multiply_accumulates(model, source.input_shape),
                "macs_before": macs_before, "finetune": history}
     return model.eval(), figures
