@@ -112,3 +112,26 @@ def test_the_tf_lite_claims_are_judged_on_the_litert_rows():
                                  reason="litert_full_int8 needs tensorflow, not installed here")]
     assert verdicts(missing)[full] == ("not testable here", "litert_full_int8 needs tensorflow, not installed here")
     assert verdicts(missing)[size][1] == "no litert_dynamic_range and baseline offline rows"
+
+
+def test_clustering_is_judged_among_the_litert_rows():
+    claim = "The cluster-preserving collaborative optimizations have the lowest MSE of the TF Lite rows"
+    rows = [offline_row("baseline", mse=0.030), offline_row("litert", mse=0.0411), offline_row("qat_litert_int8", mse=0.0421),
+            offline_row("pqat_litert_int8", mse=0.0437), offline_row("cqat_litert_int8", mse=0.0394),
+            offline_row("pcqat_litert_int8", mse=0.0392)]
+    verdict, found = verdicts(rows)[claim]          # the PyTorch baseline's lower MSE is not a TF Lite row
+    assert verdict == "holds" and found.startswith("lowest MSE of the LiteRT rows: pcqat_litert_int8 0.0392")
+    rows[1] = offline_row("litert", mse=0.0300)
+    assert verdicts(rows)[claim][0] == "does not hold"
+    assert verdicts(rows[:2])[claim][0] == "not testable here"
+
+
+def test_pruning_is_judged_by_raw_and_compressed_size():
+    claim = "Weight pruning leaves the model as large as the TF Lite baseline"
+    rows = [offline_row("litert", size_mb=6.09, size_gz_mb=5.63), offline_row("prune_litert", size_mb=6.09, size_gz_mb=3.35),
+            offline_row("prune_litert_int8", size_mb=1.55, size_gz_mb=0.99)]
+    verdict, found = verdicts(rows)[claim]
+    assert verdict == "holds" and "1.68× smaller than litert's 5.63 MB" in found and "5.69× smaller compressed" in found
+    rows[1] = offline_row("prune_litert", size_mb=6.09, size_gz_mb=5.5)       # no zeros to compress
+    assert verdicts(rows)[claim][0] == "does not hold"
+    assert verdicts(rows[:1])[claim][0] == "not testable here"
