@@ -16,12 +16,15 @@ from pilotlab.worlds.assets import ASSETS_ENV
 
 
 def assets_folder(planner, where: list) -> Path:
-    """The recipe's assets folder (relative to the recipe), else $PILOTLAB_BM_ASSETS."""
-    configured = planner.config.worlds.assets
+    """The recipe's assets folder (relative to the recipe); where that is absent, $PILOTLAB_BM_ASSETS (so a
+    shipped recipe runs wherever BM's worlds are); with neither, an error naming both."""
+    configured, from_env = planner.config.worlds.assets, os.environ.get(ASSETS_ENV)
     if configured is not None:
+        if from_env and not (planner.folder / Path(configured).expanduser()).exists():
+            return Path(from_env)
         return planner.path(configured, ["worlds", "assets"])
-    if os.environ.get(ASSETS_ENV):
-        return Path(os.environ[ASSETS_ENV])
+    if from_env:
+        return Path(from_env)
     raise planner.recipe.error(f"BehaviorMetrics' worlds are named here but the recipe has no `worlds: {{assets: "
                                f"DIR}}` (a folder like RoboticsInfrastructure/CustomRobots/f1) and ${ASSETS_ENV} "
                                "is not set", where)

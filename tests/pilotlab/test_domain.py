@@ -174,9 +174,18 @@ def test_a_folder_where_a_file_is_expected_fails_before_anything_is_hashed(tmp_p
     assert message.replace("BIG", str(big)) in str(caught.value) and "\n" not in str(caught.value)
 
 
-def test_shipped_recipes_plan(tmp_path):
+def test_shipped_recipes_plan(tmp_path, monkeypatch):
+    """Every shipped recipe plans; one over BehaviorMetrics' worlds needs them beside the repository
+    (../shared/data/bm_worlds): without them its plan is the one-line error that says where it looked."""
+    monkeypatch.delenv("PILOTLAB_BM_ASSETS", raising=False)
     for recipe in sorted(Path(__file__).resolve().parents[2].glob("recipes/*.yaml")):
-        jobs = engine.plan_jobs(load_recipe(recipe, DOMAIN), DOMAIN)
+        loaded = load_recipe(recipe, DOMAIN)
+        assets = loaded.config.worlds.assets
+        if assets is not None and not (recipe.parent / assets).is_dir():
+            with pytest.raises(RecipeError, match="worlds.assets: .* does not exist"):
+                engine.plan_jobs(loaded, DOMAIN)
+            continue
+        jobs = engine.plan_jobs(loaded, DOMAIN)
         assert jobs and {"train", "optimize", "offline", "online"} <= set(kinds(jobs))
 
 
