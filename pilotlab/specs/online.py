@@ -59,7 +59,8 @@ class ToleranceSpec(Spec):
     fixed_ms: list[float] = Field([0.0, 50.0, 100.0, 200.0], description="injected latencies whose laps' deviation "
                                                                          "is reported (they also bracket the search)")
     max_ms: float = Field(1000.0, gt=0, le=60_000, description="the largest injected latency searched")
-    step_ms: float = Field(5.0, gt=0, description="the search's resolution")
+    # finer than 0.1 ms means nothing (physics steps are 8.3 ms) and a tiny step overflowed the grid check
+    step_ms: float = Field(5.0, ge=0.1, description="the search's resolution (at least 0.1 ms)")
 
     @model_validator(mode="after")
     def _fixed_on_the_grid(self):

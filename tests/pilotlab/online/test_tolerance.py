@@ -49,6 +49,12 @@ def test_fixed_latencies_must_lie_on_the_grid():
         ToleranceSpec(fixed_ms=[0.0, 33.0])
 
 
+def test_a_vanishing_step_is_refused_not_a_traceback():
+    """Found by the slow fuzz: step_ms 1e-300 overflowed the grid check (OverflowError)."""
+    with pytest.raises(pydantic.ValidationError, match="greater than or equal to 0.1"):
+        ToleranceSpec(step_ms=1e-300)
+
+
 @pytest.fixture(scope="module")
 def track(tmp_path_factory):
     return str(write_csv(tmp_path_factory.mktemp("tolerance") / "stadium.csv", stadium(30.0, 12.0)))

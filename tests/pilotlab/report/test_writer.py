@@ -215,3 +215,11 @@ def test_an_unstable_timing_is_marked_in_the_results_files_and_both_pages(tmp_pa
     page = paths.html.read_text()
     assert "2.30 (2.20–9.50) ⚠" in page
     assert "; rerun <code>pilotlab run --force offline</code> when the machine is quieter" in page and "`pilotlab" not in page
+
+
+def test_each_summary_finding_is_a_line_of_its_own(study_report):
+    """The template's line-ending tag once ate the newline: every finding ran into one line."""
+    data, paths = study_report
+    summary = paths.readme.read_text().split("## Summary", 1)[1].split("\n## ", 1)[0]
+    findings = [line for line in summary.splitlines() if line.startswith("- **")]
+    assert len(findings) >= 3 and all(line.count("- **") == 1 for line in findings)
