@@ -20,10 +20,10 @@ datasets:
   test: {{record: {{worlds: [oval], laps: 0.1, seed: 2, camera: {{width: 160, height: 120}}}}}}
 models:
   pilotnet: {{arch: pilotnet, epochs: 1, val_fraction: 0}}
-online: {{timeout_s: 3, references: [expert], camera: {{width: 160, height: 120}}}}
+online: {{timeout_s: 3, references: [], camera: {{width: 160, height: 120}}}}
 matrix:
   model: [pilotnet]
-  strategy: [baseline, dynamic_quant]
+  strategy: [baseline]          # one strategy: the offline timing jobs are what this test spends most on
   world: [oval, oval_no_sun]
 """
 
