@@ -89,6 +89,9 @@ def brain_params(brain: str | None, world=None) -> dict:
     if brain == "explicit" and world is not None:
         from pilotlab.sim.explicit import bm_world_options
         return {"brain": brain, "brain_options": bm_world_options(world.line_colour)}
+    if brain == "expert" and world is not None:
+        from pilotlab.sim.expert import BM_EXPERT
+        return {"brain": brain, "brain_options": dict(BM_EXPERT)}
     return {"brain": brain}
 
 

@@ -61,10 +61,14 @@ def make_brain(ctx: JobContext, spec: OnlineSpec, profile) -> tuple[brains.Brain
 
 
 def reference_options(ctx: JobContext, spec: OnlineSpec) -> dict[str, Any]:
-    """A reference brain's options; in a BM world the explicit brain looks where BM's camera sees the
-    line, and follows the world's line colour (white in *_white_line), unless the recipe says otherwise."""
-    if spec.world is None or spec.brain != "explicit":
+    """A reference brain's options; in a BM world the expert drives BM's small F1 (its wheelbase and pace),
+    and the explicit brain looks where BM's camera sees the line and follows the world's line colour
+    (white in *_white_line), unless the recipe says otherwise."""
+    if spec.world is None or spec.brain not in ("explicit", "expert"):
         return spec.brain_options
+    if spec.brain == "expert":
+        from pilotlab.sim.expert import BM_EXPERT
+        return {**BM_EXPERT, **spec.brain_options}
     from pilotlab.sim.explicit import bm_world_options
     from pilotlab.worlds import load_world
     assets, name = world_assets(ctx.inputs)

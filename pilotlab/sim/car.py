@@ -115,6 +115,22 @@ def _box_visual(xyz, size, rgba: str) -> str:
             f'<material name="c{rgba.replace(" ", "_").replace(".", "")}"><color rgba="{rgba}"/></material></visual>')
 
 
+def scaled_car(scale: float, max_speed: float) -> CarSpec:
+    """pilotlab's car at `scale` with the same accelerations: lengths × s, masses × s³, torques × s⁴."""
+    base = CarSpec()
+    return CarSpec(wheelbase=base.wheelbase * scale, track=base.track * scale, wheel_radius=base.wheel_radius * scale,
+                   wheel_width=base.wheel_width * scale, wheel_mass=base.wheel_mass * scale**3,
+                   body_length=base.body_length * scale, body_width=base.body_width * scale,
+                   body_height=base.body_height * scale, body_mass=base.body_mass * scale**3,
+                   drive_torque=base.drive_torque * scale**4, brake_torque=base.brake_torque * scale**4,
+                   max_speed=max_speed)
+
+
+# BehaviorMetrics' F1 is the Renault mesh at scale 0.2 (about 1 m long): in BM's worlds, whose 3.4 m road is
+# walled at its edge, the car is that size (pilotlab's 2.6 m car hit the walls where a small one passes).
+BM_F1 = scaled_car(0.4, max_speed=10.0)
+
+
 class Car:
     """A car loaded in a pybullet world, driven by (v, w) commands."""
 

@@ -32,7 +32,8 @@ world waiting for the agent: every step lasts one control period.
 
 In one of BehaviorMetrics' own worlds (`world="simple_circuit_white_line"`, `assets=` the folder of BM's
 worlds or $PILOTLAB_BM_ASSETS; pilotlab.worlds, docs/worlds.md): the circuit is the world's (BM's
-perfect-lap centreline), the camera is BM's F1 camera at the given size, the world's walls are solid
+perfect-lap centreline), the car is BM's F1 size (pilotlab.sim.car.BM_F1, unless `car` says otherwise), the
+camera is BM's F1 camera at the given size, the world's walls are solid
 (hitting one ends the episode: "hit_wall"), and renderer "ground" draws the world fast, "pybullet"
 with TinyRenderer from its meshes.
 
@@ -67,7 +68,7 @@ from pilotlab.circuits.circuit import check_direction
 from pilotlab.errors import PilotlabError
 from pilotlab.sim.bullet import p
 from pilotlab.sim.camera import CameraSpec, camera_pose
-from pilotlab.sim.car import Car, CarSpec
+from pilotlab.sim.car import BM_F1, Car, CarSpec
 from pilotlab.sim.observation import ActionSpace, check_observation, observation_space, state_vector
 from pilotlab.sim.render import GroundRenderer, PybulletRenderer, check_renderer
 from pilotlab.sim.world import PHYSICS_HZ, World
@@ -127,6 +128,7 @@ class DrivingEnv(gymnasium.Env):
         if self.bm is not None:
             circuit, camera = self.bm.meta["circuit"], _bm_camera(self.bm, camera)
             walls = False   # the world's own walls stand there (solid)
+            car = BM_F1 if car == CarSpec() else car   # BM's small F1 unless another car is asked for
         self.camera, self.renderer_name = camera, check_renderer(renderer, walls)
         self.view = view if camera is not None else None
         self.physics_hz, self.walls, self.car_spec = physics_hz, walls, car

@@ -37,6 +37,10 @@ class ExpertConfig:
     version: int = 1
 
 
+# The expert of BM's worlds drives BM's small F1 (pilotlab.sim.car.BM_F1): its wheelbase, a gentler pace.
+BM_EXPERT = {"wheelbase": 0.64, "top_speed": 8.0, "min_lookahead_m": 1.0}
+
+
 def bend(circuit: Circuit) -> np.ndarray:
     """|curvature| at each centreline point, smoothed over 2 m: what a car actually has to turn."""
     return np.abs(smooth_closed(circuit.curvature, 2.0 / (circuit.length / len(circuit.points))))

@@ -27,7 +27,7 @@ from pilotlab.errors import PilotlabError
 from pilotlab.data.bagwrite import BagWriter, bag_path, to_nanoseconds
 from pilotlab.sim.camera import CameraSpec
 from pilotlab.sim.env import DrivingEnv
-from pilotlab.sim.expert import Expert, Swerves
+from pilotlab.sim.expert import BM_EXPERT, Expert, ExpertConfig, Swerves
 from pilotlab.sim.world import PHYSICS_HZ
 from pilotlab.specs.record import RecordSpec
 
@@ -117,7 +117,7 @@ def record(spec: RecordSpec, out: Path, progress: ProgressFn | None = None, asse
 def _drive(env: DrivingEnv, spec: RecordSpec, bag: BagWriter, interrupt: dict, progress: ProgressFn | None) -> dict:
     obs, info = env.reset(seed=spec.seed, options={"start": spec.start})
     bag.metadata(metadata(spec, env))
-    expert = Expert(env.circuit)
+    expert = Expert(env.circuit, ExpertConfig(**BM_EXPERT) if env.bm is not None else ExpertConfig())
     swerves = Swerves(spec.noise, np.random.default_rng([spec.seed, 1]), expert)
     frame_every = round(spec.control_hz / spec.rate_hz)
     total = spec.laps * env.circuit.length

@@ -8,7 +8,7 @@ from pilotlab.data.preprocess import PreprocessConfig
 from pilotlab.errors import PilotlabError
 from pilotlab.sim.camera import CameraSpec
 from pilotlab.sim.env import DrivingEnv
-from pilotlab.sim.expert import Expert
+from pilotlab.sim.expert import BM_EXPERT, Expert, ExpertConfig
 
 
 def test_expert_drives_a_lap_in_the_world(oval_assets):
@@ -17,7 +17,7 @@ def test_expert_drives_a_lap_in_the_world(oval_assets):
         frame, info = env.reset(seed=0)
         assert frame.shape == (66, 200, 3)
         assert env.camera.height_m == pytest.approx(0.104) and env.camera.level
-        expert = Expert(env.circuit)
+        expert = Expert(env.circuit, ExpertConfig(**BM_EXPERT))
         while True:
             frame, _, terminated, truncated, info = env.step(expert.act(info))
             if terminated or truncated:

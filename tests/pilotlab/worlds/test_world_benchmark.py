@@ -19,13 +19,13 @@ def expert_lap(assets, camera: str) -> tuple[float, float, float, str]:
     from pilotlab.data.preprocess import PreprocessConfig, preprocess
     from pilotlab.sim.camera import CameraSpec
     from pilotlab.sim.env import DrivingEnv
-    from pilotlab.sim.expert import Expert
+    from pilotlab.sim.expert import BM_EXPERT, Expert, ExpertConfig
     cv2.setNumThreads(1)
     config = PreprocessConfig()
     with DrivingEnv(world="simple_circuit", assets=assets, camera=None if camera == "none" else CameraSpec(),
                     renderer="ground", view=config if camera == "view" else None) as env:
         obs, info = env.reset(seed=0)                     # the world is converted (or read) outside the timing
-        expert = Expert(env.circuit)
+        expert = Expert(env.circuit, ExpertConfig(**BM_EXPERT))
         wall, cpu = time.perf_counter(), time.process_time()
         while True:
             obs, _, terminated, truncated, info = env.step(expert.act(info), render=camera != "none")
