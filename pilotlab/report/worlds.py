@@ -118,8 +118,10 @@ def shift_summary(data: ReportData) -> list[str]:
             ratios = [r for c in shifted if (r := ratio(c.metric("mse"), (training_cell(cells, c) or c).metric("mse")))
                       is not None and not c.training]
             laps = [c.metric("lap_completed") for c in shifted if c.metric("lap_completed") is not None]
+            home = next((c.metric("lap_completed") for c in cells if c.model == model and c.strategy == strategy
+                         and c.training), None)
             figures[strategy] = (sum(bool(x) for x in laps), len(laps),
-                                 sum(ratios) / len(ratios) if ratios else None)
+                                 sum(ratios) / len(ratios) if ratios else None, home)
         lines += _lines(model, figures, data.baseline)
     return lines
 
@@ -127,17 +129,20 @@ def shift_summary(data: ReportData) -> list[str]:
 def _lines(model: str, figures: dict, baseline: str) -> list[str]:
     lines = []
     base = figures.get(baseline)
-    for strategy, (done, runs, ratio) in figures.items():
+    for strategy, (done, runs, ratio, home) in figures.items():
         mse = "offline MSE not measured" if ratio is None else f"offline MSE {ratio:.2f}× its training-world MSE"
-        lines.append(f"{model}/{strategy}: {done}/{runs} laps completed in the shifted worlds, {mse}")
+        at_home = {True: "lap completed in the training world", False: "lap lost in the training world already",
+                   None: "no lap in the training world"}[home]
+        lines.append(f"{model}/{strategy}: {at_home}; {done}/{runs} laps completed in the shifted worlds, {mse}")
     if base is None:
         return lines
-    worse = [s for s, (done, runs, ratio) in figures.items() if s != baseline and
-             (done < base[0] or (ratio is not None and base[2] is not None and ratio > base[2] * 1.1))]
+    worse = [s for s, (done, runs, ratio, home) in figures.items() if s != baseline and
+             (done < base[0] or (home is False and base[3] is True) or
+              (ratio is not None and base[2] is not None and ratio > base[2] * 1.1))]
     others = [s for s in figures if s != baseline]
     if others:
-        verdict = (f"{', '.join(worse)} lost more than the baseline when the world shifted (fewer laps, or MSE "
-                   "growing over 10 % more)" if worse else
+        verdict = (f"{', '.join(worse)} lost more than the baseline (fewer laps, in the training world or the "
+                   "shifted ones, or MSE growing over 10 % more when the world shifted)" if worse else
                    "no optimized network lost more than the baseline when the world shifted (laps completed, MSE "
                    "growth within 10 % of the baseline's)")
         lines.append(f"{model}: {verdict}")

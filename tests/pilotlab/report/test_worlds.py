@@ -38,6 +38,7 @@ def test_summary_says_who_lost_more_than_the_baseline():
     assert "no optimized network lost more" in same[-1]
     lost = shift_summary(data(int8_mse_shifted=0.05, int8_completes=False))
     assert "int8 lost more" in lost[-1] and "0/1 laps completed" in lost[1]
+    assert lost[0].startswith("pilotnet/baseline: lap completed in the training world;")
 
 
 def test_the_plot_is_drawn(tmp_path):
