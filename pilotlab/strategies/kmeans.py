@@ -7,17 +7,22 @@ from torch import nn
 
 
 @torch.no_grad()
-def cluster_weights(weight: nn.Parameter, clusters: int, iterations: int) -> torch.Tensor:
-    """Replace `weight` by its k-means centroids (linear initialisation between min and max, as
-    TFMOT's default); returns each weight's cluster index."""
-    values = weight.detach().flatten()
+def kmeans(values: torch.Tensor, clusters: int, iterations: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """1-D k-means (linear initialisation between min and max, TF-MOT's default): centroids and
+    each value's cluster."""
     centroids = torch.linspace(float(values.min()), float(values.max()), clusters)
     for _ in range(iterations):
         index = nearest(values, centroids)
         sums = torch.zeros(clusters).index_add_(0, index, values)
         counts = torch.zeros(clusters).index_add_(0, index, torch.ones_like(values))
         centroids = torch.where(counts > 0, sums / counts.clamp(min=1), centroids)
-    index = nearest(values, centroids)
+    return centroids, nearest(values, centroids)
+
+
+@torch.no_grad()
+def cluster_weights(weight: nn.Parameter, clusters: int, iterations: int) -> torch.Tensor:
+    """Replace `weight` by its k-means centroids; returns each weight's cluster index."""
+    centroids, index = kmeans(weight.detach().flatten(), clusters, iterations)
     weight.copy_(centroids[index].view_as(weight))
     return index
 

@@ -16,7 +16,7 @@ from torch import nn
 from torch.nn.utils import parametrize
 
 from pilotlab.strategies.common import weight_layers
-from pilotlab.strategies.kmeans import nearest
+from pilotlab.strategies.kmeans import kmeans
 
 
 class Mask(nn.Module):
@@ -109,18 +109,6 @@ def magnitude_masks(model: nn.Module, sparsity: float) -> dict[str, torch.Tensor
 def add_masks(model: nn.Module, masks: dict[str, torch.Tensor]) -> None:
     for name, layer in weight_layers(model):
         parametrize.register_parametrization(layer, "weight", Mask(masks[name]))
-
-
-def kmeans(values: torch.Tensor, clusters: int, iterations: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """1-D k-means (linear initialisation between min and max, TF-MOT's default): centroids and
-    each value's cluster."""
-    centroids = torch.linspace(float(values.min()), float(values.max()), clusters)
-    for _ in range(iterations):
-        index = nearest(values, centroids)
-        sums = torch.zeros(clusters).index_add_(0, index, values)
-        counts = torch.zeros(clusters).index_add_(0, index, torch.ones_like(values))
-        centroids = torch.where(counts > 0, sums / counts.clamp(min=1), centroids)
-    return centroids, nearest(values, centroids)
 
 
 @torch.no_grad()
