@@ -36,21 +36,22 @@ def cli(*args: str, cwd: Path) -> tuple[float, subprocess.CompletedProcess]:
     return time.perf_counter() - started, done
 
 
-def expert_lap(camera: str) -> tuple[float, float, float, str]:
-    """(simulated s, wall s, CPU s, termination) of the expert's lap of simple_circuit, a frame every step."""
+def expert_lap(camera: str, expert_config=None, **place) -> tuple[float, float, float, str]:
+    """(simulated s, wall s, CPU s, termination) of the expert's lap, a frame every step: of simple_circuit,
+    or where `place` says (world=, assets= for a BM world, with its `expert_config`)."""
     import cv2
 
     from pilotlab.data.preprocess import PreprocessConfig, preprocess
     from pilotlab.sim.camera import CameraSpec
     from pilotlab.sim.env import DrivingEnv
-    from pilotlab.sim.expert import Expert
+    from pilotlab.sim.expert import Expert, ExpertConfig
     cv2.setNumThreads(1)
     config = PreprocessConfig()
-    with DrivingEnv("simple_circuit", camera=None if camera == "none" else CameraSpec(), renderer="ground",
-                    view=config if camera == "view" else None) as env:
+    with DrivingEnv(**(place or {"circuit": "simple_circuit"}), camera=None if camera == "none" else CameraSpec(),
+                    renderer="ground", view=config if camera == "view" else None) as env:
         obs, info = env.reset(seed=0)
-        expert = Expert(env.circuit)
-        env.step(expert.act(info))            # builds the ground raster outside the timing
+        expert = Expert(env.circuit, expert_config or ExpertConfig())
+        env.step(expert.act(info))            # builds the ground raster (or reads the world) outside the timing
         obs, info = env.reset(seed=0)
         wall, cpu = time.perf_counter(), time.process_time()
         while True:
