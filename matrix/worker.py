@@ -171,8 +171,7 @@ def _job_log(path: Path, spec: dict):
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
     logger.addHandler(handler)
     try:
-        stream = handler.stream
-        with _captured_fds(stream), contextlib.redirect_stdout(stream), contextlib.redirect_stderr(stream):
+        with _job_output(handler.stream):
             logger.info("%s %s (%s)", spec["kind"], spec["name"], spec["key"])
             yield logger
     finally:
@@ -181,13 +180,24 @@ def _job_log(path: Path, spec: dict):
 
 
 @contextlib.contextmanager
+def _job_output(stream):
+    """Prints of the job into its log. Our own workers move file descriptors 1 and 2 and keep
+    sys.stdout/sys.stderr: a library that binds sys.stderr during one job (torch's logging does on
+    import) must not hold that job's log file, closed when the next job logs through it. Dask workers
+    run jobs in threads: there sys.stdout/sys.stderr are swapped instead."""
+    if _capture_fds:
+        with _captured_fds(stream):
+            yield
+    else:
+        with contextlib.redirect_stdout(stream), contextlib.redirect_stderr(stream):
+            yield
+
+
+@contextlib.contextmanager
 def _captured_fds(stream):
     """In our own worker processes, send file descriptors 1 and 2 to the job's log too, so what
     C libraries and other loggers print (warnings of torch, ONNX Runtime, pybullet) lands there
     instead of on the run's display. (Dask workers may run several jobs in threads: not there.)"""
-    if not _capture_fds:
-        yield
-        return
     sys.stdout.flush()
     sys.stderr.flush()
     saved = os.dup(1), os.dup(2)
@@ -196,6 +206,8 @@ def _captured_fds(stream):
         os.dup2(stream.fileno(), 2)
         yield
     finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
         stream.flush()
         os.dup2(saved[0], 1)
         os.dup2(saved[1], 2)

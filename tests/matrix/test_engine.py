@@ -189,6 +189,19 @@ def test_what_a_job_prints_at_the_fd_level_goes_to_its_log(tmp_path, capfd):
     assert "C-level noise" not in capfd.readouterr().err
 
 
+def test_a_library_handler_made_in_one_job_logs_into_the_next_jobs_log(tmp_path):
+    """A handler bound to sys.stderr during job 1 wrote to job 1's closed log in job 2 ("Logging error")."""
+    store = Store(tmp_path / "store")
+    path = tmp_path / "recipe.yaml"
+    path.write_text(RECIPE.format(b="3, library_log: true", c_extra=", library_log: true"))
+    plan, summary = run(path, store, jobs=1)
+    assert summary.counts() == {"ok": 10}
+    for name in ("b", "c"):
+        source = next(s.job for s in plan.statuses if s.job.name == f"source {name}")
+        log = (store.job_dir(source.key) / "log.txt").read_text()
+        assert f"library warning from source {name}" in log and "Logging error" not in log
+
+
 @pytest.mark.parametrize("arguments, message", [
     (("local", 0), "give 1 or more"),
     (("dask", 1), "needs --scheduler"),

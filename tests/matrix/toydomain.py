@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import os
 import time
 from typing import Any
@@ -29,12 +30,23 @@ class SourceConfig(pydantic.BaseModel):
     fail: bool = False
     not_applicable: bool = False
     noise: bool = False           # write to file descriptor 2 directly, as C libraries do
+    library_log: bool = False     # log through a handler on sys.stderr made once per process, as torch does
 
 
 def count_execution(ctx) -> None:
     """Append the job's name to a store-wide file, so tests can count executions across runs."""
     with open(ctx.cache / "executions.log", "a") as log:
         log.write(ctx.name + "\n")
+
+
+def library_logger() -> logging.Logger:
+    """A library's logger whose StreamHandler binds sys.stderr when first made (torch's logging does
+    so on import, during whichever job imports torch first)."""
+    logger = logging.getLogger("toy.library")
+    if not logger.handlers:
+        logger.addHandler(logging.StreamHandler())
+        logger.propagate = False
+    return logger
 
 
 @contextlib.contextmanager
@@ -51,6 +63,8 @@ def run_source(ctx) -> dict[str, Any]:
     count_execution(ctx)
     if ctx.params["noise"]:
         os.write(2, b"C-level noise\n")
+    if ctx.params["library_log"]:
+        library_logger().warning("library warning from %s", ctx.name)
     with timed(ctx):
         time.sleep(ctx.params["sleep"])
     if ctx.params["fail"]:
