@@ -19,6 +19,7 @@ from rich.table import Table
 from matrix import engine
 from matrix.display import RichDisplay, print_plan
 from matrix.execute import default_jobs
+from matrix.grid import describe_alike
 from matrix.recipe import Domain, load_recipe
 from matrix.store import ARTIFACTS, LOG, Store, read_json
 
@@ -76,6 +77,8 @@ def cmd_plan(args, domain: Domain) -> int:
         print(json.dumps(rows, indent=1))
         return 0
     print_plan(console(), plan.statuses, plan.counts(), every_row=args.all, tool=args.tool)
+    if plan.recipe.grid is not None and (alike := describe_alike(plan.recipe.grid)):
+        console().print(escape(alike))   # names that define the same thing are planned (and shown) once
     return 0
 
 

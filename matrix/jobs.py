@@ -11,13 +11,12 @@ import hashlib
 import json
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from functools import cached_property
+from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
 
 from matrix.errors import MatrixError
-from matrix.fingerprint import hash_path
+from matrix.fingerprint import cache_generation, hash_path
 from matrix.kinds import KINDS
 
 KEY_FORMAT = 1
@@ -97,9 +96,78 @@ def _walk(value: Any, where: str) -> None:
 def make_key(kind: str, params: Mapping[str, Any], deps: Mapping[str, Any],
              inputs: Mapping[str, str], code: str) -> str:
     """The job key: sha256 hex of canonical JSON. Golden tests pin this format."""
-    payload = {"format": KEY_FORMAT, "kind": kind, "params": params, "deps": deps,
-               "inputs": inputs, "code": code}
-    return hashlib.sha256(canonical_json(payload).encode()).hexdigest()
+    return _key_of(kind, canonical_json(params), deps, inputs, code)
+
+
+def _key_of(kind: str, params_json: str, deps: Mapping[str, Any], inputs: Mapping[str, str], code: str) -> str:
+    """make_key with the params written already: canonical JSON of the payload is its parts' canonical
+    JSON in sorted key order, so params shared by many jobs are written once, not once a job."""
+    text = (f'{{"code":{_string(code)},"deps":{_names(deps)},"format":{KEY_FORMAT},"inputs":{_names(inputs)},'
+            f'"kind":{_string(kind)},"params":{params_json}}}')
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+_string = json.encoder.encode_basestring   # a str as json.dumps(ensure_ascii=False) writes it
+
+
+def _names(mapping: Mapping[str, Any]) -> str:
+    """Canonical JSON of {role: name or [names]} (the keys' deps and inputs), written directly: planning
+    writes one per job."""
+    if not mapping:
+        return "{}"
+    return "{" + ",".join([_string(role) + ":" + (_string(value) if type(value) is str else _list(value))
+                           for role, value in sorted(mapping.items())]) + "}"
+
+
+def _list(value: Any) -> str:
+    if type(value) is list and all(type(item) is str for item in value):
+        return "[" + ",".join(map(_string, value)) + "]"
+    return _dumps(value)
+
+
+def _dumps(value: Any) -> str:   # the keys' own parts: plain strings, lists and dicts of them
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+
+
+class Params(Mapping):
+    """A job's params: read-only, checked to be plain JSON and written as canonical JSON once, however
+    many jobs share them (a planner builds the params of every lap on one circuit once: `Job(params=`
+    one Params object`)`)."""
+    __slots__ = ("_data", "_json", "_codes")
+
+    def __init__(self, data: Mapping[str, Any]):
+        _check_json(data, "")  # fail at construction, naming nothing random (no text: the key makes it)
+        self._data: dict[str, Any] = dict(data)
+        self._json: str | None = None
+        self._codes: dict[tuple[str, int], str] = {}   # (kind, code cache generation) -> its code fingerprint
+
+    def __getitem__(self, key: str) -> Any:
+        return self._data[key]
+
+    def __iter__(self):
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def get(self, key: str, default: Any = None) -> Any:
+        return self._data.get(key, default)
+
+    def __repr__(self) -> str:
+        return f"Params({self._data!r})"
+
+    @property
+    def json(self) -> str:
+        if self._json is None:
+            self._json = _dumps(self._data)
+        return self._json
+
+    def code(self, kind: str) -> str:
+        """The code fingerprint of a `kind` job with these params (asked once, however many jobs share them)."""
+        slot = (kind, cache_generation())
+        if slot not in self._codes:
+            self._codes[slot] = KINDS.get(kind).fingerprint(self._data, self.json)
+        return self._codes[slot]
 
 
 @dataclass(frozen=True)
@@ -113,22 +181,39 @@ def input_file(path: str) -> InputFile:
     return InputFile(str(path), hash_path(path))
 
 
-@dataclass(frozen=True, eq=False)
+class _once:
+    """functools.cached_property without its lock (Python 3.11 takes one on each first read; planning
+    reads a key and a code per job)."""
+
+    def __init__(self, function):
+        self.function, self.name, self.__doc__ = function, function.__name__, function.__doc__
+
+    def __get__(self, instance, owner=None):
+        if instance is None:
+            return self
+        value = instance.__dict__[self.name] = self.function(instance)   # found there from now on
+        return value
+
+
+@dataclass(frozen=True, eq=False, init=False)
 class Job:
     kind: str
     name: str                                           # unique within a plan, e.g. "train pilotnet"
-    params: Mapping[str, Any] = field(default_factory=dict)
-    deps: Mapping[str, Job | tuple[Job, ...]] = field(default_factory=dict)
-    inputs: Mapping[str, InputFile] = field(default_factory=dict)
-    labels: Mapping[str, Any] = field(default_factory=dict)   # descriptive only, not in the key
+    params: Params                                      # a Params is shared as it is, other mappings made one
+    deps: Mapping[str, Job | tuple[Job, ...]]
+    inputs: Mapping[str, InputFile]
+    labels: Mapping[str, Any]                           # descriptive only, not in the key
 
-    def __post_init__(self):
-        _check_json(self.params, "")  # fail at construction, naming nothing random (no text: the key makes it)
-        deps = {role: tuple(d) if isinstance(d, (list, tuple)) else d for role, d in self.deps.items()}
-        object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
-        object.__setattr__(self, "deps", MappingProxyType(deps))
-        object.__setattr__(self, "inputs", MappingProxyType(dict(self.inputs)))
-        object.__setattr__(self, "labels", MappingProxyType(dict(self.labels)))
+    def __init__(self, kind: str, name: str, params: Mapping[str, Any] | None = None,
+                 deps: Mapping[str, Job | tuple[Job, ...] | list[Job]] | None = None,
+                 inputs: Mapping[str, InputFile] | None = None, labels: Mapping[str, Any] | None = None):
+        # Written straight into the instance (a frozen dataclass's __init__ goes through object.__setattr__
+        # once a field; a plan makes a job per cell).
+        self.__dict__.update(
+            kind=kind, name=name, params=params if type(params) is Params else Params(params or {}),
+            deps=MappingProxyType({role: tuple(d) if isinstance(d, (list, tuple)) else d
+                                   for role, d in (deps or {}).items()}),
+            inputs=MappingProxyType(dict(inputs or {})), labels=MappingProxyType(dict(labels or {})))
 
     def __hash__(self) -> int:
         return hash(self.key)
@@ -139,14 +224,14 @@ class Job:
     def __repr__(self) -> str:
         return f"Job({self.kind!r}, {self.name!r}, {self.key[:10]})"
 
-    @cached_property
+    @_once
     def code(self) -> str:
-        return KINDS.get(self.kind).fingerprint(self.params)
+        return self.params.code(self.kind)
 
-    @cached_property
+    @_once
     def key(self) -> str:
-        return make_key(self.kind, dict(self.params), self.dep_keys(),
-                        {role: f.sha256 for role, f in self.inputs.items()}, self.code)
+        return _key_of(self.kind, self.params.json, self.dep_keys(),
+                       {role: f.sha256 for role, f in self.inputs.items()}, self.code)
 
     def dep_keys(self) -> dict[str, str | list[str]]:
         return {role: [d.key for d in dep] if isinstance(dep, tuple) else dep.key

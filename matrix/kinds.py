@@ -151,8 +151,15 @@ class JobKind:
             found += module_closure(root, root.partition(".")[0], exclude=excluded)
         return tuple(dict.fromkeys(found))
 
-    def fingerprint(self, params: Mapping[str, Any]) -> str:
-        extra = tuple(map(str, self.code_for(params))) if self.code_for else ()
+    def fingerprint(self, params: Mapping[str, Any], params_json: str | None = None) -> str:
+        """The code fingerprint of a job with `params` (given `params_json`, their canonical JSON, the
+        per-job part is asked once per distinct params, not once per job)."""
+        if self.code_for is None:
+            extra = ()
+        elif params_json is None:
+            extra = tuple(map(str, self.code_for(params)))
+        else:
+            extra = _remembered(("code_for", self.name, params_json), lambda: tuple(map(str, self.code_for(params))))
         return _remembered(("code", self.name, extra),
                            lambda: closure_fingerprint(self.base_modules() + extra, self.code))
 

@@ -7,7 +7,7 @@ the file, the line and the key path, says what was expected and suggests the clo
 from __future__ import annotations
 
 import typing
-from collections.abc import Callable, Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -15,10 +15,11 @@ from typing import Any
 import pydantic
 
 from matrix.errors import RecipeError, did_you_mean, shown
-from matrix.grid import RESERVED, expand_grid
+from matrix.grid import RESERVED, Grid, expand_classes
 from matrix.yamlfile import Lines, read_yaml
 
 AxisValues = Callable[[Any], Collection[Any] | None]
+SameValue = Callable[[Any, str, Any], Hashable | None]   # (config, axis, value) -> matrix.grid.Same
 
 
 @dataclass(frozen=True)
@@ -32,6 +33,9 @@ class Domain:
     store_env: str = "MATRIX_STORE"
     default_store: str = ".matrix"
     after_run: Callable[..., None] | None = None   # (recipe, plan, summary, store) after `run`
+    # Values of an axis that plan the same jobs (two names of one definition): planned once (matrix.grid);
+    # it is asked about every value written on an axis, known or not (None: unlike any other)
+    same: SameValue | None = None
 
 
 @dataclass(frozen=True)
@@ -41,8 +45,9 @@ class Recipe:
     file: str
     text: str
     config: Any                          # the validated pydantic model (domain sections as attributes)
-    combinations: list[dict[str, Any]]
+    combinations: list[dict[str, Any]]   # what the domain plans: one per class of alike cells (matrix.grid)
     lines: Lines = field(repr=False, default_factory=dict)
+    grid: Grid | None = field(repr=False, default=None)   # every cell, by way of its combination
 
     def error(self, message: str, path: Sequence[Any]) -> RecipeError:
         """A RecipeError pointing at `path` in this recipe (for the domain's own checks)."""
@@ -55,15 +60,16 @@ def load_recipe(path: Path | str, domain: Domain) -> Recipe:
     if not isinstance(data, dict):
         raise RecipeError("a recipe is a mapping with at least `name` and `matrix`", file=file, line=1)
     config = _validate(data, lines, file, domain)
+    same = (lambda axis, value: domain.same(config, axis, value)) if domain.same else None
     try:
-        combinations = expand_grid(config.matrix)
+        grid = expand_classes(config.matrix, same)
     except RecipeError as error:
         raise RecipeError(error.message, file=file,
                           line=line_of(lines, error.path), path=error.path) from None
-    if not combinations:
+    if not grid.combinations:
         raise RecipeError("the matrix has no combinations left after `exclude`", file=file,
                           line=line_of(lines, ("matrix",)), path=["matrix"])
-    recipe = Recipe(config.name, config.description, file, text, config, combinations, lines)
+    recipe = Recipe(config.name, config.description, file, text, config, grid.combinations, lines, grid)
     _check_combinations(recipe, domain)
     return recipe
 

@@ -2,6 +2,8 @@
 and what follows a run (the report)."""
 from __future__ import annotations
 
+import json
+
 from matrix.recipe import Domain, Recipe
 from pilotlab.planning import plan
 from pilotlab.recipe import SECTIONS
@@ -31,6 +33,23 @@ def _circuits(config) -> list[str]:
     return sorted(set(all_circuit_names()) | set(config.circuits))
 
 
+def same_definition(config, axis: str, value) -> tuple | None:
+    """What makes a model or strategy name plan the same jobs as another: its definition (its name goes into
+    no job's params), so 1000 names of one model are planned once (matrix.grid). None (plan it as itself)
+    for other axes, and where a hardware profile's latency file is looked up by model and strategy name."""
+    if axis not in ("model", "strategy") or not isinstance(value, str) or \
+            any(profile.latency_file is not None for profile in config.hardware.values()):
+        return None
+    if axis == "model":
+        spec = config.models.get(value)
+        return None if spec is None else ("model", spec.model_dump_json())
+    options = dict(config.strategies.get(value, {}))
+    base = options.pop("use", value)
+    if not isinstance(base, str):
+        return None
+    return ("strategy", base, json.dumps(options, sort_keys=True, default=repr))
+
+
 def after_run(recipe: Recipe, plan, summary, store) -> None:
     """After `run`: refresh the report from the plan that ran (it is not planned again)."""
     from pilotlab.report.recipe import report_folder, write_recipe_report
@@ -50,4 +69,5 @@ DOMAIN = Domain(
     store_env="PILOTLAB_STORE",
     default_store=".pilotlab",
     after_run=after_run,
+    same=same_definition,
 )

@@ -3,11 +3,10 @@ direction, replaying the latencies of its offline job (or a device's latency fil
 brains' laps on every CPU profile and place the matrix drives."""
 from __future__ import annotations
 
-import json
 from typing import Any
 
 from matrix.errors import MatrixError
-from matrix.jobs import InputFile, Job, input_file
+from matrix.jobs import InputFile, Job, Params, input_file
 from pilotlab.planning.worlds import world_param
 from pilotlab.specs.online import LapSettings, OnlineSpec
 
@@ -47,8 +46,9 @@ def replay_inputs(planner, combination: dict, hardware: str, timing: Job) -> tup
 def reference_jobs(planner) -> list[Job]:
     """The reference brains (explicit, expert, the user's) on every CPU profile and circuit the matrix
     drives (they use no GPU, so a CUDA profile adds nothing)."""
-    cells = {(str(c.get("hardware", "cpu")), lap_place(c)) for c in planner.recipe.combinations
-             if ("circuit" in c or "world" in c) and planner.profile(str(c.get("hardware", "cpu"))).device == "cpu"}
+    driven = {(str(c.get("hardware", "cpu")), lap_place(c)) for c in planner.recipe.combinations
+              if "circuit" in c or "world" in c}
+    cells = {(hardware, place) for hardware, place in driven if planner.profile(hardware).device == "cpu"}
     jobs = []
     for index, reference in enumerate(planner.config.online.references):
         name, brain, inputs = reference_brain(planner, reference, index)
@@ -78,20 +78,26 @@ def reference_brain(planner, reference: str | dict[str, str], index: int) -> tup
 
 def _lap(planner, name: str, labels: dict, hardware: str, place: tuple[str, str], direction: str,
          brain: dict, deps: dict, inputs: dict | None = None) -> Job:
-    from pilotlab.hardware import host_fingerprint
     axis, circuit = place
+    # The params of every lap of one (hardware, place, direction, brain) are equal: built once.
+    slot = ("online", hardware, axis, circuit, direction, repr(sorted(brain.items())))
+    params, circuit_inputs, place_labels = planner.remembered(slot, lambda: _lap_params(
+        planner, hardware, axis, circuit, direction, brain))
+    return Job("online", f"{name} at {circuit} {direction}", params, deps=deps,
+               inputs={**circuit_inputs, **inputs} if inputs else circuit_inputs, labels={**labels, **place_labels})
+
+
+def _lap_params(planner, hardware: str, axis: str, circuit: str, direction: str, brain: dict) -> tuple:
+    """(params, inputs, labels) every lap of one hardware, place, direction and brain shares."""
+    from pilotlab.hardware import host_fingerprint
     if axis == "world":
         params, circuit_inputs = world_param(planner, circuit, ["matrix", "world"])
-        labels = {**labels, "world": circuit}
+        labels = {"world": circuit}
     else:
         params, circuit_inputs = planner.circuit_param(circuit, ["matrix", "circuit"])
-
-    def lap_params() -> dict:
-        online = planner.config.online
-        settings = {field: getattr(online, field) for field in LapSettings.model_fields}
-        return OnlineSpec(**settings, **params, **brain, direction=direction, host=host_fingerprint(),
-                          hardware=planner.profile(hardware).as_dict()).model_dump(mode="json")
-    # The params of every lap of one (hardware, circuit, direction, brain) are equal: built once.
-    slot = ("online", hardware, axis, circuit, direction, json.dumps(brain, sort_keys=True))
-    return Job("online", f"{name} at {circuit} {direction}", planner.params_once(slot, lap_params), deps=deps,
-               inputs={**circuit_inputs, **(inputs or {})}, labels={**labels, "circuit": circuit, "direction": direction})
+        labels = {}
+    online = planner.config.online
+    settings = {field: getattr(online, field) for field in LapSettings.model_fields}
+    spec = OnlineSpec(**settings, **params, **brain, direction=direction, host=host_fingerprint(),
+                      hardware=planner.profile(hardware).as_dict())
+    return Params(spec.model_dump(mode="json")), circuit_inputs, {**labels, "circuit": circuit, "direction": direction}

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from matrix.errors import MatrixError, did_you_mean
-from matrix.jobs import InputFile, Job, input_file
+from matrix.jobs import InputFile, Job, Params, input_file
 from matrix.recipe import Recipe
 from pilotlab.planning.laps import online_jobs, reference_jobs
 from pilotlab.planning.worlds import world_param
@@ -43,7 +43,8 @@ class Planner:
         self.datasets: dict[tuple[str, PreprocessConfig, str | None], list[Job]] = {}
         self.trained: dict[str, Job] = {}
         self.optimized: dict[tuple, Job] = {}
-        self.shared_params: dict[tuple, dict] = {}
+        self.shared_params: dict[tuple, Params] = {}
+        self.once: dict[tuple, Any] = {}    # what planning works out once per name, not once per cell
         self.worlds_read: dict[str, tuple[dict, dict]] = {}     # pilotlab.planning.worlds.world_param
 
     def jobs(self) -> list[Job]:
@@ -126,6 +127,9 @@ class Planner:
 
     def circuit_param(self, circuit: str, where: list) -> tuple[dict, dict]:
         """(params, inputs) naming a circuit: a recipe-defined CSV is an input file (content hashed)."""
+        return self.remembered(("circuit", circuit), lambda: self._circuit_param(circuit, where))
+
+    def _circuit_param(self, circuit: str, where: list) -> tuple[dict, dict]:
         if circuit in self.config.circuits:
             csv = self.path(self.config.circuits[circuit].csv, ["circuits", circuit, "csv"], "file")
             return {"circuit": str(csv)}, {"circuit_csv": input_file(str(csv))}
@@ -168,25 +172,26 @@ class Planner:
         return self.trained[model]
 
     def optimize(self, model: str, strategy: str, hardware: str) -> Job:
+        return self.remembered(("optimize", model, strategy, hardware), lambda: self._optimize(model, strategy, hardware))
+
+    def _optimize(self, model: str, strategy: str, hardware: str) -> Job:
         from pilotlab.strategies import STRATEGIES
         base, options = self.strategy(strategy)
-        spec = OptimizeSpec(strategy=base, options=options)
-        if STRATEGIES.get(base).hardware_dependent:
-            from pilotlab.hardware import host_fingerprint
-            device = self.profile(hardware).device
-            spec = OptimizeSpec(strategy=base, options=options, host=host_fingerprint(),
-                                hardware={"name": device, "device": device, "threads": None})
-        device = spec.hardware["device"] if spec.hardware else None
+        device = self.profile(hardware).device if STRATEGIES.get(base).hardware_dependent else None
         if (model, strategy, device) not in self.optimized:
             train = self.train(model)
             suffix = f" for {device}" if device else ""
-            self.optimized[model, strategy, device] = job(
-                "optimize", f"optimize {model}/{strategy}{suffix}", spec,
+            params = self.params_once(("optimize", strategy, device), lambda: optimize_spec(base, options, device))
+            self.optimized[model, strategy, device] = Job(
+                "optimize", f"optimize {model}/{strategy}{suffix}", params,
                 deps={"model": train, "calibration": train.deps["frames"]})
         return self.optimized[model, strategy, device]
 
     def strategy(self, name: str) -> tuple[str, dict[str, Any]]:
         """(registered strategy, options) for a strategy name of the recipe (aliases via `use:`)."""
+        return self.remembered(("strategy", name), lambda: self._strategy(name))
+
+    def _strategy(self, name: str) -> tuple[str, dict[str, Any]]:
         from pilotlab.strategies import STRATEGIES, make_strategy_config
         options = dict(self.config.strategies.get(name, {}))
         base = options.pop("use", name)
@@ -210,19 +215,26 @@ class Planner:
     def profile(self, name: str):
         from pilotlab.hardware import make_profile
         options = self.config.hardware.get(name)
-        return make_profile(name, options.model_dump(exclude_none=True, exclude={"latency_file"}) if options else None)
+        return self.remembered(("profile", name), lambda: make_profile(
+            name, options.model_dump(exclude_none=True, exclude={"latency_file"}) if options else None))
 
     def latency_file(self, hardware: str) -> Path | None:
         """The device's latency file a hardware profile names (replayed in its laps), if any."""
         options = self.config.hardware.get(hardware)
         if options is None or options.latency_file is None:
             return None
-        return self.path(options.latency_file, ["hardware", hardware, "latency_file"], "file")
+        return self.remembered(("latency_file", hardware), lambda: self.path(
+            options.latency_file, ["hardware", hardware, "latency_file"], "file"))
 
     # evaluations ----------------------------------------------------------------------------------
     def offline(self, optimize: Job, combination: dict, hardware: str) -> Job:
-        from pilotlab.hardware import host_fingerprint
+        """The offline job of a combination: one per (model, strategy, hardware, world), whatever the circuit."""
         model, strategy, world = combination["model"], combination["strategy"], combination.get("world")
+        return self.remembered(("offline", model, strategy, hardware, world),
+                               lambda: self._offline(optimize, model, strategy, world, hardware))
+
+    def _offline(self, optimize: Job, model: str, strategy: str, world: Any, hardware: str) -> Job:
+        from pilotlab.hardware import host_fingerprint
         test = self.dataset(self.config.offline.data, ["offline", "data"], self.config.models[model].preprocess,
                             world=None if world is None else str(world))
         params = self.params_once(("offline", hardware), lambda: OfflineSpec(
@@ -239,11 +251,26 @@ class Planner:
     def reference_jobs(self) -> list[Job]:
         return reference_jobs(self)
 
-    def params_once(self, slot: tuple, build) -> dict:
-        """Job params shared by many jobs (every strategy's laps on one circuit), validated once."""
+    def params_once(self, slot: tuple, build) -> Params:
+        """Job params shared by many jobs (every strategy's laps on one circuit), validated and written once."""
         if slot not in self.shared_params:
-            self.shared_params[slot] = build()
+            self.shared_params[slot] = Params(build())
         return self.shared_params[slot]
+
+    def remembered(self, slot: tuple, build):
+        """What `build` gives for `slot`, worked out once per plan (a failure is raised each time)."""
+        if slot not in self.once:
+            self.once[slot] = build()
+        return self.once[slot]
+
+
+def optimize_spec(strategy: str, options: dict[str, Any], device: str | None) -> dict[str, Any]:
+    """An optimize job's params; a strategy whose result depends on the hardware is made for one device, here."""
+    if device is None:
+        return OptimizeSpec(strategy=strategy, options=options).model_dump(mode="json")
+    from pilotlab.hardware import host_fingerprint
+    return OptimizeSpec(strategy=strategy, options=options, host=host_fingerprint(),
+                        hardware={"name": device, "device": device, "threads": None}).model_dump(mode="json")
 
 
 def model_inputs(planner: Planner, name: str, spec: ModelSpec) -> dict[str, InputFile]:

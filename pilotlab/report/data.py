@@ -262,6 +262,8 @@ class ReportData(_Frozen):
     comparison_title: str = ""               # "Compared with the 2022 study", when the recipe asks for one
     comparison: tuple[Claim, ...] = ()
     training_worlds: dict[str, tuple[str, ...]] = Field(default_factory=dict)   # model -> worlds it was trained in
+    # a name shown -> the other names of the matrix with its definition (planned once, its rows stand for them)
+    same_as: dict[str, tuple[str, ...]] = Field(default_factory=dict)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> ReportData:

@@ -91,7 +91,7 @@ def build_report_data(recipe: Recipe, jobs: list, store: Store) -> ReportData:
         "recipe_name": recipe.name, "description": recipe.description, "recipe_text": recipe.text,
         "versions": package_versions(), "host": _host(jobs, store), "date": datetime.now().isoformat(timespec="seconds"),
         "rows": rows, "histories": {name: h for name, h in histories.items() if h},
-        "training_worlds": training_worlds(recipe),
+        "training_worlds": training_worlds(recipe), "same_as": same_as(recipe),
         "sources": {job.name.removeprefix("train "): text for job in jobs if job.kind == "train"
                     and (text := model_source(store.result(job.key)))}})
     study = recipe.config.report.compare_with
@@ -100,6 +100,12 @@ def build_report_data(recipe: Recipe, jobs: list, store: Store) -> ReportData:
     title, checks = compare(data, study)
     return data.model_copy(update={"comparison_title": title,
                                    "comparison": tuple(Claim(**vars(check)) for check in checks)})
+
+
+def same_as(recipe: Recipe) -> dict[str, list[str]]:
+    """Names of the matrix planned as another name with the same definition (matrix.grid): shown name -> others."""
+    alike = recipe.grid.alike() if recipe.grid is not None else {}
+    return {str(first): [str(name) for name in others] for pairs in alike.values() for first, others in pairs}
 
 
 def training_worlds(recipe: Recipe) -> dict[str, list[str]]:

@@ -6,7 +6,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from matrix import RecipeError
-from matrix.grid import expand_grid
+from matrix.grid import describe_alike, expand_classes, expand_grid
 
 
 def test_product_in_declared_order_last_axis_fastest():
@@ -113,3 +113,56 @@ def test_exclude_applies_before_include(axes, data):
     # unless other combinations share nothing it would overwrite.
     assert {axis: value, "extra": 1} in grid
     assert all(c.get(axis) != value or c == {axis: value, "extra": 1} for c in grid)
+
+
+# --- classes of alike values: planned once, standing for every cell -------------------------------------
+
+def parity(axis, value):
+    """A domain's `same`: on axis "a", values of one parity define the same thing."""
+    return value % 2 if axis == "a" and isinstance(value, int) else None
+
+
+def cells(grid):
+    return sorted(map(repr, (sorted(cell.items()) for cell in grid.cells())))
+
+
+def matrices():
+    values = st.lists(st.integers(0, 5), min_size=1, max_size=5, unique=True)
+    entry = st.dictionaries(st.sampled_from("abx"), st.integers(0, 5), min_size=1, max_size=2)
+    return st.fixed_dictionaries({"a": values, "b": values},
+                                 optional={"exclude": st.lists(entry.filter(lambda e: "x" not in e), max_size=3),
+                                           "include": st.lists(entry, max_size=3)})
+
+
+@given(matrices())
+def test_classes_stand_for_exactly_the_cells_of_the_plain_grid(mapping):
+    # GitHub Actions' semantics are kept: alike values multiplied back out give the plain grid's cells
+    grid = expand_classes(mapping, parity)
+    plain = expand_grid(mapping)
+    assert cells(grid) == sorted(map(repr, (sorted(cell.items()) for cell in plain)))
+    assert grid.count() == len(plain)
+    assert len(grid.combinations) <= len(plain)
+
+
+def test_alike_values_are_planned_once_and_named():
+    grid = expand_classes({"a": [0, 1, 2, 3, 4], "b": ["x", "y"]}, parity)
+    assert grid.combinations == [{"a": 0, "b": "x"}, {"a": 0, "b": "y"}, {"a": 1, "b": "x"}, {"a": 1, "b": "y"}]
+    assert grid.count() == 10 and grid.same_as("a", 1) == [1, 3]
+    assert describe_alike(grid) == "10 cells plan as 4 combinations: a 2, 4 as 0; 3 as 1"
+
+
+def test_a_value_an_entry_names_keeps_its_own_combinations():
+    grid = expand_classes({"a": [0, 2, 4], "b": [1], "exclude": [{"a": 2}], "include": [{"a": 4, "z": 1}]}, parity)
+    assert grid.combinations == [{"a": 0, "b": 1}, {"a": 4, "b": 1, "z": 1}]
+    assert describe_alike(grid) is None
+
+
+def test_a_million_alike_cells_are_a_few_combinations():
+    grid = expand_classes({"a": list(range(0, 2_000_000, 2)), "b": [1, 2]}, parity)
+    assert len(grid.combinations) == 2 and grid.count() == 2_000_000
+
+
+def test_planning_is_bounded_by_distinct_combinations():
+    with pytest.raises(RecipeError, match=r"the matrix makes 1,030,301 distinct combinations \(101 a × 101 b × "
+                                          r"101 c\), more than 1,000,000 can be planned"):
+        expand_grid({axis: list(range(101)) for axis in "abc"})

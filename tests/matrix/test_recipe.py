@@ -163,3 +163,19 @@ def test_random_sections_on_a_good_recipe(tmp_path_factory, extra, base):
         load_recipe(path, TOY)
     except MatrixError:
         pass
+
+
+def test_identical_definitions_are_planned_once(tmp_path):
+    import dataclasses
+
+    from matrix import engine
+    same = dataclasses.replace(TOY, same=lambda config, axis, value: config.sources.get(value) if axis == "source" else None)
+    sources = [f"s{i}" for i in range(300)]
+    text = ("name: alike\nsources:\n" + "".join(f"  {name}: {{value: 2}}\n" for name in sources) +
+            "  other: {value: 3}\n" + f"matrix:\n  source: [{', '.join(sources)}, other]\n  power: [1, 2, 3]\n")
+    recipe = load_recipe(write(tmp_path, text), same)
+    assert recipe.grid.count() == 301 * 3 and len(recipe.combinations) == 2 * 3
+    jobs = engine.plan_jobs(recipe, same)
+    assert sorted(job.name for job in jobs) == ["power other^1", "power other^2", "power other^3", "power s0^1",
+                                                "power s0^2", "power s0^3", "source other", "source s0", "total"]
+    assert recipe.grid.same_as("source", "s0") == sources

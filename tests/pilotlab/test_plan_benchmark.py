@@ -1,0 +1,67 @@
+"""Plan cost follows jobs, not cells (issue 25): prints the seconds and the peak memory of planning
+
+- a grid of identical entries: 1000 models × 250 strategies × 2 hardware × 2 circuits (1,000,000 cells,
+  20 jobs; target ≤ 10 s and ≤ 1 GB), and
+- a recipe of distinct entries: 100 models × 100 strategies × 2 hardware × 4 circuits (80,000 cells,
+  about 110,000 jobs; target ≤ 5 s).
+
+Each is planned in a fresh interpreter (so its peak memory is its own): seconds of load + plan, and the
+process's peak resident memory (imports included). Never asserts timings.
+Run: python -m pytest -m benchmark -s tests/pilotlab/test_plan_benchmark.py
+"""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PLAN = """
+import json, sys, time
+from matrix import engine
+from matrix.recipe import load_recipe
+from matrix.store import Store
+from pilotlab.domain import DOMAIN
+def peak_kb():  # this program's high-water mark (ru_maxrss would count the pytest process it was forked from)
+    return int(next(line for line in open("/proc/self/status") if line.startswith("VmHWM")).split()[1])
+engine.register_kinds(DOMAIN)
+started = time.perf_counter()
+recipe = load_recipe(sys.argv[1], DOMAIN)
+plan = engine.make_plan(recipe, DOMAIN, Store(sys.argv[2]))
+seconds = time.perf_counter() - started
+print(json.dumps({"seconds": seconds, "cells": recipe.grid.count(), "jobs": len(plan.statuses),
+                  "peak_mb": peak_kb() / 1024}))
+"""
+
+
+def recipe(path: Path, models: int, strategies: int, circuits: list[str], distinct: bool) -> Path:
+    lines = ["name: bench", "datasets:", "  train: {record: {circuits: [simple_circuit], laps: 1}}",
+             "  test: {record: {circuits: [simple_circuit], laps: 0.5}}", "models:"]
+    lines += [f"  m{i}: {{arch: pilotnet, epochs: {i + 1 if distinct else 1}}}" for i in range(models)]
+    lines += ["strategies:"] + [f"  s{i}: {{use: local_prune, conv: {(i + 1) / 1000 if distinct else 0.3}}}"
+                                for i in range(strategies)]
+    lines += ["matrix:", f"  model: [{', '.join(f'm{i}' for i in range(models))}]",
+              f"  strategy: [{', '.join(f's{i}' for i in range(strategies))}]",
+              "  hardware: [cpu, cpu1]", f"  circuit: [{', '.join(circuits)}]"]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def planned(path: Path, store: Path) -> dict:
+    out = subprocess.run([sys.executable, "-c", PLAN, str(path), str(store)], cwd=ROOT, capture_output=True,
+                         text=True, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": str(store.parent)})
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.splitlines()[-1])
+
+
+@pytest.mark.benchmark
+@pytest.mark.parametrize("name, models, strategies, circuits, distinct, target", [
+    ("identical entries", 1000, 250, ["simple_circuit", "montreal"], False, "≤ 10 s, ≤ 1 GB"),
+    ("distinct entries", 100, 100, ["simple_circuit", "montreal", "montmelo", "nurburgring"], True, "≤ 5 s"),
+])
+def test_plan_cost_follows_jobs(tmp_path, name, models, strategies, circuits, distinct, target):
+    figures = planned(recipe(tmp_path / "r.yaml", models, strategies, circuits, distinct), tmp_path / "store")
+    print(f"\nplan of {name}: {figures['cells']:,} cells, {figures['jobs']:,} jobs: {figures['seconds']:.2f} s, "
+          f"peak {figures['peak_mb']:.0f} MB (target {target})")
+    assert figures["cells"] == models * strategies * 2 * len(circuits)
