@@ -123,6 +123,11 @@ def default_jobs() -> int:
         return os.cpu_count() or 1
 
 
+def worker_threads(slots: int) -> int:
+    """Threads each of `slots` workers' math libraries may use: the cores shared among them."""
+    return max(1, default_jobs() // max(1, slots))
+
+
 def run_local(statuses: list[JobStatus], store: Store, *, jobs: int = 1, keep_going: bool = False,
               kind_modules: Iterable[str] = (), display: Display | None = None) -> RunSummary:
     """Run every non-fresh job of `statuses` (in dependency order) on `jobs` worker processes."""
@@ -202,7 +207,7 @@ class _Pool:
 
     def _new_executor(self) -> ProcessPoolExecutor:
         return ProcessPoolExecutor(self.slots, mp_context=self.context, initializer=init_worker,
-                                   initargs=(self.kind_modules, self.progress))
+                                   initargs=(self.kind_modules, self.progress, worker_threads(self.slots)))
 
     def submit(self, job: Job) -> Future:
         arguments = (execute_job, str(self.store.root), job.spec(), (), self.replacing.get(job.key))

@@ -29,10 +29,20 @@ _progress_sink: Callable[[str, dict], None] | None = None
 _capture_fds = False  # our own pool workers run one job at a time, so they may take over fds 1 and 2
 
 
-def init_worker(kind_modules: Iterable[str], progress_queue: Any = None) -> None:
-    """Process-pool initializer: register the domain's job kinds; send progress to the driver."""
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+
+
+def init_worker(kind_modules: Iterable[str], progress_queue: Any = None, threads: int | None = None) -> None:
+    """Process-pool initializer: register the domain's job kinds; send progress to the driver.
+
+    `threads`: the worker's share of the cores, for OpenMP/BLAS libraries (read when they load, so set
+    before the kinds' modules import them). Two workers each running torch on both of 2 cores spin
+    against each other (a 2-epoch fine-tune took minutes instead of seconds); a job that needs a set
+    thread count (a timing job) sets it itself. A variable the user set is kept."""
     global _progress_sink, _capture_fds
     _capture_fds = True
+    for variable in THREAD_VARIABLES if threads else ():
+        os.environ.setdefault(variable, str(threads))
     for module in kind_modules:
         importlib.import_module(module)
     if progress_queue is not None:

@@ -202,6 +202,17 @@ def test_a_library_handler_made_in_one_job_logs_into_the_next_jobs_log(tmp_path)
         assert f"library warning from source {name}" in log and "Logging error" not in log
 
 
+def test_workers_share_the_cores_among_their_math_libraries(tmp_path, monkeypatch):
+    """With -j N each worker's OpenMP/BLAS libraries get cores // N threads (not every core each)."""
+    from matrix.execute import default_jobs, worker_threads
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    store = Store(tmp_path / "store")
+    plan, summary = run(recipe_file(tmp_path), store, jobs=2)
+    sources = [s.job for s in plan.statuses if s.job.kind == "source"]
+    assert {store.result(job.key)["value"]["omp_threads"] for job in sources} == {str(worker_threads(2))}
+    assert worker_threads(2) == max(1, default_jobs() // 2) and worker_threads(1) == default_jobs()
+
+
 @pytest.mark.parametrize("arguments, message", [
     (("local", 0), "give 1 or more"),
     (("dask", 1), "needs --scheduler"),

@@ -73,7 +73,7 @@ def run_source(ctx) -> dict[str, Any]:
         raise NotApplicable("this source needs hardware we do not have")
     (ctx.out / "value.json").write_text(json.dumps(ctx.params["value"]))
     ctx.progress(1, 1, "written")
-    return {"value": ctx.params["value"]}
+    return {"value": ctx.params["value"], "omp_threads": os.environ.get("OMP_NUM_THREADS")}
 
 
 @job_kind("power")
