@@ -1,15 +1,21 @@
 """Running the stale part of a plan on a Dask cluster that shares the job store.
 
 The driver keeps the same schedule as the local executor (`matrix.execute.Schedule`): each stale job
-becomes one Dask future when its dependencies are done (Dask places it), a failed job's dependents
-are skipped, and a timing (exclusive) job runs with nothing else submitted beside it. Each task runs
-the same `matrix.worker.execute_job` as the local executor, writing to the shared store. The store stays the source of truth: a driver
-restarted later plans from it, and a worker that dies mid-job leaves only a temporary folder behind
-(Dask reruns the task elsewhere; the lock dies with the process).
+becomes one Dask future when its dependencies are done (Dask places it), and a failed job's dependents
+are skipped. Each task runs the same `matrix.worker.execute_job` as the local executor, writing to the
+shared store. The store stays the source of truth: a driver restarted later plans from it, and a worker
+that dies mid-job leaves only a temporary folder behind (Dask reruns the task elsewhere; the lock dies
+with the process).
 
-Placement: a job kind's `resources` (for example {"GPU": 1}) become Dask resources, so such jobs go
-only to workers started with `--resources GPU=1`; with `timing_resource="TIMING"`, exclusive
-(timing) jobs go only to workers declaring TIMING, so timings come from one class of machine.
+A timing (exclusive) job has its host to itself, not the cluster: it is submitted like any other job,
+and on its worker it takes its host's lock alone (matrix.hostlock), so no other job starts on that
+host's workers until it is done (one that was given to a worker of that host waits there), while
+the other hosts go on working; timing jobs on different hosts run at once.
+
+Placement: a job kind's `resources` and `resources_for(params)` (for example {"GPU": 1}, or the worker
+resource a hardware profile names) become Dask resources, so such jobs go only to workers started with
+`--resources GPU=1`; with `timing_resource="TIMING"`, every exclusive (timing) job goes only to
+workers declaring TIMING, so timings come from one class of machine.
 """
 from __future__ import annotations
 
@@ -19,7 +25,7 @@ from collections.abc import Iterable
 
 from matrix.display import NullDisplay
 from matrix.errors import MatrixError
-from matrix.execute import NOT_STARTED, Outcome, RunSummary, Schedule, record_outcome
+from matrix.execute import BUSY_RETRY_S, NOT_STARTED, Outcome, RunSummary, Schedule, record_outcome
 from matrix.jobs import Job
 from matrix.kinds import KINDS
 from matrix.stale import FRESH, JobStatus, results_to_replace
@@ -62,10 +68,9 @@ def run_task(store_root: str, spec: dict, kind_modules: tuple, replaces: str | N
 def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: bool = False,
              kind_modules: Iterable[str] = (), timing_resource: str | None = None,
              display=None) -> RunSummary:
-    """Submit each stale job once its dependencies are done, as the local executor starts them: a
-    timing (exclusive) job is submitted only when nothing else runs, and nothing else is submitted
-    until it is done, so it measures on a quiet cluster; with `timing_resource` it also runs only on
-    the workers that declare it."""
+    """Submit each stale job once its dependencies are done; a timing (exclusive) job keeps its own host
+    quiet on the worker (see the module); with `timing_resource` it also runs only on the workers that
+    declare it."""
     distributed = import_distributed()
     stale = [s.job for s in statuses if s.state != FRESH]
     summary = RunSummary(fresh=len(statuses) - len(stale))
@@ -75,12 +80,13 @@ def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: boo
     finished = distributed.as_completed()
     stopping = False
     while running or (schedule.has_work() and not stopping):
-        exclusive = any(KINDS.get(job.kind).exclusive for job in running.values())
-        while not stopping and (job := schedule.take(exclusive, len(running), UNLIMITED)):
+        while not stopping and (job := schedule.next_ready()):
             future = submit(job)
             running[future.key] = job
             finished.add(future)
-            exclusive = exclusive or KINDS.get(job.kind).exclusive
+        if not running:   # only jobs another run holds: they are retried after a pause
+            time.sleep(BUSY_RETRY_S)
+            continue
         future = next(finished)
         job = running.pop(future.key)
         outcome = _outcome(job, future)
@@ -92,9 +98,6 @@ def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: boo
                 schedule, summary, display or NullDisplay())
     summary.wall_s = time.monotonic() - started
     return summary
-
-
-UNLIMITED = 1 << 30   # Dask queues what its workers cannot start yet
 
 
 class _Submitter:

@@ -77,9 +77,7 @@ class Schedule:
         return bool(self.ready or self.later)
 
     def take(self, exclusive_running: bool, running: int, slots: int) -> Job | None:
-        now = time.monotonic()
-        self.ready.extend(key for at, key in self.later if at <= now)
-        self.later = [(at, key) for at, key in self.later if at > now]
+        self._wake()
         if not self.ready or exclusive_running or running >= slots:
             return None
         if not running:  # an idle host: the next job, exclusive or not
@@ -91,6 +89,17 @@ class Schedule:
                 del self.ready[position]
                 return self.jobs[key]
         return None
+
+    def next_ready(self) -> Job | None:
+        """The next ready job, exclusive or not (on Dask a timing job keeps its host quiet itself)."""
+        self._wake()
+        return self.jobs[self.ready.popleft()] if self.ready else None
+
+    def _wake(self) -> None:
+        """Jobs another run held, whose pause is over, are ready again."""
+        now = time.monotonic()
+        self.ready.extend(key for at, key in self.later if at <= now)
+        self.later = [(at, key) for at, key in self.later if at > now]
 
     def done(self, key: str) -> None:
         self.settled.add(key)

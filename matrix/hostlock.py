@@ -7,7 +7,11 @@ so a busy run with many short jobs cannot starve another run's timing job.
 
 The lock is a file in the user's cache folder named after the host (`$MATRIX_HOST_LOCK` moves it),
 so two runs on one host meet there even when their stores differ, and hosts sharing a home folder
-over the network do not lock each other out.
+over the network do not lock each other out. On Dask this is what keeps a timing job alone on its
+host while the other hosts go on working (matrix.dask_executor).
+
+A host is named by its host name, or by `$MATRIX_HOST` where one machine stands for several (two Dask
+workers started with different names and lock files are two hosts to the engine: tests do so).
 """
 from __future__ import annotations
 
@@ -20,11 +24,16 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 
+def host_name() -> str:
+    """This host's name: $MATRIX_HOST, else the host name."""
+    return os.environ.get("MATRIX_HOST") or socket.gethostname() or "localhost"
+
+
 def lock_path() -> Path:
     if os.environ.get("MATRIX_HOST_LOCK"):
         return Path(os.environ["MATRIX_HOST_LOCK"])
     cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return cache / "matrix" / f"host-{socket.gethostname() or 'localhost'}.lock"
+    return cache / "matrix" / f"host-{host_name()}.lock"
 
 
 @contextmanager

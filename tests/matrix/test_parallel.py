@@ -42,18 +42,18 @@ def result_files(store: Store) -> dict[str, object]:
     return files
 
 
-def intervals(store: Store) -> list[tuple[str, float, float, str]]:
-    """(kind, start, end, job name) of each job's work, from the toy domain's intervals.log."""
+def intervals(store: Store) -> list[tuple[str, float, float, str, str]]:
+    """(kind, start, end, job name, host) of each job's work, from the toy domain's intervals.log."""
     rows = (store.root / "cache" / "intervals.log").read_text().splitlines()
-    return [(kind, float(start), float(end), store.spec(key)["name"])
-            for kind, key, start, end in (row.split() for row in rows)]
+    return [(kind, float(start), float(end), store.spec(key)["name"], host)
+            for kind, key, start, end, host in (row.split() for row in rows)]
 
 
 def assert_timings_ran_alone(store: Store) -> None:
     runs = intervals(store)
     timings = [r for r in runs if r[0] == "measure"]
     assert len(timings) == 6
-    for kind, start, end, name in timings:
+    for kind, start, end, name, _ in timings:
         beside = [other for other in runs if other[3] != name and other[1] < end and start < other[2]]
         assert not beside, f"{name} ran beside {beside}"
 

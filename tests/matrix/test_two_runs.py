@@ -42,7 +42,7 @@ def start_run(recipe: Path, store: Path, jobs: int = 2) -> subprocess.Popen:
 
 def intervals(store: Path) -> list[tuple[str, str, float, float]]:
     lines = (store / "cache" / "intervals.log").read_text().splitlines()
-    return [(kind, key, float(start), float(end)) for kind, key, start, end in map(str.split, lines)]
+    return [(kind, key, float(start), float(end)) for kind, key, start, end, _ in map(str.split, lines)]
 
 
 def keys_of(recipe: Path, store: Path) -> set[str]:

@@ -5,7 +5,8 @@
 
 plans one `source` job per source (shared by every power), one `power` job per combination and
 one `total` job over all of them; with `measures: true`, also one exclusive `measure` job per power
-(a timing job: it notes when it ran, as the others do, so tests can check that it ran alone).
+(a timing job: it notes when and on which host it ran, as the others do, so tests can check that it
+ran alone); a source's `worker: NAME` sends its measure jobs to Dask workers declaring resource NAME.
 """
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from typing import Any
 import pydantic
 
 from matrix import NotApplicable, job_kind
+from matrix.hostlock import host_name
 from matrix.jobs import Job
 from matrix.recipe import Domain, Recipe
 
@@ -31,6 +33,7 @@ class SourceConfig(pydantic.BaseModel):
     not_applicable: bool = False
     noise: bool = False           # write to file descriptor 2 directly, as C libraries do
     library_log: bool = False     # log through a handler on sys.stderr made once per process, as torch does
+    worker: str | None = None     # the Dask worker resource its measure jobs need (as a hardware profile's)
 
 
 def count_execution(ctx) -> None:
@@ -51,11 +54,11 @@ def library_logger() -> logging.Logger:
 
 @contextlib.contextmanager
 def timed(ctx):
-    """Append "kind key start end" to the store-wide intervals.log once the job's work is done."""
+    """Append "kind key start end host" to the store-wide intervals.log once the job's work is done."""
     started = time.time()
     yield
     with open(ctx.cache / "intervals.log", "a") as log:
-        log.write(f"{ctx.kind} {ctx.key} {started:.6f} {time.time():.6f}\n")
+        log.write(f"{ctx.kind} {ctx.key} {started:.6f} {time.time():.6f} {host_name()}\n")
 
 
 @job_kind("source")
@@ -87,7 +90,7 @@ def run_power(ctx) -> dict[str, Any]:
     return {"value": value ** ctx.params["power"]}
 
 
-@job_kind("measure", exclusive=True)
+@job_kind("measure", exclusive=True, resources_for=lambda params: {params["worker"]: 1} if "worker" in params else {})
 def run_measure(ctx) -> dict[str, Any]:
     count_execution(ctx)
     with timed(ctx):
@@ -104,12 +107,13 @@ def run_total(ctx) -> dict[str, Any]:
 
 
 def plan(recipe: Recipe) -> list[Job]:
-    sources = {name: Job("source", f"source {name}", cfg.model_dump())
+    sources = {name: Job("source", f"source {name}", cfg.model_dump(exclude={"worker"}))
                for name, cfg in recipe.config.sources.items()}
     powers = [Job("power", f"power {c['source']}^{c['power']}", {"power": c["power"], "sleep": recipe.config.sleep},
                   deps={"source": sources[c["source"]]}) for c in recipe.combinations]
-    measures = [Job("measure", f"measure {p.name}", {"sleep": recipe.config.sleep}, deps={"power": p})
-                for p in powers] if recipe.config.measures else []
+    workers = [recipe.config.sources[c["source"]].worker for c in recipe.combinations]
+    measures = [Job("measure", f"measure {p.name}", {"sleep": recipe.config.sleep} | ({"worker": w} if w else {}),
+                    deps={"power": p}) for p, w in zip(powers, workers)] if recipe.config.measures else []
     total = {"sleep": recipe.config.total_sleep} if recipe.config.total_sleep else {}
     return powers + measures + [Job("total", "total", total, deps={"parts": tuple(powers)})]
 
