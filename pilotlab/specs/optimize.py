@@ -2,8 +2,8 @@
 
 deps: `model` (the train job: its model.pt) and `calibration` (a group of frames jobs: the training
 frames, for calibration and fine-tuning). The code of an optimize job is the shared strategy
-machinery plus the import closure of its own strategy's module, so editing one strategy reruns only
-its jobs.
+machinery plus the import closure of its own strategy's handler module and config module, so
+editing one strategy reruns only its jobs.
 """
 from __future__ import annotations
 
@@ -26,20 +26,19 @@ class OptimizeSpec(Spec):
 
 
 def strategy_modules() -> list[str]:
-    """Every registered strategy's module: each job fingerprints only its own (`own_strategy`)."""
-    return [entry.module for _, entry in STRATEGIES.items()]
+    """Every registered strategy's modules (handler and config): each job fingerprints only its own
+    (`own_strategy`)."""
+    return list(dict.fromkeys(module for _, entry in STRATEGIES.items() for module in entry.modules))
 
 
 def own_strategy(params) -> list[str]:
-    """The module of the job's strategy and what it imports within pilotlab (the strategies it
-    builds on included; the others left out)."""
-    module = STRATEGIES.get(params["strategy"]).module
-    others = [m for m in strategy_modules() if m != module]
-    return module_closure(module, "pilotlab", exclude=[m for m in others if m not in _builds_on(module)])
-
-
-def _builds_on(module: str) -> list[str]:
-    return module_closure(module, "pilotlab.strategies")
+    """The modules of the job's strategy (its handler's and its config's) and what they import within
+    pilotlab (the strategies they build on included; the others left out)."""
+    own = STRATEGIES.get(params["strategy"]).modules
+    builds_on = {module for root in own for module in module_closure(root, "pilotlab.strategies")}
+    others = [m for m in strategy_modules() if m not in own and m not in builds_on]
+    found = [module for root in own for module in module_closure(root, "pilotlab", exclude=others)]
+    return list(dict.fromkeys(found))
 
 
 register_kind("optimize", "pilotlab.jobs.optimize:run_optimize", params=OptimizeSpec,

@@ -1,18 +1,12 @@
-"""`baseline`: the trained network as it is, fp32 eager PyTorch — the reference every ratio uses."""
+"""`baseline`: the trained network as it is, fp32 eager PyTorch — the reference every ratio uses
+(config: configs/baseline.py)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 from pilotlab.strategies.common import save_float_model
-from pilotlab.strategies.registry import StrategySource, register_strategy
+from pilotlab.strategies.configs.baseline import BaselineConfig
+from pilotlab.strategies.registry import StrategySource
 
 
-@dataclass(frozen=True)
-class BaselineConfig:
-    version: int = 1
-
-
-@register_strategy("baseline", BaselineConfig, takes_onnx=True)
 def baseline(config: BaselineConfig, source: StrategySource) -> dict:
     # Kept as a pilotlab checkpoint run eagerly, as the 2022 study timed its PyTorch baseline; a
     # user's ONNX graph as it is, in ONNX Runtime.

@@ -1,6 +1,5 @@
 """Channel surgery for the `structured_prune` strategy: remove the conv channels and linear neurons
-with the smallest L1 norm from a chain of layers, checked against the same network with them zeroed
-(kept apart from structured_prune.py so that registering the strategy imports no torch)."""
+with the smallest L1 norm from a chain of layers, checked against the same network with them zeroed."""
 from __future__ import annotations
 
 import copy
@@ -9,8 +8,8 @@ import torch
 from torch import nn
 
 from matrix.kinds import NotApplicable
-from pilotlab.strategies.artifact import example_batch
 from pilotlab.strategies.common import weight_layers
+from pilotlab.strategies.saving import example_batch
 
 
 def remove_channels(model: nn.Module, amount: float, input_shape: tuple, multiple_of: int = 1) -> dict[str, int]:

@@ -5,33 +5,20 @@ so with Adam the cluster members stay equal).
 
 The saved network is dense fp32 (deployable formats have no codebook type), so it is as large on
 disk as the baseline but compresses to ~log2(clusters) bits per weight; the result reports the
-number of distinct values per layer.
+number of distinct values per layer (config: configs/cluster.py).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 from pilotlab.errors import PilotlabError
 from pilotlab.strategies.common import finetune, save_float_model, weight_layers
-from pilotlab.strategies.registry import StrategySource, register_strategy
+from pilotlab.strategies.configs.cluster import ClusterConfig
+from pilotlab.strategies.kmeans import cluster_weights, share_gradients, snap_to_centroids
+from pilotlab.strategies.registry import StrategySource
 
 
-@dataclass(frozen=True)
-class ClusterConfig:
-    version: int = 1
-    clusters: int = 16               # shared values per layer (16 = 4-bit indices)
-    iterations: int = 30             # k-means (Lloyd) iterations
-    finetune_epochs: int = 2
-    lr: float = 1e-4
-    batch_size: int = 64
-    format: str = "checkpoint"       # checkpoint | torchscript | onnx
-
-
-@register_strategy("cluster", ClusterConfig)
 def cluster(config: ClusterConfig, source: StrategySource) -> dict:
     if not 2 <= config.clusters <= 256:
         raise PilotlabError(f"clusters: {config.clusters} must be between 2 and 256")
-    from pilotlab.strategies.kmeans import cluster_weights, share_gradients, snap_to_centroids  # torch
     model = source.load_model()
     assignments = {name: cluster_weights(layer.weight, config.clusters, config.iterations)
                    for name, layer in weight_layers(model)}

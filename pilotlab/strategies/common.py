@@ -1,18 +1,23 @@
-"""Helpers shared by strategies: fine-tuning on the training frames, saving a float model, sparsity."""
+"""Helpers shared by strategy handlers: fine-tuning on the training frames, saving a float model,
+sparsity. Handlers only import it (configs never do), so it imports torch at its top."""
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
-from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+from torch import nn
 
 from matrix.kinds import NotApplicable
 from pilotlab.errors import PilotlabError
 from pilotlab.hardware import check_available
 from pilotlab.models import make_config, save_checkpoint
-from pilotlab.strategies.artifact import FLOAT_FORMATS, export_onnx, save_torchscript
+from pilotlab.strategies.artifact import FLOAT_FORMATS
+from pilotlab.strategies.configs.checks import check_distill
 from pilotlab.strategies.registry import StrategySource
-
-if TYPE_CHECKING:  # torch only inside the functions: strategy modules import this one to register
-    from torch import nn
+from pilotlab.strategies.saving import export_onnx, save_torchscript
+from pilotlab.training import FitConfig, fit
 
 
 def finetune(model: nn.Module, source: StrategySource, *, epochs: int, lr: float,
@@ -26,7 +31,6 @@ def finetune(model: nn.Module, source: StrategySource, *, epochs: int, lr: float
     (fine-tuning augments nothing, so the baseline's output on each frame is computed once)."""
     if epochs <= 0:
         return []
-    from pilotlab.training import FitConfig, fit
     source.log.info("fine-tuning %d epoch(s) on %d frames%s", epochs, len(source.calibration),
                     f", distilling the baseline (weight {distill:g})" if distill else "")
 
@@ -39,10 +43,6 @@ def finetune(model: nn.Module, source: StrategySource, *, epochs: int, lr: float
 
 def soft_targets(source: StrategySource, distill: float):
     """The training frames with labels (1 - distill) · label + distill · the trained baseline's output."""
-    import dataclasses
-
-    import numpy as np
-    import torch
     check_distill(distill)
     data, teacher = source.calibration, source.load_model().eval()
     with torch.no_grad():
@@ -50,12 +50,6 @@ def soft_targets(source: StrategySource, distill: float):
     soft = source.labels.denormalise(outputs)
     labels = ((1 - distill) * np.asarray(data.labels, np.float32) + distill * soft).astype(np.float32)
     return dataclasses.replace(data, labels=labels, meta={**data.meta, "distill": distill})
-
-
-def check_distill(distill: float) -> None:
-    if not 0.0 <= distill <= 1.0:
-        raise PilotlabError(f"distill: {distill} is not a weight in [0, 1] (0: the labels alone, 1: the trained "
-                            "baseline's outputs alone)")
 
 
 def save_float_model(model: nn.Module, source: StrategySource, fmt: str,
@@ -95,7 +89,6 @@ def write_checkpoint(model: nn.Module, source: StrategySource) -> Path:
 
 def weight_layers(model: nn.Module) -> list[tuple[str, nn.Module]]:
     """The layers pruning and clustering act on: every Conv2d and Linear, in registration order."""
-    from torch import nn
     return [(name, m) for name, m in model.named_modules() if isinstance(m, (nn.Conv2d, nn.Linear))]
 
 

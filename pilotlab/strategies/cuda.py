@@ -3,26 +3,20 @@
 
 Only on a CUDA hardware target with onnxruntime-gpu built with TensorRT; elsewhere "not
 applicable" with the reason. (torch-tensorrt would also do; it is not installed here.)
+Config: configs/cuda.py.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import onnxruntime
 
 from matrix.kinds import NotApplicable
-from pilotlab.strategies.artifact import export_onnx
 from pilotlab.strategies.common import require_cuda_target
-from pilotlab.strategies.registry import StrategySource, register_strategy
+from pilotlab.strategies.configs.cuda import TensorRTConfig
+from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.saving import export_onnx
 
 
-@dataclass(frozen=True)
-class TensorRTConfig:
-    version: int = 1
-    fp16: bool = True
-
-
-@register_strategy("tensorrt", TensorRTConfig, hardware_dependent=True)
 def tensorrt(config: TensorRTConfig, source: StrategySource) -> dict:
-    import onnxruntime
     require_cuda_target(source)
     if "TensorrtExecutionProvider" not in onnxruntime.get_available_providers():
         raise NotApplicable("tensorrt: this onnxruntime has no TensorrtExecutionProvider "

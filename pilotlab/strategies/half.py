@@ -5,39 +5,26 @@ Only where the hardware computes in that precision natively: a CUDA GPU (fp16, b
 or a CPU with AVX512-BF16/AMX (bf16) or AVX512-FP16/AMX-FP16 (fp16). Elsewhere torch emulates the
 arithmetic (here fp16 ran 13× and bf16 6× slower than fp32 at batch 1), so the strategy is "not
 applicable" unless `allow_emulated: true` asks for it anyway (useful to check accuracy).
-Saved as frozen TorchScript in the target precision.
+Saved as frozen TorchScript in the target precision. Config: configs/half.py.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+import torch
 
 from matrix.kinds import NotApplicable
 from pilotlab.hardware import check_available, cpu_flags
-from pilotlab.strategies.artifact import save_torchscript
-from pilotlab.strategies.registry import StrategySource, register_strategy
-
-if TYPE_CHECKING:  # torch is imported inside the functions: planning imports this module
-    import torch
+from pilotlab.strategies.configs.half import HalfConfig
+from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.saving import save_torchscript
 
 NATIVE_CPU_FLAGS = {"bfloat16": {"avx512_bf16", "amx_bf16"}, "float16": {"avx512_fp16", "amx_fp16"}}
 
 
-@dataclass(frozen=True)
-class HalfConfig:
-    version: int = 1
-    allow_emulated: bool = False     # run even where the CPU has no native 16-bit arithmetic
-
-
-@register_strategy("bf16", HalfConfig, hardware_dependent=True)
 def bf16(config: HalfConfig, source: StrategySource) -> dict:
-    import torch
     return save_half(config, source, torch.bfloat16)
 
 
-@register_strategy("fp16", HalfConfig, hardware_dependent=True)
 def fp16(config: HalfConfig, source: StrategySource) -> dict:
-    import torch
     return save_half(config, source, torch.float16)
 
 
@@ -57,7 +44,6 @@ def save_half(config: HalfConfig, source: StrategySource, dtype: torch.dtype) ->
 
 
 def native_support(dtype: torch.dtype, device: str) -> bool:
-    import torch
     if device == "cuda":
         return dtype == torch.float16 or torch.cuda.is_bf16_supported()
     return bool(NATIVE_CPU_FLAGS[dtype_name(dtype)] & cpu_flags())

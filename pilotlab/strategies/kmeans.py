@@ -1,5 +1,5 @@
-"""k-means weight sharing on one weight tensor, for the `cluster` strategy (kept apart from
-cluster.py so that registering the strategy imports no torch)."""
+"""k-means weight sharing on one weight tensor, for the `cluster` strategy and the TF-MOT clustering
+(mot_torch.py)."""
 from __future__ import annotations
 
 import torch

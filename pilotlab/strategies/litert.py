@@ -18,52 +18,36 @@ dequantizes (v, w) with the scales stored in the model, as a deployment must. Th
 "Integer only Q" MSE of 28,157 is what one gets reading that int8 output as a number:
 `raw_output_mse` in the result is that figure on the calibration frames, next to the real one
 from the offline evaluation.
+
+Config: configs/litert.py, which registers these strategies as needing the `edge` extra, so this
+module (TensorFlow through litert_convert) is imported only where it is installed.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-from pilotlab.strategies.edge import LITERT_CONVERTER, require
-from pilotlab.strategies.registry import StrategySource, register_strategy
-
-
-@dataclass(frozen=True)
-class LiteRTConfig:
-    version: int = 1
-
-
-@dataclass(frozen=True)
-class LiteRTCalibratedConfig:
-    version: int = 1
-    calibration_frames: int = 512    # the representative dataset: training frames spread evenly
+from pilotlab.strategies.configs.litert import LiteRTCalibratedConfig, LiteRTConfig
+from pilotlab.strategies.litert_convert import save_tflite
+from pilotlab.strategies.registry import StrategySource
 
 
 def _convert(mode: str, source: StrategySource, calibration_frames: int = 0) -> dict:
-    require(source, LITERT_CONVERTER)
-    from pilotlab.strategies.litert_convert import save_tflite
     return save_tflite(source.load_model(), source, mode, calibration_frames)
 
 
-@register_strategy("litert", LiteRTConfig)
 def litert_fp32(config: LiteRTConfig, source: StrategySource) -> dict:
     return _convert("float32", source)
 
 
-@register_strategy("litert_dynamic_range", LiteRTConfig)
 def litert_dynamic_range(config: LiteRTConfig, source: StrategySource) -> dict:
     return _convert("dynamic_range", source)
 
 
-@register_strategy("litert_float16", LiteRTConfig)
 def litert_float16(config: LiteRTConfig, source: StrategySource) -> dict:
     return _convert("float16", source)
 
 
-@register_strategy("litert_int8", LiteRTCalibratedConfig)
 def litert_int8(config: LiteRTCalibratedConfig, source: StrategySource) -> dict:
     return _convert("int8", source, config.calibration_frames)
 
 
-@register_strategy("litert_full_int8", LiteRTCalibratedConfig)
 def litert_full_int8(config: LiteRTCalibratedConfig, source: StrategySource) -> dict:
     return _convert("full_int8", source, config.calibration_frames)

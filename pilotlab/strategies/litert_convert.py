@@ -1,6 +1,8 @@
 """PyTorch -> .tflite for the LiteRT strategies (litert.py): the ONNX export, onnx2tf to a
 TensorFlow SavedModel (input kept NCHW, so every artifact takes the same tensor), then TF Lite's
-converter with the study's settings. TensorFlow and onnx2tf are imported here only."""
+converter with the study's settings. TensorFlow and onnx2tf are imported here only: the edge
+extra installs them, and the strategies using this module are registered as requiring it, so it is
+imported only where they are installed."""
 from __future__ import annotations
 
 import contextlib
@@ -14,8 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from pilotlab.strategies.artifact import INPUT_NAME, export_onnx
+from pilotlab.strategies.artifact import INPUT_NAME
 from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.saving import export_onnx   # torch before TensorFlow, the order the jobs always had
+
+os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")   # before TensorFlow loads: its C++ logs are pages long
+import onnx2tf  # noqa: E402
+import tensorflow as tf  # noqa: E402
+from ai_edge_litert.interpreter import Interpreter  # noqa: E402
 
 MODES = {  # mode -> (artifact dtype, what artifact.json says about it)
     "float32": ("float32", "no optimization"),
@@ -43,7 +51,6 @@ def save_tflite(model, source: StrategySource, mode: str, calibration_frames: in
 
 
 def _saved_model(model, source: StrategySource, tmp: Path) -> Path:
-    import onnx2tf
     export_onnx(model, tmp / "model.onnx", source.input_shape)
     onnx2tf.convert(input_onnx_file_path=str(tmp / "model.onnx"), output_folder_path=str(tmp / "saved"),
                     keep_ncw_or_nchw_or_ncdhw_input_names=[INPUT_NAME], output_signaturedefs=True,
@@ -52,7 +59,6 @@ def _saved_model(model, source: StrategySource, tmp: Path) -> Path:
 
 
 def _convert(saved: Path, mode: str, source: StrategySource, calibration_frames: int) -> bytes:
-    import tensorflow as tf
     converter = tf.lite.TFLiteConverter.from_saved_model(str(saved))
     if mode != "float32":
         converter.optimizations = [tf.lite.Optimize.DEFAULT]
@@ -73,7 +79,6 @@ def _representative(source: StrategySource, max_frames: int) -> Iterator[list[np
 
 
 def _io_quantization(path: Path) -> dict:
-    from ai_edge_litert.interpreter import Interpreter
     interpreter = Interpreter(model_path=str(path))
     (scale_in, zero_in), (scale_out, zero_out) = (interpreter.get_input_details()[0]["quantization"],
                                                   interpreter.get_output_details()[0]["quantization"])
@@ -84,7 +89,6 @@ def _io_quantization(path: Path) -> dict:
 def raw_output_mse(path: Path, source: StrategySource, max_frames: int) -> float:
     """MSE against the normalised labels of the int8 output read as it comes, without its scale and
     zero point: the mistake that gave the 2022 study's "Integer only" row an MSE of 28,157."""
-    from ai_edge_litert.interpreter import Interpreter
     data = source.calibration
     index = np.unique(np.linspace(0, len(data) - 1, min(max_frames, len(data))).astype(np.int64))
     interpreter = Interpreter(model_path=str(path), num_threads=1)
@@ -101,7 +105,6 @@ def raw_output_mse(path: Path, source: StrategySource, max_frames: int) -> float
 @contextlib.contextmanager
 def _quiet():
     """TensorFlow and onnx2tf print pages of progress; keep the job log readable."""
-    os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
     root = logging.getLogger()
     level = root.level
     root.setLevel(logging.ERROR)

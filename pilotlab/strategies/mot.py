@@ -32,97 +32,38 @@ weight of its outputs as soft targets beside the labels; common.finetune).
 
 Every strategy starts from the trained network with its input batch-norm folded into the first
 conv (as the export does), so the weights pruned are the weights that reach the artifact.
+
+Configs: configs/mot.py, which registers these strategies as needing the `edge` extra, so this
+module (TensorFlow through litert_convert) is imported only where it is installed.
 """
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 
-from pilotlab.errors import PilotlabError
-from pilotlab.strategies.common import check_distill, finetune
-from pilotlab.strategies.edge import LITERT_CONVERTER, require
-from pilotlab.strategies.prune import check_fraction
-from pilotlab.strategies.registry import StrategySource, register_strategy
+from torch import nn
 
-
-@dataclass(frozen=True)
-class PruneLiteRTConfig:
-    version: int = 1
-    sparsity: float = 0.5            # fraction of each conv/linear layer's weights set to zero
-    finetune_epochs: int = 2         # fine-tuning with the mask held
-    lr: float = 1e-4
-    batch_size: int = 64
-    distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs
-
-    def __post_init__(self) -> None:
-        check_fraction("sparsity", self.sparsity)
-        check_distill(self.distill)
+from pilotlab.strategies.artifact import read_meta
+from pilotlab.strategies.common import finetune
+from pilotlab.strategies.configs.mot import (CqatConfig, PcqatConfig, PqatConfig, PruneLiteRTConfig,
+                                             PruneLiteRTInt8Config, QatLiteRTConfig)
+from pilotlab.strategies.litert_convert import save_tflite
+from pilotlab.strategies.mot_torch import (add_clusters, add_fake_quant, add_masks, bake, calibrate, fold,
+                                           magnitude_masks, remove_hooks, weight_figures)
+from pilotlab.strategies.registry import StrategySource
 
 
-@dataclass(frozen=True)
-class QatLiteRTConfig:
-    version: int = 1
-    qat_epochs: int = 2              # fine-tuning with fake quantization
-    lr: float = 1e-4
-    batch_size: int = 64
-    calibration_frames: int = 512    # ranges observed before QAT; the conversion's representative dataset
-    distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs
-
-    def __post_init__(self) -> None:
-        check_distill(self.distill)
-
-
-@dataclass(frozen=True)
-class PruneLiteRTInt8Config(PruneLiteRTConfig):
-    calibration_frames: int = 512    # the representative dataset of the int8 conversion
-
-
-@dataclass(frozen=True)
-class PqatConfig(PruneLiteRTInt8Config):
-    qat_epochs: int = 2              # QAT after the pruning fine-tune, with the mask held
-
-
-@dataclass(frozen=True)
-class CqatConfig(QatLiteRTConfig):
-    clusters: int = 16               # shared values per layer (TF-MOT's example uses 16)
-    iterations: int = 30             # k-means (Lloyd) iterations
-    finetune_epochs: int = 2         # fine-tuning the centroids, before QAT
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_clusters(self.clusters)
-
-
-@dataclass(frozen=True)
-class PcqatConfig(PqatConfig):
-    clusters: int = 16               # shared values per layer, zero one of them
-    iterations: int = 30
-    cluster_epochs: int = 2          # fine-tuning the centroids, between pruning and QAT
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_clusters(self.clusters)
-
-
-def check_clusters(clusters: int) -> None:
-    if not 2 <= clusters <= 256:
-        raise PilotlabError(f"clusters: {clusters} must be between 2 and 256 (int8 has 256 values)")
-
-
-def pruned(config: PruneLiteRTConfig, source: StrategySource):
+def pruned(config: PruneLiteRTConfig, source: StrategySource) -> tuple[nn.Module, list[dict]]:
     """The folded network with its smallest weights masked and fine-tuned; the masks stay on
     (parametrizations) so that a later step (QAT) keeps the zeros too."""
-    from pilotlab.strategies.mot_torch import add_masks, fold, magnitude_masks
     model = fold(source.load_model())
     add_masks(model, magnitude_masks(model, config.sparsity))
     history = tune(model, source, config, config.finetune_epochs)
     return model, history
 
 
-def quantization_aware(model, source: StrategySource, config, history: list[dict]) -> dict:
+def quantization_aware(model: nn.Module, source: StrategySource, config, history: list[dict]) -> dict:
     """Fake-quantize (on top of any mask or clusters already on the weights), observe the ranges,
     fine-tune, bake and convert to LiteRT int8."""
-    from pilotlab.strategies.mot_torch import add_fake_quant, calibrate, remove_hooks
     quant = add_fake_quant(model)
     calibrate(model, quant, source.calibration_batches(config.calibration_frames))
     history = history + tune(model, source, config, config.qat_epochs)
@@ -130,15 +71,13 @@ def quantization_aware(model, source: StrategySource, config, history: list[dict
     return save(model, source, "int8", config.calibration_frames, history)
 
 
-def tune(model, source: StrategySource, config, epochs: int) -> list[dict]:
+def tune(model: nn.Module, source: StrategySource, config, epochs: int) -> list[dict]:
     return finetune(model, source, epochs=epochs, lr=config.lr, batch_size=config.batch_size,
                     distill=config.distill)
 
 
-def save(model, source: StrategySource, mode: str, calibration_frames: int, history: list[dict]) -> dict:
+def save(model: nn.Module, source: StrategySource, mode: str, calibration_frames: int, history: list[dict]) -> dict:
     """Bake the constraints in, convert with LiteRT, record what the weights keep."""
-    from pilotlab.strategies.litert_convert import save_tflite
-    from pilotlab.strategies.mot_torch import bake, weight_figures
     figures = weight_figures(bake(model))
     result = save_tflite(model, source, mode, calibration_frames)
     _record(source, {"sparsity": figures["sparsity"]})
@@ -146,53 +85,37 @@ def save(model, source: StrategySource, mode: str, calibration_frames: int, hist
 
 
 def _record(source: StrategySource, extra: dict) -> None:
-    from pilotlab.strategies.artifact import read_meta
     meta = read_meta(source.out)
     source.write(dataclasses.replace(meta, extra={**meta.extra, **extra}))
 
 
-@register_strategy("prune_litert", PruneLiteRTConfig)
 def prune_litert(config: PruneLiteRTConfig, source: StrategySource) -> dict:
-    require(source, LITERT_CONVERTER)
     model, history = pruned(config, source)
     return save(model, source, "float32", 0, history)
 
 
-@register_strategy("prune_litert_int8", PruneLiteRTInt8Config)
 def prune_litert_int8(config: PruneLiteRTInt8Config, source: StrategySource) -> dict:
-    require(source, LITERT_CONVERTER)
     model, history = pruned(config, source)
     return save(model, source, "int8", config.calibration_frames, history)
 
 
-@register_strategy("qat_litert_int8", QatLiteRTConfig)
 def qat_litert_int8(config: QatLiteRTConfig, source: StrategySource) -> dict:
-    require(source, LITERT_CONVERTER)
-    from pilotlab.strategies.mot_torch import fold
     return quantization_aware(fold(source.load_model()), source, config, [])
 
 
-@register_strategy("pqat_litert_int8", PqatConfig)
 def pqat_litert_int8(config: PqatConfig, source: StrategySource) -> dict:
-    require(source, LITERT_CONVERTER)
     model, history = pruned(config, source)
     return quantization_aware(model, source, config, history)
 
 
-@register_strategy("cqat_litert_int8", CqatConfig)
 def cqat_litert_int8(config: CqatConfig, source: StrategySource) -> dict:
-    require(source, LITERT_CONVERTER)
-    from pilotlab.strategies.mot_torch import add_clusters, fold
     model = fold(source.load_model())
     add_clusters(model, config.clusters, config.iterations)
     history = tune(model, source, config, config.finetune_epochs)
     return quantization_aware(model, source, config, history)
 
 
-@register_strategy("pcqat_litert_int8", PcqatConfig)
 def pcqat_litert_int8(config: PcqatConfig, source: StrategySource) -> dict:
-    require(source, LITERT_CONVERTER)
-    from pilotlab.strategies.mot_torch import add_clusters, bake
     model, history = pruned(config, source)
     add_clusters(bake(model), config.clusters, config.iterations, keep_zeros=True)
     history += tune(model, source, config, config.cluster_epochs)

@@ -2,7 +2,7 @@
 quantization as `torch.nn.utils.parametrize` parametrizations of each conv/linear weight, so they
 stack (mask -> fake-quant for PQAT; clusters -> fake-quant for CQAT; sparse clusters -> fake-quant
 for PCQAT), every fine-tuning step sees the constrained weight, and `bake` writes the constrained
-weight in (kept apart from mot.py so that registering the strategies imports no torch).
+weight in.
 
 Fake quantization mimics what the LiteRT converter does afterwards: weights int8 symmetric per
 output channel (scale = max|w| / 127, the converter's own choice, so baked weights on that grid
@@ -16,6 +16,7 @@ from torch import nn
 from torch.nn.utils import parametrize
 
 from pilotlab.strategies.common import weight_layers
+from pilotlab.strategies.fold import fold_input_norm
 from pilotlab.strategies.kmeans import kmeans
 
 
@@ -89,7 +90,6 @@ class ActivationQuant:
 def fold(model: nn.Module) -> nn.Module:
     """The network as it will be deployed: its input batch-norm folded into the first conv (what the
     export does), so pruning, clustering and QAT act on the weights that reach the artifact."""
-    from pilotlab.strategies.fold import fold_input_norm
     return fold_input_norm(model.eval())
 
 

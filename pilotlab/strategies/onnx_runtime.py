@@ -16,6 +16,8 @@ exported graph.
   weights), as the study's `quantize_dynamic` did for nn.Linear: ONNX Runtime's dynamic int8 on
   convolutions is slower than fp32 here. torch.ao.quantization.quantize_dynamic still runs in
   torch 2.13 but is deprecated.
+
+Configs: configs/onnx_runtime.py.
 """
 from __future__ import annotations
 
@@ -23,20 +25,19 @@ import contextlib
 import io
 import logging
 import tempfile
-from dataclasses import dataclass
 from pathlib import Path
 
+import onnx
+from onnxruntime.quantization import CalibrationMethod, QuantFormat, QuantType, quantize_dynamic, quantize_static
+from onnxruntime.quantization.shape_inference import quant_pre_process
+
 from pilotlab.errors import PilotlabError
-from pilotlab.strategies.artifact import INPUT_NAME, export_onnx
-from pilotlab.strategies.registry import StrategySource, register_strategy
+from pilotlab.strategies.artifact import INPUT_NAME
+from pilotlab.strategies.configs.onnx_runtime import DynamicQuantConfig, OnnxRuntimeConfig, OnnxRuntimeInt8Config
+from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.saving import export_onnx
 
 
-@dataclass(frozen=True)
-class OnnxRuntimeConfig:
-    version: int = 1
-
-
-@register_strategy("onnxruntime", OnnxRuntimeConfig, takes_onnx=True)
 def onnxruntime_fp32(config: OnnxRuntimeConfig, source: StrategySource) -> dict:
     export_onnx(source.load_model(), source.out / "model.onnx", source.input_shape)
     source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime",
@@ -44,18 +45,6 @@ def onnxruntime_fp32(config: OnnxRuntimeConfig, source: StrategySource) -> dict:
     return {}
 
 
-@dataclass(frozen=True)
-class OnnxRuntimeInt8Config:
-    version: int = 1
-    calibration_frames: int = 512         # training frames fed to the calibrator
-    calibrate_method: str = "minmax"      # minmax | entropy | percentile
-    quant_format: str = "qdq"             # qdq | qoperator
-    per_channel: bool = False
-    weight_type: str = "int8"             # int8 | uint8
-    float_first_conv: bool = True         # keep the 3-channel input conv in fp32 (faster here)
-
-
-@register_strategy("onnxruntime_int8", OnnxRuntimeInt8Config, takes_onnx=True)
 def onnxruntime_int8(config: OnnxRuntimeInt8Config, source: StrategySource) -> dict:
     extra = quantize_int8(source.load_model(), source, config)
     source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime",
@@ -66,7 +55,6 @@ def onnxruntime_int8(config: OnnxRuntimeInt8Config, source: StrategySource) -> d
 def quantize_int8(model, source: StrategySource, config: OnnxRuntimeInt8Config) -> dict:
     """Export `model` and quantize it statically into source.out/model.onnx with ONNX Runtime's
     calibrator on training frames; returns what artifact.json's `extra` records about it."""
-    from onnxruntime.quantization import CalibrationMethod, QuantFormat, QuantType, quantize_static
     methods = {"minmax": CalibrationMethod.MinMax, "entropy": CalibrationMethod.Entropy,
                "percentile": CalibrationMethod.Percentile}
     formats = {"qdq": QuantFormat.QDQ, "qoperator": QuantFormat.QOperator}
@@ -87,15 +75,7 @@ def quantize_int8(model, source: StrategySource, config: OnnxRuntimeInt8Config) 
             "weights": config.weight_type, "fp32_nodes": excluded}
 
 
-@dataclass(frozen=True)
-class DynamicQuantConfig:
-    version: int = 1
-    op_types: tuple[str, ...] = ("MatMul", "Gemm")
-
-
-@register_strategy("dynamic_quant", DynamicQuantConfig, takes_onnx=True)
 def dynamic_quant(config: DynamicQuantConfig, source: StrategySource) -> dict:
-    from onnxruntime.quantization import QuantType, quantize_dynamic
     with tempfile.TemporaryDirectory() as tmp, _quiet():
         prepared = _prepared_fp32(source.load_model(), source, Path(tmp))
         quantize_dynamic(str(prepared), str(source.out / "model.onnx"), weight_type=QuantType.QInt8,
@@ -108,14 +88,12 @@ def dynamic_quant(config: DynamicQuantConfig, source: StrategySource) -> dict:
 
 def _prepared_fp32(model, source: StrategySource, tmp: Path) -> Path:
     """The fp32 model exported and pre-processed for quantization (shape inference, fusions)."""
-    from onnxruntime.quantization.shape_inference import quant_pre_process
     export_onnx(model, tmp / "fp32.onnx", source.input_shape)
     quant_pre_process(str(tmp / "fp32.onnx"), str(tmp / "prepared.onnx"))
     return tmp / "prepared.onnx"
 
 
 def _first_conv(model_path: Path) -> list[str]:
-    import onnx
     graph = onnx.load(str(model_path)).graph
     return [node.name for node in graph.node if node.op_type == "Conv"][:1]
 

@@ -7,31 +7,22 @@ Why this path: eager/FX `torch.ao.quantization` is deprecated in torch 2.13 and
 output is a graph of quantize/dequantize ops around fp32 ops that only becomes fast when a backend
 lowers it; torch.compile's lowering cannot be saved, so we export that graph to ONNX (QDQ) and let
 ONNX Runtime run the int8 kernels. Weights are int8 per output channel (the X86 quantizer's
-default), activations uint8 per tensor, all scales learnt in PyTorch.
+default), activations uint8 per tensor, all scales learnt in PyTorch. Configs: configs/pt2e.py.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+import torch
+from torch import nn
+from torchao.quantization.pt2e.quantize_pt2e import convert_pt2e, prepare_pt2e, prepare_qat_pt2e
 
 from pilotlab.strategies.common import finetune
-from pilotlab.strategies.registry import StrategySource, register_strategy
-
-if TYPE_CHECKING:  # torch, torchao: imported inside the functions, planning imports this module
-    from torch import nn
-
-
-@dataclass(frozen=True)
-class StaticQuantConfig:
-    version: int = 1
-    calibration_frames: int = 512
+from pilotlab.strategies.configs.pt2e import QatConfig, StaticQuantConfig
+from pilotlab.strategies.pt2e_graph import (TrainEvalSwitch, export_graph, freeze_zeros, save_quantized,
+                                            x86_quantizer)
+from pilotlab.strategies.registry import StrategySource
 
 
-@register_strategy("static_quant", StaticQuantConfig)
 def static_quant(config: StaticQuantConfig, source: StrategySource) -> dict:
-    import torch
-    from torchao.quantization.pt2e.quantize_pt2e import convert_pt2e, prepare_pt2e
-    from pilotlab.strategies.pt2e_graph import export_graph, save_quantized, x86_quantizer
     prepared = prepare_pt2e(export_graph(source.load_model(), source.input_shape), x86_quantizer(qat=False))
     with torch.no_grad():
         for batch in source.calibration_batches(config.calibration_frames):
@@ -40,16 +31,6 @@ def static_quant(config: StaticQuantConfig, source: StrategySource) -> dict:
     return {"calibration_frames": min(config.calibration_frames, len(source.calibration))}
 
 
-@dataclass(frozen=True)
-class QatConfig:
-    version: int = 1
-    calibration_frames: int = 256    # observed before fine-tuning, so ranges start calibrated
-    finetune_epochs: int = 2
-    lr: float = 1e-4
-    batch_size: int = 64
-
-
-@register_strategy("qat", QatConfig)
 def qat(config: QatConfig, source: StrategySource) -> dict:
     history = quantization_aware_finetune(source.load_model(), source, config)
     return {"finetune": history}
@@ -58,10 +39,6 @@ def qat(config: QatConfig, source: StrategySource) -> dict:
 def quantization_aware_finetune(model: nn.Module, source: StrategySource, config,
                                 keep_zeros: bool = False) -> list[dict]:
     """Insert fake-quant, fine-tune, convert, save. `keep_zeros` keeps pruned weights at zero."""
-    import torch
-    from torchao.quantization.pt2e.quantize_pt2e import convert_pt2e, prepare_qat_pt2e
-    from pilotlab.strategies.pt2e_graph import (TrainEvalSwitch, export_graph, freeze_zeros, save_quantized,
-                                                x86_quantizer)
     prepared = prepare_qat_pt2e(export_graph(model.train(), source.input_shape), x86_quantizer(qat=True))
     with torch.no_grad():   # start from calibrated ranges (and have ranges even with 0 epochs)
         for batch in source.calibration_batches(config.calibration_frames):

@@ -1,16 +1,17 @@
 """The torch.export graphs of the PT2E flow (pt2e.py): export, the X86 quantizer, saving the
-converted graph as ONNX QDQ, and what fine-tuning an exported graph needs (kept apart from pt2e.py
-so that registering the strategies imports no torch)."""
+converted graph as ONNX QDQ, and what fine-tuning an exported graph needs."""
 from __future__ import annotations
 
 import warnings
 
 import torch
+import torchao.quantization.pt2e.quantizer.x86_inductor_quantizer as x86
 from torch import nn
+from torchao.quantization.pt2e import move_exported_model_to_eval, move_exported_model_to_train
 
-from pilotlab.strategies.artifact import example_batch, export_onnx
 from pilotlab.strategies.fold import fold_input_norm
 from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.saving import example_batch, export_onnx
 
 
 def export_graph(model: nn.Module, input_shape: tuple) -> torch.fx.GraphModule:
@@ -22,13 +23,11 @@ def export_graph(model: nn.Module, input_shape: tuple) -> torch.fx.GraphModule:
         return torch.export.export(model, (example_batch(input_shape),), dynamic_shapes=({0: batch},)).module()
 
 
-def x86_quantizer(qat: bool):
-    import torchao.quantization.pt2e.quantizer.x86_inductor_quantizer as x86
+def x86_quantizer(qat: bool) -> x86.X86InductorQuantizer:
     return x86.X86InductorQuantizer().set_global(x86.get_default_x86_inductor_quantization_config(is_qat=qat))
 
 
 def save_quantized(converted: torch.fx.GraphModule, source: StrategySource) -> None:
-    from torchao.quantization.pt2e import move_exported_model_to_eval
     move_exported_model_to_eval(converted)
     export_onnx(converted, source.out / "model.onnx", source.input_shape)
     source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime", dtype="int8",
@@ -57,7 +56,6 @@ class TrainEvalSwitch(nn.Module):
         return self.graph(images)
 
     def train(self, mode: bool = True) -> TrainEvalSwitch:
-        from torchao.quantization.pt2e import move_exported_model_to_eval, move_exported_model_to_train
         (move_exported_model_to_train if mode else move_exported_model_to_eval)(self.graph)
         self.training = mode
         return self

@@ -1,33 +1,48 @@
-"""The strategy registry: name -> (frozen, versioned config dataclass, handler).
+"""The strategy registry: name -> (frozen, versioned config dataclass, handler named by string).
 
+A strategy is two modules, as a job kind is (docs/CONVENTIONS.md): its config, which planning
+imports for the strategy's name and options, and its handler, imported only when the strategy is
+applied:
+
+    # pilotlab/strategies/configs/prune.py: imported to plan, so it imports nothing heavy
     @dataclass(frozen=True)
     class LocalPruneConfig:
-        version: int = 1
+        version: int = 1             # bump it when the handler's output changes for the same options
         conv: float = 0.3
 
-    @register_strategy("local_prune", LocalPruneConfig)   # the name, given once
+    register_strategy("local_prune", LocalPruneConfig, "pilotlab.strategies.prune:local_prune")
+
+    # pilotlab/strategies/prune.py: imported by `apply_strategy` only, so torch at its top
+    import torch
+
     def local_prune(config: LocalPruneConfig, source: StrategySource) -> dict:
         model = source.load_model()          # a fresh copy of the trained checkpoint
         ...                                  # write the artifact into source.out
         source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime", dtype="fp32"))
         return {"sparsity": 0.4}             # strategy-specific results
 
-`register_strategy(..., hardware_dependent=True)` says the artifact depends on the target hardware
-(fp16, tensorrt): the planner then makes one optimize job per target device.
+`hardware_dependent=True` says the artifact depends on the target hardware (fp16, tensorrt): the
+planner then makes one optimize job per target device. `takes_onnx=True` says the handler works on
+the ONNX graph, so it also runs on a user's `onnx:` model. `requires=` names the optional packages
+the handler needs (found without importing them) and `extra=` the pip extra that installs them:
+where one is missing the strategy is "not applicable: it needs X, not installed here (pip install -e
+'.[extra]')" and its handler module, which imports them at its top, is never imported.
 
 Options come from the recipe's `strategies:` section; an unknown option is an error naming the
 strategy and its known options. Every handler starts from the checkpoint on disk, so no strategy
 ever sees another one's changes. A strategy that cannot run on the target hardware raises
 `matrix.NotApplicable(reason)`.
 
-Planning imports every strategy module for its name and config, so a strategy module imports torch
-(and onnxruntime, torchao...) inside the functions that use them, or from a helper module its
-handler imports, never at its top: `pilotlab plan` stays quick
+The code of an optimize job is its strategy's handler module and config module with what they
+import within pilotlab (`pilotlab.specs.optimize`), so editing one strategy reruns only its jobs.
+Planning imports every config module and no handler: `pilotlab plan` stays quick
 (tests/pilotlab/cli/test_light_imports.py).
 """
 from __future__ import annotations
 
 import dataclasses
+import importlib
+import importlib.util
 import logging
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -43,10 +58,11 @@ from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.errors import PilotlabError
 from pilotlab.hardware import BUILTIN, HardwareProfile
 from pilotlab.models import load_checkpoint
+from pilotlab.models.imported import IMPORTED_ARCHS
 from pilotlab.specs.base import build_config
 from pilotlab.strategies.artifact import ArtifactMeta, artifact_size_gz_mb, artifact_size_mb, read_meta, write_meta
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # for the annotations only: planning imports this module
     import torch
     from torch import nn
 
@@ -72,7 +88,6 @@ class StrategySource:
     def imported(self) -> str | None:
         """"network", "torchscript" or "onnx" for a model the user brought (pilotlab.models.imported),
         None for a built-in arch."""
-        from pilotlab.models.imported import IMPORTED_ARCHS
         arch = self.checkpoint.get("arch")
         return arch if arch in IMPORTED_ARCHS else None
 
@@ -142,14 +157,32 @@ class StrategySource:
 Handler = Callable[[Any, StrategySource], dict]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StrategyEntry:
     name: str
     config_cls: type
-    handler: Handler
-    module: str                      # the module that implements it (its code fingerprint)
+    target: str | Handler            # "package.module:function", imported when the strategy is applied
     hardware_dependent: bool = False  # its artifact depends on the target device (one job per device)
     takes_onnx: bool = False         # it works on the ONNX graph, so it runs on a user's onnx: model too
+    requires: tuple[str, ...] = ()   # optional packages its handler imports (checked before it is imported)
+    extra: str = ""                  # the pip extra that installs them
+
+    @property
+    def module(self) -> str:
+        """The handler's module."""
+        return self.target.partition(":")[0] if isinstance(self.target, str) else self.target.__module__
+
+    @property
+    def modules(self) -> tuple[str, ...]:
+        """The modules that implement it, the roots of its code fingerprint: the handler's and the config's."""
+        return tuple(dict.fromkeys((self.module, self.config_cls.__module__)))
+
+    @cached_property
+    def handler(self) -> Handler:
+        if not isinstance(self.target, str):
+            return self.target
+        module, _, function = self.target.partition(":")
+        return getattr(importlib.import_module(module), function)
 
     @property
     def version(self) -> int:
@@ -159,23 +192,50 @@ class StrategyEntry:
     def options(self) -> list[str]:
         return [f.name for f in dataclasses.fields(self.config_cls) if f.name != "version"]
 
+    def check_installed(self) -> None:
+        """NotApplicable unless every package the handler needs is installed here (found without
+        importing it: its handler module imports them at its top, and is then never imported)."""
+        if absent := [name for name in self.requires if importlib.util.find_spec(name) is None]:
+            install = f" (pip install -e '.[{self.extra}]')" if self.extra else ""
+            raise NotApplicable(f"{self.name} needs {', '.join(absent)}, not installed here{install}")
+
+    def run(self, config, source: StrategySource) -> dict[str, Any]:
+        """The strategy's result. On a model the user brought, a strategy that cannot work on it is not
+        applicable (an ONNX graph for a PyTorch strategy; a network it cannot trace or rewrite), never a crash."""
+        if source.imported == "onnx" and not self.takes_onnx:
+            raise NotApplicable(f"{self.name} works on a PyTorch network, not on {source.origin} (strategies for ONNX "
+                                "graphs: " + ", ".join(n for n, e in STRATEGIES.items() if e.takes_onnx) + ")")
+        self.check_installed()
+        handler = self.handler
+        if source.imported is None:
+            return handler(config, source) or {}
+        try:
+            return handler(config, source) or {}
+        except (MatrixError, KeyboardInterrupt, MemoryError):
+            raise
+        except Exception as error:  # noqa: BLE001 — the user's network is outside what the strategy handles
+            first = str(error).strip().splitlines()[0][:300] if str(error).strip() else ""
+            hint = (" (it rewrites nn.Module layers, which a TorchScript program does not expose; give `network:`, "
+                    "the class, to run it)" if source.imported == "torchscript" else "")
+            raise NotApplicable(f"{self.name} cannot work on {source.origin}{hint}: {type(error).__name__}"
+                                + (f": {first}" if first else "")) from error
 
 
 STRATEGIES: Registry[StrategyEntry] = Registry("strategy")
 
 
-def register_strategy(name: str, config_cls: type, *, hardware_dependent: bool = False, takes_onnx: bool = False
-                      ) -> Callable[[Handler], Handler]:
+def register_strategy(name: str, config_cls: type, handler: str | Handler, *, hardware_dependent: bool = False,
+                      takes_onnx: bool = False, requires: tuple[str, ...] = (), extra: str = "") -> StrategyEntry:
+    """Register strategy `name`: its config class and its handler, "package.module:function" (or the
+    function itself)."""
     if not (dataclasses.is_dataclass(config_cls) and config_cls.__dataclass_params__.frozen):
         raise TypeError(f"strategy {name!r}: its config must be a frozen dataclass")
     if "version" not in {f.name for f in dataclasses.fields(config_cls)}:
         raise TypeError(f"strategy {name!r}: its config needs a `version` field")
-
-    def decorate(handler: Handler) -> Handler:
-        STRATEGIES.add(name, StrategyEntry(name, config_cls, handler, handler.__module__, hardware_dependent,
-                                           takes_onnx))
-        return handler
-    return decorate
+    if isinstance(handler, str) and not all(handler.partition(":")[::2]):
+        raise TypeError(f"strategy {name!r}: its handler {handler!r} is not \"package.module:function\"")
+    return STRATEGIES.add(name, StrategyEntry(name, config_cls, handler, hardware_dependent, takes_onnx,
+                                              tuple(requires), extra))
 
 
 def make_strategy_config(name: str, options: dict[str, Any] | None = None):
@@ -188,29 +248,9 @@ def apply_strategy(name: str, options: dict[str, Any] | None, source: StrategySo
     config = make_strategy_config(name, options)
     source.strategy = name
     source.out.mkdir(parents=True, exist_ok=True)
-    specifics = _run_handler(STRATEGIES.get(name), config, source)
+    specifics = STRATEGIES.get(name).run(config, source)
     meta = read_meta(source.out)
     return {"strategy": name, "strategy_version": meta.strategy_version,
             "options": dataclasses.asdict(config), "format": meta.format, "runtime": meta.runtime,
             "dtype": meta.dtype, "device": meta.device, "file": meta.file,
             "size_mb": artifact_size_mb(source.out), "size_gz_mb": artifact_size_gz_mb(source.out), **specifics}
-
-
-def _run_handler(entry: StrategyEntry, config, source: StrategySource) -> dict[str, Any]:
-    """The strategy's result. On a model the user brought, a strategy that cannot work on it is not
-    applicable (an ONNX graph for a PyTorch strategy; a network it cannot trace or rewrite), never a crash."""
-    if source.imported == "onnx" and not entry.takes_onnx:
-        raise NotApplicable(f"{entry.name} works on a PyTorch network, not on {source.origin} (strategies for ONNX "
-                            "graphs: " + ", ".join(n for n, e in STRATEGIES.items() if e.takes_onnx) + ")")
-    if source.imported is None:
-        return entry.handler(config, source) or {}
-    try:
-        return entry.handler(config, source) or {}
-    except (MatrixError, KeyboardInterrupt, MemoryError):
-        raise
-    except Exception as error:  # noqa: BLE001 — the user's network is outside what the strategy handles
-        first = str(error).strip().splitlines()[0][:300] if str(error).strip() else ""
-        hint = (" (it rewrites nn.Module layers, which a TorchScript program does not expose; give `network:`, "
-                "the class, to run it)" if source.imported == "torchscript" else "")
-        raise NotApplicable(f"{entry.name} cannot work on {source.origin}{hint}: {type(error).__name__}"
-                            + (f": {first}" if first else "")) from error

@@ -8,40 +8,21 @@ doing less work. Removing 30% of the channels of every layer removes about half 
 loses inputs and outputs), and int8 then runs those at twice the fp32 rate. It is the fastest CPU
 path here at batch 1 and batch 64 (see docs/strategies.md); its MSE is reported next to the
 baseline's like every other strategy's, so whether the lost channels cost driving quality shows.
+Config: configs/structured_prune_int8.py.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from torch import nn
 
-from pilotlab.strategies.common import check_distill, finetune
-from pilotlab.strategies.onnx_runtime import OnnxRuntimeInt8Config, quantize_int8
-from pilotlab.strategies.prune import check_fraction
-from pilotlab.strategies.registry import StrategySource, register_strategy
-from pilotlab.strategies.structured_prune import check_multiple
-
-
-@dataclass(frozen=True)
-class StructuredPruneInt8Config:
-    version: int = 2                 # 2: fine-tunes 4 epochs at 1e-3 (was 2 at 1e-4)
-    amount: float = 0.3              # fraction of each layer's channels / neurons removed
-    multiple_of: int = 8             # kept counts rounded to whole 8-wide SIMD blocks
-    finetune_epochs: int = 4         # in fp32, before quantization
-    lr: float = 1e-3
-    batch_size: int = 64
-    calibration_frames: int = 512    # training frames fed to ONNX Runtime's calibrator
-    calibrate_method: str = "minmax"  # minmax | entropy | percentile
-    float_first_conv: bool = True    # the 3-channel input conv stays fp32 (faster here)
-    distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs (0-1)
-
-    def __post_init__(self) -> None:
-        check_distill(self.distill)
-        check_fraction("amount", self.amount)
-        check_multiple(self.multiple_of)
+from pilotlab.strategies.channels import multiply_accumulates, remove_channels
+from pilotlab.strategies.common import finetune
+from pilotlab.strategies.configs.onnx_runtime import OnnxRuntimeInt8Config
+from pilotlab.strategies.configs.structured_prune_int8 import StructuredPruneInt8Config
+from pilotlab.strategies.onnx_runtime import quantize_int8
+from pilotlab.strategies.registry import StrategySource
 
 
-@register_strategy("structured_prune_int8", StructuredPruneInt8Config)
 def structured_prune_int8(config: StructuredPruneInt8Config, source: StrategySource) -> dict:
-    from pilotlab.strategies.channels import multiply_accumulates, remove_channels  # torch
     model = source.load_model()
     params_before, macs_before = _params(model), multiply_accumulates(model, source.input_shape)
     kept = remove_channels(model, config.amount, source.input_shape, config.multiple_of)
@@ -59,5 +40,5 @@ def structured_prune_int8(config: StructuredPruneInt8Config, source: StrategySou
             "finetune": history}
 
 
-def _params(model) -> int:
+def _params(model: nn.Module) -> int:
     return sum(p.numel() for p in model.parameters())

@@ -98,11 +98,11 @@ def expected_modules(job) -> set[str]:
     """What the job runs: its handler's closure, its params model's, and (optimize) its own
     strategy's, the other strategies' modules being the only ones a kind may leave out."""
     kind = KINDS.get(job.kind)
-    others = set()
-    if job.kind == "optimize":
-        own = STRATEGIES.get(job.params["strategy"]).module
-        others = {entry.module for _, entry in STRATEGIES.items()} - reachable(own)
-    modules = reachable(kind.module, others) | reachable(kind.params.__module__, others)
+    own, others = set(), set()
+    if job.kind == "optimize":   # the handler is named by string in its registration, not imported
+        own = set().union(*map(reachable, STRATEGIES.get(job.params["strategy"]).modules))
+        others = {module for _, entry in STRATEGIES.items() for module in entry.modules} - own
+    modules = reachable(kind.module, others) | reachable(kind.params.__module__, others) | own
     if job.kind == "train":   # the network class is named by string in its config, not imported
         from pilotlab.models import MODELS
         modules |= reachable(MODELS.get(job.params["arch"]).network_module)

@@ -1,13 +1,16 @@
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 
 import pytest
 
 from matrix.errors import UnknownNameError
+from matrix.kinds import NotApplicable
 from matrix.registry import DuplicateNameError
 from pilotlab.errors import PilotlabError
 from pilotlab.strategies import STRATEGIES, make_strategy_config, register_strategy, strategy_modules
+from pilotlab.strategies.registry import StrategyEntry
 
 STUDY = {"baseline", "dynamic_quant", "static_quant", "qat", "local_prune", "global_prune", "prune_quant"}
 BEYOND = {"torchscript", "onnxruntime", "onnxruntime_int8", "bf16", "fp16", "structured_prune", "structured_prune_int8",
@@ -52,7 +55,7 @@ def test_registering_twice_is_an_error():
     class Config:
         version: int = 1
     with pytest.raises(DuplicateNameError):
-        register_strategy("baseline", Config)(lambda config, source: {})
+        register_strategy("baseline", Config, "pilotlab.strategies.baseline:baseline")
 
 
 def test_a_config_without_version_is_refused():
@@ -60,13 +63,43 @@ def test_a_config_without_version_is_refused():
     class Config:
         amount: float = 0.1
     with pytest.raises(TypeError, match="version"):
-        register_strategy("unversioned", Config)
+        register_strategy("unversioned", Config, "pilotlab.strategies.baseline:baseline")
 
 
-def test_code_fingerprint_is_the_strategy_module_and_what_it_builds_on():
-    assert strategy_modules("local_prune") == ["pilotlab.strategies.prune"]
+def test_a_handler_is_named_module_colon_function():
+    @dataclasses.dataclass(frozen=True)
+    class Config:
+        version: int = 1
+    with pytest.raises(TypeError, match="package.module:function"):
+        register_strategy("dotted", Config, "pilotlab.strategies.baseline.baseline")
+    assert "dotted" not in STRATEGIES
+
+
+@pytest.mark.parametrize("name", sorted(STRATEGIES))
+def test_every_handler_is_a_function_of_its_module(name):
+    entry = STRATEGIES.get(name)
+    if any(importlib.util.find_spec(package) is None for package in entry.requires):
+        pytest.skip(f"{name} needs {', '.join(entry.requires)}")
+    assert callable(entry.handler) and entry.handler.__module__ == entry.module
+
+
+def test_a_missing_requirement_is_not_applicable_before_the_handler_is_imported(trained, tmp_path):
+    from pilotlab.strategies import StrategySource
+    from pilotlab.strategies.configs.litert import LiteRTConfig
+    entry = StrategyEntry("litert", LiteRTConfig, "no_such_package_xyz.handlers:run",
+                          requires=("no_such_runtime_xyz",), extra="edge")
+    with pytest.raises(NotApplicable, match=r"litert needs no_such_runtime_xyz, not installed here "
+                                            r"\(pip install -e '\.\[edge\]'\)"):
+        entry.run(LiteRTConfig(), StrategySource(trained / "model.pt", tmp_path, strategy="litert"))
+
+
+def test_code_fingerprint_is_the_strategy_modules_and_what_they_build_on():
+    assert strategy_modules("local_prune") == ["pilotlab.strategies.prune", "pilotlab.strategies.configs.prune"]
     assert set(strategy_modules("prune_quant")) == {
         "pilotlab.strategies.prune_quant", "pilotlab.strategies.prune", "pilotlab.strategies.pt2e",
-        "pilotlab.strategies.pt2e_graph"}
-    # helpers a handler imports inside a function count too
-    assert set(strategy_modules("cluster")) == {"pilotlab.strategies.cluster", "pilotlab.strategies.kmeans"}
+        "pilotlab.strategies.pt2e_graph", "pilotlab.strategies.configs.prune_quant",
+        "pilotlab.strategies.configs.prune", "pilotlab.strategies.configs.pt2e"}
+    assert set(strategy_modules("cluster")) == {"pilotlab.strategies.cluster", "pilotlab.strategies.kmeans",
+                                                "pilotlab.strategies.configs.cluster"}
+    # the roots: the handler's module and the config's (read from the source: nothing is imported)
+    assert STRATEGIES.get("litert").modules == ("pilotlab.strategies.litert", "pilotlab.strategies.configs.litert")

@@ -128,16 +128,6 @@ def test_structured_prune_xnnpack_prunes_then_quantizes(name, artifacts):
     assert result["size_mb"] < 0.6 * artifacts["onnxruntime_int8"][1]["size_mb"]
 
 
-def test_a_missing_optional_runtime_is_not_applicable_with_the_install_line(tmp_path):
-    from matrix.kinds import NotApplicable
-    from pilotlab.strategies import StrategySource
-    from pilotlab.strategies.edge import require
-    source = StrategySource(tmp_path / "model.pt", tmp_path, strategy="litert")
-    with pytest.raises(NotApplicable, match=r"litert needs no_such_runtime_xyz, not installed here "
-                                            r"\(pip install -e '\.\[edge\]'\)"):
-        require(source, ("no_such_runtime_xyz",))
-
-
 @pytest.mark.parametrize("name", ["litert", "litert_full_int8"])
 def test_edge_artifacts_on_a_cuda_profile_are_not_applicable(name, artifacts):
     from matrix.kinds import NotApplicable

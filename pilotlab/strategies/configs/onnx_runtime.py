@@ -1,0 +1,37 @@
+"""The configs of `onnxruntime`, `onnxruntime_int8` and `dynamic_quant` (their handlers:
+pilotlab/strategies/onnx_runtime.py)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pilotlab.strategies.registry import register_strategy
+
+
+@dataclass(frozen=True)
+class OnnxRuntimeConfig:
+    version: int = 1
+
+
+@dataclass(frozen=True)
+class OnnxRuntimeInt8Config:
+    version: int = 1
+    calibration_frames: int = 512         # training frames fed to the calibrator
+    calibrate_method: str = "minmax"      # minmax | entropy | percentile
+    quant_format: str = "qdq"             # qdq | qoperator
+    per_channel: bool = False
+    weight_type: str = "int8"             # int8 | uint8
+    float_first_conv: bool = True         # keep the 3-channel input conv in fp32 (faster here)
+
+
+@dataclass(frozen=True)
+class DynamicQuantConfig:
+    version: int = 1
+    op_types: tuple[str, ...] = ("MatMul", "Gemm")
+
+
+register_strategy("onnxruntime", OnnxRuntimeConfig, "pilotlab.strategies.onnx_runtime:onnxruntime_fp32",
+                  takes_onnx=True)
+register_strategy("onnxruntime_int8", OnnxRuntimeInt8Config, "pilotlab.strategies.onnx_runtime:onnxruntime_int8",
+                  takes_onnx=True)
+register_strategy("dynamic_quant", DynamicQuantConfig, "pilotlab.strategies.onnx_runtime:dynamic_quant",
+                  takes_onnx=True)

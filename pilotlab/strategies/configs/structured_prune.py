@@ -1,0 +1,27 @@
+"""The config of `structured_prune` (its handler: pilotlab/strategies/structured_prune.py)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pilotlab.strategies.configs.checks import check_distill, check_fraction, check_multiple
+from pilotlab.strategies.registry import register_strategy
+
+
+@dataclass(frozen=True)
+class StructuredPruneConfig:
+    version: int = 3                 # 2: kept counts rounded to multiples of 8; 3: fine-tunes 4 epochs at 1e-3
+    amount: float = 0.3              # fraction of each layer's channels / neurons removed
+    finetune_epochs: int = 4         # a third of the channels gone is a new network: it needs real training
+    lr: float = 1e-3                 # (2 epochs at 1e-4 left the quickstart's MSE 10x the baseline's)
+    batch_size: int = 64
+    format: str = "torchscript"      # torchscript | onnx (the shapes change: no checkpoint)
+    multiple_of: int = 8             # round kept counts to a multiple of this: whole SIMD blocks (1: exact)
+    distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs (0-1)
+
+    def __post_init__(self) -> None:
+        check_distill(self.distill)
+        check_fraction("amount", self.amount)
+        check_multiple(self.multiple_of)
+
+
+register_strategy("structured_prune", StructuredPruneConfig, "pilotlab.strategies.structured_prune:structured_prune")
