@@ -124,7 +124,7 @@ def _resources(job: Job, timing_resource: str | None) -> dict[str, float]:
     resources = dict(kind.resources)
     if kind.resources_for is not None:
         resources.update(kind.resources_for(job.params))
-    if timing_resource and kind.exclusive:
+    if timing_resource and kind.runs_alone(job.params):
         resources[timing_resource] = 1
     return resources
 

@@ -85,7 +85,7 @@ class Schedule:
         # Others run: the first ready job that may run beside them. An exclusive job waits until the
         # host is idle (it then runs alone); the work it would have held up goes on meanwhile.
         for position, key in enumerate(self.ready):
-            if not KINDS.get(self.jobs[key].kind).exclusive:
+            if not runs_alone(self.jobs[key]):
                 del self.ready[position]
                 return self.jobs[key]
         return None
@@ -124,6 +124,11 @@ class Schedule:
         return [job for key, job in self.jobs.items() if key not in self.settled]
 
 
+def runs_alone(job: Job) -> bool:
+    """A timing job: nothing else runs beside it."""
+    return KINDS.get(job.kind).runs_alone(job.params)
+
+
 def default_jobs() -> int:
     """Jobs at once by default: one per core this process may use."""
     try:
@@ -156,11 +161,11 @@ def _drive(schedule: Schedule, pool: _Pool, summary: RunSummary, keep_going: boo
     running: dict[Future, Job] = {}
     stopping = False
     while running or (schedule.has_work() and not stopping):
-        exclusive = any(KINDS.get(j.kind).exclusive for j in running.values())
+        exclusive = any(map(runs_alone, running.values()))
         while not stopping and (job := schedule.take(exclusive, len(running), pool.slots)):
             display.job_started(job)
             running[pool.submit(job)] = job
-            exclusive = exclusive or KINDS.get(job.kind).exclusive
+            exclusive = exclusive or runs_alone(job)
         finished, _ = wait(running, timeout=0.1, return_when=FIRST_COMPLETED)
         pool.drain_progress()
         for future in finished:

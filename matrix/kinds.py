@@ -111,6 +111,11 @@ class JobKind:
     exclusive: bool = False        # run alone (timing jobs): nothing else runs beside it
     resources: Mapping[str, float] = field(default_factory=dict)  # e.g. {"GPU": 1} for Dask placement
     resources_for: Callable[[Mapping[str, Any]], Mapping[str, float]] | None = None  # per job
+    exclusive_for: Callable[[Mapping[str, Any]], bool] | None = None  # per job, instead of `exclusive`
+
+    def runs_alone(self, params: Mapping[str, Any]) -> bool:
+        """Whether a job with `params` must have its host to itself (it measures time there)."""
+        return bool(self.exclusive_for(params)) if self.exclusive_for is not None else self.exclusive
 
     @property
     def module(self) -> str:
@@ -199,10 +204,10 @@ KINDS: Registry[JobKind] = Registry("job kind")
 
 def register_kind(name: str, target: str | Handler, *, params: Any = None, code: CodeSources = (),
                   code_for=None, code_exclude=None, exclusive: bool = False,
-                  resources: Mapping[str, float] | None = None, resources_for=None) -> JobKind:
+                  resources: Mapping[str, float] | None = None, resources_for=None, exclusive_for=None) -> JobKind:
     """Register job kind `name`, run by `target` ("module:function", or the function)."""
     return KINDS.add(name, JobKind(name, target, params, tuple(code), code_for, code_exclude, exclusive,
-                                   dict(resources or {}), resources_for))
+                                   dict(resources or {}), resources_for, exclusive_for))
 
 
 def job_kind(name: str, **options) -> Callable[[Handler], Handler]:

@@ -63,7 +63,7 @@ def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = (), r
         done = store.result(key)
         if done is not None and store.outputs_intact(key, done) and result_token(done) != replaces:
             return {"status": DONE_ELSEWHERE, "reason": done.get("reason", ""), "duration_s": 0.0}
-        with host_slot(exclusive=KINDS.get(spec["kind"]).exclusive):   # timings: the host to itself
+        with host_slot(exclusive=KINDS.get(spec["kind"]).runs_alone(spec["params"])):   # timings: the host to itself
             return _run_locked(store, spec)
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import glob
 import os
 import platform
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -55,6 +55,23 @@ def cpu_count() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
         return os.cpu_count() or 1
+
+
+def worker_share() -> int:
+    """The cores this process may keep busy: its share when the engine runs jobs side by side
+    (OMP_NUM_THREADS, set to cores // -j in each worker), else every core."""
+    try:
+        return max(1, int(os.environ["OMP_NUM_THREADS"]))
+    except (KeyError, ValueError):
+        return cpu_count()
+
+
+def within_share(profile: HardwareProfile) -> HardwareProfile:
+    """`profile` with at most this process's share of the cores: for work whose speed is not measured
+    (a replayed lap), which must not take the cores of the job beside it."""
+    if profile.device != "cpu":
+        return profile
+    return replace(profile, threads=min(profile.cpu_threads, worker_share()))
 
 
 def make_profile(name: str, options: dict[str, Any] | None = None) -> HardwareProfile:

@@ -31,11 +31,11 @@ import numpy as np
 from matrix.kinds import JobContext
 from pilotlab import predictor
 from pilotlab.errors import PilotlabError
-from pilotlab.hardware import check_available, check_host, profile_from_dict
+from pilotlab.hardware import check_available, check_host, profile_from_dict, within_share
 from pilotlab.online import brains, evaluate
 from pilotlab.online.latency import TimingSource, describe
 from pilotlab.online.perfect_lap import perfect_lap
-from pilotlab.specs.online import OnlineSpec
+from pilotlab.specs.online import OnlineSpec, timed_live
 from pilotlab.worlds.assets import world_assets
 
 
@@ -93,9 +93,11 @@ def run_online(ctx: JobContext) -> dict[str, Any]:
     spec: OnlineSpec = ctx.spec
     profile = profile_from_dict(spec.hardware)
     check_available(profile)
-    cv2.setNumThreads(profile.cpu_threads)  # the explicit brain's and preprocessing's OpenCV calls
+    # a lap not timed on this host's clock runs beside another job: its brain keeps to its share of cores
+    compute = profile if timed_live(ctx.params) else within_share(profile)
+    cv2.setNumThreads(compute.cpu_threads)  # the explicit brain's and preprocessing's OpenCV calls
     host = check_host(ctx.name, spec.host)
-    brain, strategy = make_brain(ctx, spec, profile)
+    brain, strategy = make_brain(ctx, spec, compute)
     ctx.log.info("%s on %s %s: %s timing at %g Hz, %d run(s)", strategy, spec.world or spec.circuit, spec.direction,
                  spec.timing, spec.control_hz, spec.runs)
     samples, replayed = replayed_latency(ctx, spec, brain)

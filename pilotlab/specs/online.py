@@ -1,6 +1,6 @@
 """The `online` job: a closed-loop evaluation of one brain on one circuit in the simulator, with
-BehaviorMetrics' metrics. Exclusive (its latency may be measured live) and asking Dask for a GPU
-when its hardware profile is a CUDA one.
+BehaviorMetrics' metrics. Exclusive when its clock is this host's (measured and realtime timing: see
+`timed_live`), and asking Dask for a GPU when its hardware profile is a CUDA one.
 
 deps: `artifact` (optional): the optimize job whose artifact the network brain runs; without it,
 `brain` names a reference brain. `timing` (network brains, replay timing): the offline job of the
@@ -145,5 +145,12 @@ class OnlineSpec(LapSettings, InWorld):
         return self
 
 
-register_kind("online", "pilotlab.jobs.online:run_online", params=OnlineSpec, exclusive=True,
+def timed_live(params) -> bool:
+    """A lap whose clock is this host's (measured, realtime) needs the host to itself; replayed and
+    lockstep laps do not depend on its load, so they run beside other jobs (the study's hundreds of
+    tolerance laps ran one at a time on a 2-core machine before)."""
+    return params.get("timing", DriveSettings.model_fields["timing"].default) in ("measured", "realtime")
+
+
+register_kind("online", "pilotlab.jobs.online:run_online", params=OnlineSpec, exclusive_for=timed_live,
               resources_for=gpu_resources)

@@ -233,3 +233,18 @@ def test_a_dependency_under_two_roles_makes_its_dependent_ready_once():
     schedule.ready.popleft()
     schedule.done(shared.key)
     assert list(schedule.ready) == [both.key]
+
+
+def test_a_kind_exclusive_for_some_params_runs_those_jobs_alone_and_the_others_beside_work():
+    from matrix.execute import Schedule
+    from matrix.kinds import register_kind
+    kind = register_kind("lap_toy", lambda ctx: {}, exclusive_for=lambda params: params["clock"] == "host")
+    try:
+        on_host, replayed = Job("lap_toy", "timed", {"clock": "host"}), Job("lap_toy", "replayed", {"clock": "sim"})
+        assert kind.runs_alone(on_host.params) and not kind.runs_alone(replayed.params)
+        schedule = Schedule([on_host, replayed])
+        assert schedule.take(False, 1, 2) == replayed      # beside a running job: only the replayed one
+        assert schedule.take(False, 1, 2) is None          # the timed one waits for an idle host
+        assert schedule.take(False, 0, 2) == on_host
+    finally:
+        KINDS._entries.pop("lap_toy")

@@ -68,3 +68,12 @@ def test_the_gpu_name_is_torchs_wherever_a_gpu_driver_is_present(monkeypatch):
         hardware.gpu_name.cache_clear()
         assert hardware.gpu_name() == expected
     hardware.gpu_name.cache_clear()
+
+
+def test_work_that_is_not_timed_keeps_to_its_workers_share_of_the_cores(monkeypatch):
+    from pilotlab.hardware import BUILTIN, cpu_count, within_share, worker_share
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    assert worker_share() == 1 and within_share(BUILTIN["cpu"]).threads == 1
+    assert within_share(BUILTIN["cuda"]) == BUILTIN["cuda"]
+    monkeypatch.delenv("OMP_NUM_THREADS")
+    assert worker_share() == cpu_count() and within_share(BUILTIN["cpu1"]).threads == 1

@@ -98,9 +98,11 @@ def test_a_cuda_profile_on_a_host_without_a_gpu_is_not_applicable(tmp_path):
         run(tmp_path, "online-cuda", {**SHORT, "brain": "explicit", "hardware": {"name": "cuda", "device": "cuda"}})
 
 
-def test_the_kind_runs_alone_and_asks_for_a_gpu_only_for_cuda():
+def test_the_kind_runs_alone_on_the_hosts_clock_only_and_asks_for_a_gpu_only_for_cuda():
     kind = KINDS.get("online")
-    assert kind.exclusive
+    assert [kind.runs_alone({"timing": timing}) for timing in ("measured", "realtime", "replay", "lockstep")] == [
+        True, True, False, False]
+    assert not kind.runs_alone({})   # replay, the default
     assert kind.resources_for({"hardware": {"name": "cuda", "device": "cuda"}}) == {"GPU": 1}
     assert kind.resources_for({"hardware": {"name": "cpu1", "device": "cpu", "threads": 1}}) == {}
     names = set(kind.base_modules())
