@@ -1,9 +1,10 @@
 """Content fingerprints: of code (what implements a job kind) and of input files.
 
 Code is fingerprinted by its source text, so editing a strategy's module changes the keys of that
-strategy's jobs and nothing else. Files are hashed by content (sha256), remembered by
-(path, size, mtime, inode) in the process and, for large files, across processes (HashCache), so
-an unchanged multi-GB bag is read once.
+strategy's jobs and nothing else; which modules a module imports is read from its source, parsed
+once per text (the names are remembered across processes by its sha256). Files are hashed by
+content (sha256), remembered by (path, size, mtime, inode) in the process and, for large files,
+across processes (HashCache), so an unchanged multi-GB bag is read once.
 """
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import os
 import stat
 import sys
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -23,6 +24,7 @@ from matrix.errors import MatrixError
 
 _FILE_HASHES: dict[tuple[str, int, int, int], str] = {}
 _SOURCE_HASHES: dict[Any, str] = {}
+_ORIGINS: dict[str, Path] = {}
 _GENERATION = [0]   # bumped by clear_caches: whatever was derived from source text is stale
 CHUNK = 1 << 20
 MAX_INPUT_FILES = 1_000_000   # files one input folder may hold (a bag folder holds a handful)
@@ -80,10 +82,14 @@ def _source_hash(source: Any) -> tuple[str, str]:
 
 
 def _module_origin(name: str) -> Path:
-    spec = importlib.util.find_spec(name)
-    if spec is None or spec.origin is None:
-        raise MatrixError(f"cannot find module {name!r} to fingerprint its code")
-    return Path(spec.origin)
+    """The module's file, remembered in the process (until `clear_caches`): a closure asks for the
+    same few hundred modules thousands of times."""
+    if name not in _ORIGINS:
+        spec = importlib.util.find_spec(name)
+        if spec is None or spec.origin is None:
+            raise MatrixError(f"cannot find module {name!r} to fingerprint its code")
+        _ORIGINS[name] = Path(spec.origin)
+    return _ORIGINS[name]
 
 
 def _module_files_text(origin: Path) -> str:
@@ -106,6 +112,7 @@ def module_closure(name: str, within: str, exclude: Iterable[str] = ()) -> list[
         if module not in found and module not in skip:
             found.append(module)
             pending += _imported_modules(module, within)
+    HASH_CACHE.commit()
     return found
 
 
@@ -124,14 +131,33 @@ def _imported_modules(name: str, within: str) -> list[str]:
 def _read_imports(name: str, within: str) -> list[str]:
     origin = _module_origin(name)
     package = name if origin.name == "__init__.py" else name.rpartition(".")[0]
-    modules = []
-    for node in ast.walk(ast.parse(origin.read_text(encoding="utf-8"), str(origin))):
-        if isinstance(node, ast.Import):
-            modules += [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            base = importlib.util.resolve_name("." * node.level + (node.module or ""), package)
-            modules += [base] + [f"{base}.{alias.name}" for alias in node.names]
-    return [m for m in modules if m.startswith(within + ".") and _is_source(m)]
+    return [m for m in _import_names(origin, package) if m.startswith(within + ".") and _is_source(m)]
+
+
+def _import_names(origin: Path, package: str) -> list[str]:
+    """Every name the file's import statements name, absolute (`from m import f` gives m and m.f).
+    Parsing is most of what naming a kind's code costs, so the names are remembered across processes
+    by the sha256 of the text (and the package its relative imports resolve against)."""
+    source = origin.read_bytes()
+    key = hashlib.sha256(package.encode() + b"\0" + source).hexdigest()
+    if (names := HASH_CACHE.get_names(key)) is None:
+        names = []
+        for node in _statements(ast.parse(source, str(origin)).body):
+            if isinstance(node, ast.Import):
+                names += [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = importlib.util.resolve_name("." * node.level + (node.module or ""), package)
+                names += [base] + [f"{base}.{alias.name}" for alias in node.names]
+        HASH_CACHE.put_names(key, names)
+    return names
+
+
+def _statements(body: list[ast.stmt]) -> Iterator[ast.AST]:
+    """Every statement, nested ones included (an import is a statement: expressions need no walk)."""
+    for node in body:
+        yield node
+        for field in ("body", "orelse", "finalbody", "handlers", "cases"):
+            yield from _statements(getattr(node, field, None) or [])
 
 
 def _is_source(name: str) -> bool:
@@ -160,6 +186,7 @@ def clear_caches() -> None:
     """Forget remembered hashes (for long-lived processes that watch code change)."""
     _GENERATION[0] += 1
     _IMPORTS.clear()
+    _ORIGINS.clear()
     _FILE_HASHES.clear()
     _SOURCE_HASHES.clear()
 
@@ -337,10 +364,11 @@ class HashCache:
     """sha256 of input files remembered across processes by (path, size, mtime, inode), as DVC does,
     in a small SQLite file: `$MATRIX_HASH_CACHE`, else `$XDG_CACHE_HOME/matrix/file_hashes.sqlite`
     (`~/.cache/...`). Only files of at least `min_size` bytes are kept (smaller ones hash faster than a
-    look-up). A cache that cannot be opened or written is ignored: it only saves time."""
+    look-up). The same file remembers the import names of source files by the sha256 of their text
+    (`module_closure`). A cache that cannot be opened or written is ignored: it only saves time."""
 
     def __init__(self, min_size: int = 1 << 20):
-        self.min_size, self._db, self._broken = min_size, None, False
+        self.min_size, self._db, self._broken, self._pid = min_size, None, False, 0
 
     @staticmethod
     def location() -> Path:
@@ -360,6 +388,23 @@ class HashCache:
             self._query("INSERT OR REPLACE INTO hashes VALUES (?, ?, ?, ?, ?)", (*marker, sha256), commit=True)
         return sha256
 
+    def get_names(self, key: str) -> list[str] | None:
+        """The import names remembered for a source text's sha256 (`_import_names`)."""
+        row = self._query("SELECT names FROM imports WHERE key=?", (key,))
+        return row[0].split() if row else None
+
+    def put_names(self, key: str, names: list[str]) -> None:
+        """Remember them (committed by `commit`: one transaction for a closure's new files)."""
+        self._query("INSERT OR REPLACE INTO imports VALUES (?, ?)", (key, " ".join(names)))
+
+    def commit(self) -> None:
+        import sqlite3
+        try:
+            if self._db is not None and self._pid == os.getpid() and not self._broken:
+                self._db.commit()
+        except sqlite3.Error:
+            self._broken = True
+
     def _query(self, sql: str, args: tuple, commit: bool = False):
         import sqlite3
         try:
@@ -376,12 +421,15 @@ class HashCache:
 
     def _connect(self):
         import sqlite3
+        if self._pid != os.getpid():   # a forked child never uses its parent's connection
+            self._db, self._pid = None, os.getpid()
         if self._db is None and not self._broken:
             location = self.location()
             location.parent.mkdir(parents=True, exist_ok=True)
             self._db = sqlite3.connect(location, timeout=5)
             self._db.execute("CREATE TABLE IF NOT EXISTS hashes (path TEXT PRIMARY KEY, size INTEGER, "
                              "mtime_ns INTEGER, inode INTEGER, sha256 TEXT)")
+            self._db.execute("CREATE TABLE IF NOT EXISTS imports (key TEXT PRIMARY KEY, names TEXT)")
         return self._db
 
 

@@ -1,9 +1,15 @@
 """Code fingerprints by module name: what a module builds on is read from its source, never imported."""
+import os
+import sqlite3
+import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from matrix.fingerprint import clear_caches, code_fingerprint, module_closure
+
+ROOT = Path(__file__).resolve().parents[2]
 
 PACKAGE = {
     "__init__.py": "",
@@ -48,3 +54,27 @@ def test_editing_a_module_in_the_closure_changes_the_fingerprint(shop):
     (shop / "maths.py").write_text("PI = 3.14\n")   # imported by a function's import, twice removed
     clear_caches()
     assert code_fingerprint(module_closure("shop.strategy", "shop")) != before
+
+
+CLOSURE_IN_A_PROCESS = ("from matrix.fingerprint import module_closure; "
+                        "print(*module_closure('shop.strategy', 'shop', exclude=['shop.shared']))")
+
+
+def closure_in_a_new_process(shop: Path, cache: Path) -> list[str]:
+    env = {**os.environ, "MATRIX_HASH_CACHE": str(cache), "PYTHONPATH": f"{ROOT}{os.pathsep}{shop.parent}"}
+    return sorted(subprocess.run([sys.executable, "-c", CLOSURE_IN_A_PROCESS], env=env, check=True,
+                                 capture_output=True, text=True).stdout.split())
+
+
+def test_the_imports_read_are_remembered_across_processes_by_the_text(shop, tmp_path):
+    cache = tmp_path / "hashes.sqlite"
+    closure = closure_in_a_new_process(shop, cache)
+    assert closure == ["shop.config", "shop.kernels", "shop.maths", "shop.strategy", "shop.tables"]
+    # the next process believes what the first one read (proof that it parses no file again) ...
+    with sqlite3.connect(cache) as db:
+        db.execute("UPDATE imports SET names = names || ' shop.unrelated'")
+    assert closure_in_a_new_process(shop, cache) == sorted(closure + ["shop.unrelated"])
+    # ... until a file's text changes
+    for name in PACKAGE:
+        (shop / name).write_text(PACKAGE[name] + "# edited\n")
+    assert closure_in_a_new_process(shop, cache) == closure
