@@ -151,3 +151,15 @@ def test_no_summary_line_is_drawn_from_an_unstable_timing():
     found = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(rows)))}
     assert found["Fastest on cpu1"].startswith(f"not drawn: baseline (cpu1): unstable: {DISTURBED}; rerun")
     assert found["Highest throughput on cpu1"].startswith("baseline — 900")     # throughput was not disturbed
+
+
+def test_the_summary_names_the_fastest_method_that_keeps_its_accuracy_and_its_laps():
+    from pilotlab.report.summary import summarise
+    from tests.pilotlab.report.toy import online_row
+    rows = [offline_row("baseline", mse=0.010, latency_ms=2.0), offline_row("worse", mse=0.013, latency_ms=0.1),
+            offline_row("loses_a_lap", mse=0.010, latency_ms=0.2), offline_row("kept", mse=0.011, latency_ms=0.5),
+            online_row("loses_a_lap", lap_completed=False), online_row("kept", lap_completed=True)]
+    found = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(rows)))}
+    assert found["Fastest on cpu1"].startswith("worse — 0.100 ms")
+    assert found["Fastest within 1.2× the baseline's MSE on cpu1"] == (
+        "kept — 0.500 ms per image, 4.00× faster than baseline, MSE 1.10× baseline's, 1 of 1 laps completed")
