@@ -214,5 +214,6 @@ def _providers(meta: ArtifactMeta, profile: HardwareProfile) -> list[Any]:
     if missing:
         raise NotApplicable(f"artifact {meta.strategy} needs ONNX Runtime provider(s) {', '.join(missing)} "
                             f"for {profile.name!r}; this onnxruntime has {', '.join(available)}")
-    options = {"TensorrtExecutionProvider": {"trt_fp16_enable": bool(meta.extra.get("trt_fp16"))}}
+    options = {"TensorrtExecutionProvider": {"trt_fp16_enable": bool(meta.extra.get("trt_fp16")),
+                                             "trt_int8_enable": bool(meta.extra.get("trt_int8"))}}
     return [(p, options.get(p, {})) for p in wanted] + ["CPUExecutionProvider"]

@@ -243,9 +243,12 @@ def montreal_is_hard(data: ReportData) -> ClaimCheck:
 
 def tensorrt_fastest(data: ReportData) -> ClaimCheck:
     claim = "TensorRT int8 is about 33× faster than the original model (on a GTX 1050)."
-    rows = [r for r in data.of_kind("offline") if r.strategy == "tensorrt" and r.status == "ok"]
+    tensorrt = [r for r in data.of_kind("offline") if r.strategy.startswith("tensorrt")]
+    # the int8 engine where the recipe has one (a name with int8: tensorrt_int8), else the fastest TensorRT row
+    rows = sorted((r for r in tensorrt if r.status == "ok" and r.get("latency_ms")),
+                  key=lambda r: ("int8" not in r.strategy, r.get("latency_ms")))
     if not rows:
-        reason = next((r.reason for r in data.rows if r.strategy == "tensorrt" and r.reason), "no tensorrt rows")
+        reason = next((r.reason for r in tensorrt if r.reason), "no tensorrt rows")
         return _untestable(claim, reason)
     gpu = rows[0].hardware
     base = next((r for r in data.of_kind("offline") if r.strategy == "baseline" and r.hardware == gpu
@@ -256,7 +259,8 @@ def tensorrt_fastest(data: ReportData) -> ClaimCheck:
         return untrusted
     speedup = base.get("latency_ms") / rows[0].get("latency_ms")
     return ClaimCheck(claim, _verdict(speedup >= 16.0),    # "about 33×": at least half of it
-                      f"tensorrt on {gpu}: {rows[0].get('latency_ms'):.3g} ms, {speedup:.1f}× the baseline's speed")
+                      f"{rows[0].strategy} on {gpu}: {rows[0].get('latency_ms'):.3g} ms, {speedup:.1f}× the "
+                      "baseline's speed")
 
 
 def _missing_reason(data: ReportData, strategy: str) -> str:

@@ -64,10 +64,10 @@ def quantize_int8(model, source: StrategySource, config: OnnxRuntimeInt8Config) 
                                  ("weight_type", config.weight_type, types)):
         if value not in known:
             raise PilotlabError(f"{option}: {value!r} is not one of {', '.join(known)}")
-    with tempfile.TemporaryDirectory() as tmp, _quiet():
-        prepared = _prepared_fp32(model, source, Path(tmp))
-        excluded = _first_conv(prepared) if config.float_first_conv else []
-        quantize_static(str(prepared), str(source.out / "model.onnx"), _Reader(source, config.calibration_frames),
+    with tempfile.TemporaryDirectory() as tmp, quiet_quantizer():
+        prepared = prepared_fp32(model, source, Path(tmp))
+        excluded = first_conv(prepared) if config.float_first_conv else []
+        quantize_static(str(prepared), str(source.out / "model.onnx"), CalibrationReader(source, config.calibration_frames),
                         quant_format=formats[config.quant_format], per_channel=config.per_channel,
                         activation_type=QuantType.QUInt8, weight_type=types[config.weight_type],
                         calibrate_method=methods[config.calibrate_method], nodes_to_exclude=excluded)
@@ -76,8 +76,8 @@ def quantize_int8(model, source: StrategySource, config: OnnxRuntimeInt8Config) 
 
 
 def dynamic_quant(config: DynamicQuantConfig, source: StrategySource) -> dict:
-    with tempfile.TemporaryDirectory() as tmp, _quiet():
-        prepared = _prepared_fp32(source.load_model(), source, Path(tmp))
+    with tempfile.TemporaryDirectory() as tmp, quiet_quantizer():
+        prepared = prepared_fp32(source.load_model(), source, Path(tmp))
         quantize_dynamic(str(prepared), str(source.out / "model.onnx"), weight_type=QuantType.QInt8,
                          op_types_to_quantize=list(config.op_types))
     source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime",
@@ -86,19 +86,19 @@ def dynamic_quant(config: DynamicQuantConfig, source: StrategySource) -> dict:
     return {}
 
 
-def _prepared_fp32(model, source: StrategySource, tmp: Path) -> Path:
+def prepared_fp32(model, source: StrategySource, tmp: Path) -> Path:
     """The fp32 model exported and pre-processed for quantization (shape inference, fusions)."""
     export_onnx(model, tmp / "fp32.onnx", source.input_shape)
     quant_pre_process(str(tmp / "fp32.onnx"), str(tmp / "prepared.onnx"))
     return tmp / "prepared.onnx"
 
 
-def _first_conv(model_path: Path) -> list[str]:
+def first_conv(model_path: Path) -> list[str]:
     graph = onnx.load(str(model_path)).graph
     return [node.name for node in graph.node if node.op_type == "Conv"][:1]
 
 
-class _Reader:
+class CalibrationReader:
     """ONNX Runtime's CalibrationDataReader protocol over the training frames."""
 
     def __init__(self, source: StrategySource, max_frames: int):
@@ -112,7 +112,7 @@ class _Reader:
 
 
 @contextlib.contextmanager
-def _quiet():
+def quiet_quantizer():
     """ORT's quantizer logs a line per node and warns about pre-processing; keep the job log readable."""
     logger = logging.getLogger()
     level = logger.level

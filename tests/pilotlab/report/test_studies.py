@@ -55,6 +55,9 @@ def test_tensorrt_is_judged_by_its_speed_up_on_the_same_gpu():
     assert verdicts(fast)[claim][0] == "holds"
     missing = [offline_row("tensorrt", "cuda", status="not_applicable", reason="needs a CUDA GPU")]
     assert verdicts(missing)[claim] == ("not testable here", "needs a CUDA GPU")
+    three = slow + [offline_row("tensorrt_fp32", "cuda", latency_ms=0.3), offline_row("tensorrt_int8", "cuda",
+                                                                                      latency_ms=0.05)]
+    assert verdicts(three)[claim] == ("holds", "tensorrt_int8 on cuda: 0.05 ms, 20.0× the baseline's speed")
 
 
 def test_no_verdict_is_drawn_from_an_unstable_timing():
