@@ -5,7 +5,11 @@ A profile is pure data, so it can travel in job params:
     {"name": "cpu1", "device": "cpu", "threads": 1}
 
 Built in: `cpu` (all cores), `cpu1` (one thread), `cuda` (the first GPU). A recipe may define more
-under `hardware:` with `device` ("cpu" | "cuda") and `threads` (CPU threads; omitted = all cores).
+under `hardware:` with the options of `HardwareOptions` (their one home: the recipe, the job params and
+the profiles are made from it): `device` ("cpu" | "cuda"), `threads` (CPU threads; omitted = all cores)
+and `worker_resource`, the Dask worker resource of the machine the profile stands for (its timing jobs
+run only on workers started with `--resources NAME=1`, and are keyed by the profile, not by the planning
+host's fingerprint; their results record the host that ran them).
 A profile that cannot run on this host raises `matrix.NotApplicable` with the reason, so the report
 shows "not applicable: …" instead of a crash.
 
@@ -17,15 +21,33 @@ from __future__ import annotations
 import glob
 import os
 import platform
+import re
 from dataclasses import asdict, dataclass, replace
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
+
+import pydantic
+from pydantic import Field
 
 from matrix.kinds import NotApplicable
 from pilotlab.errors import PilotlabError
+from pilotlab.specs.base import Spec
 
-DEVICES = ("cpu", "cuda")
+class HardwareOptions(Spec):
+    """What a hardware profile is made of, wherever it is given (recipe, job params)."""
+    device: Literal["cpu", "cuda"] = "cpu"
+    threads: int | None = Field(None, ge=1, description="CPU threads for torch and ONNX Runtime; omitted: every core")
+    worker_resource: str | None = Field(None, description="the Dask worker resource of the machine this profile "
+                                        "stands for: its timing jobs run only on workers started with --resources NAME=1")
+
+    @pydantic.field_validator("worker_resource")
+    @classmethod
+    def _resource_name(cls, name: str | None) -> str | None:
+        if name is not None and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.-]*", name):
+            raise ValueError(f"{name!r} is not a Dask resource name: give the NAME of the workers' "
+                             "`--resources NAME=1` (letters, digits, _ . -)")
+        return name
 
 
 @dataclass(frozen=True)
@@ -33,9 +55,20 @@ class HardwareProfile:
     name: str
     device: str = "cpu"
     threads: int | None = None      # CPU threads for torch and ONNX Runtime; None = every core
+    worker_resource: str | None = None   # the Dask worker resource of the machine it stands for
 
     def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """As job params carry it (no worker_resource where there is none: keys from before stay valid)."""
+        data = asdict(self)
+        if self.worker_resource is None:
+            del data["worker_resource"]
+        return data
+
+    @property
+    def host(self) -> dict[str, Any] | None:
+        """The host fingerprint its timing jobs are planned for: this host's, or None for a profile that
+        stands for a Dask worker's machine (that one's is recorded when it runs)."""
+        return None if self.worker_resource else host_fingerprint()
 
     @property
     def cpu_threads(self) -> int:
@@ -75,23 +108,23 @@ def within_share(profile: HardwareProfile) -> HardwareProfile:
 
 
 def make_profile(name: str, options: dict[str, Any] | None = None) -> HardwareProfile:
-    """The built-in profile `name`, or a recipe-defined one from `options` ({device, threads})."""
+    """The built-in profile `name`, or a recipe-defined one from `options` (HardwareOptions)."""
     if not options:
         if name not in BUILTIN:
             from matrix.errors import UnknownNameError
             raise UnknownNameError("hardware profile", name, BUILTIN)
         return BUILTIN[name]
-    unknown = sorted(set(options) - {"device", "threads"})
+    unknown = sorted(set(options) - set(HardwareOptions.model_fields))
     if unknown:
-        raise PilotlabError(f"hardware.{name}: unknown option(s) {', '.join(unknown)}; "
-                            "a hardware profile has: device (cpu | cuda), threads (an integer ≥ 1)")
-    device = options.get("device", "cpu")
-    threads = options.get("threads")
-    if device not in DEVICES:
-        raise PilotlabError(f"hardware.{name}.device: {device!r} is not one of {', '.join(DEVICES)}")
-    if threads is not None and (not isinstance(threads, int) or threads < 1):
-        raise PilotlabError(f"hardware.{name}.threads: {threads!r} must be an integer ≥ 1 (or omitted: all cores)")
-    return HardwareProfile(name, device, threads)
+        raise PilotlabError(f"hardware.{name}: unknown option(s) {', '.join(map(str, unknown))}; a hardware profile "
+                            "has: device (cpu | cuda), threads (an integer ≥ 1), worker_resource (a Dask resource name)")
+    try:
+        valid = HardwareOptions.model_validate(options)
+    except pydantic.ValidationError as error:
+        first = error.errors(include_url=False)[0]
+        field, message = ".".join(map(str, first["loc"])), first["msg"].removeprefix("Value error, ")
+        raise PilotlabError(f"hardware.{name}.{field}: {message} (got {first.get('input')!r:.60})") from None
+    return HardwareProfile(name, **valid.model_dump())
 
 
 def profile_from_dict(data: dict[str, Any]) -> HardwareProfile:

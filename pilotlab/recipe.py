@@ -20,6 +20,7 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from matrix.errors import did_you_mean
+from pilotlab.hardware import HardwareOptions
 from pilotlab.specs.base import Direction, Spec
 from pilotlab.specs.offline import OfflineSettings
 from pilotlab.specs.online import LapSettings
@@ -76,9 +77,7 @@ class ModelSpec(TrainSpec):
     data: str = "train"           # the dataset it trains on
 
 
-class HardwareSpec(Spec):
-    device: Literal["cpu", "cuda"] = "cpu"
-    threads: int | None = Field(None, ge=1)
+class HardwareSpec(HardwareOptions):
     latency_file: str | None = None   # a device's measured latencies, replayed in the laps (pilotlab.online.latency)
 
 

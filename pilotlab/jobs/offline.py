@@ -8,12 +8,13 @@ reason} for a single-thread timing that is the calls' thread CPU time, the wall 
 absent when none is); latency_samples ("latency_ms.npy" in the artifacts: the batch-1 calls the latency
 is made of, float64 ms, in measurement order: the clean calls, or every call's thread CPU time or wall
 time); plus strategy, hardware (the
-profile) and host (the fingerprint).
+profile), host (the fingerprint of the host that timed it) and hostname (its name, matrix.hostlock).
 """
 from __future__ import annotations
 
 import dataclasses
 
+from matrix.hostlock import host_name
 from matrix.kinds import JobContext
 from pilotlab import offline
 from pilotlab.data.frames import FrameSet
@@ -41,4 +42,4 @@ def run_offline(ctx: JobContext) -> dict:
     result = offline.evaluate_offline(ctx.dep("artifact").artifacts, profile, test, settings, ctx.out)
     ctx.progress(1, 1)
     return {**result, "strategy": ctx.dep("artifact").result.get("strategy"),
-            "hardware": profile.as_dict(), "host": host}
+            "hardware": profile.as_dict(), "host": host, "hostname": host_name()}

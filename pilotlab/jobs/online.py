@@ -10,7 +10,7 @@ result:
     {completed, runs}); runs [{start_m, termination, sim_seconds, wall_seconds, iterations, metrics}];
     repetitions, brain, strategy (the artifact's, or the reference brain's name: for a brain the user
     wrote, its user_brain.name), hardware (profile),
-    host, circuit, direction, circuit_length_m, laps, timeout_s, timing, control_hz, extra_latency_ms,
+    host, hostname (the host that drove it), circuit, direction, circuit_length_m, laps, timeout_s, timing, control_hz, extra_latency_ms,
     fixed_inference_ms (if set), measured_inference_ms (the real mean, without artificial latency),
     wall_seconds; BehaviorMetrics' metrics (pilotlab.columns.BEHAVIORMETRICS, bm_*) against the
     expert's perfect lap, and perfect_lap_checkpoints; in replay timing latency_source,
@@ -28,6 +28,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from matrix.hostlock import host_name
 from matrix.kinds import JobContext
 from pilotlab import predictor
 from pilotlab.errors import PilotlabError
@@ -108,4 +109,4 @@ def run_online(ctx: JobContext) -> dict[str, Any]:
     result |= replayed
     ctx.log.info("%s: %s", strategy, ", ".join(f"{run['termination']} after {run['sim_seconds']:.1f} s"
                                                for run in result["runs"]))
-    return {**result, "strategy": strategy, "hardware": profile.as_dict(), "host": host}
+    return {**result, "strategy": strategy, "hardware": profile.as_dict(), "host": host, "hostname": host_name()}

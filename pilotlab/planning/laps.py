@@ -89,7 +89,6 @@ def _lap(planner, name: str, labels: dict, hardware: str, place: tuple[str, str]
 
 def _lap_params(planner, hardware: str, axis: str, circuit: str, direction: str, brain: dict) -> tuple:
     """(params, inputs, labels) every lap of one hardware, place, direction and brain shares."""
-    from pilotlab.hardware import host_fingerprint
     if axis == "world":
         params, circuit_inputs = world_param(planner, circuit, ["matrix", "world"])
         labels = {"world": circuit}
@@ -98,6 +97,6 @@ def _lap_params(planner, hardware: str, axis: str, circuit: str, direction: str,
         labels = {}
     online = planner.config.online
     settings = {field: getattr(online, field) for field in LapSettings.model_fields}
-    spec = OnlineSpec(**settings, **params, **brain, direction=direction, host=host_fingerprint(),
-                      hardware=planner.profile(hardware).as_dict())
+    profile = planner.profile(hardware)
+    spec = OnlineSpec(**settings, **params, **brain, direction=direction, host=profile.host, hardware=profile.as_dict())
     return Params(spec.model_dump(mode="json")), circuit_inputs, {**labels, "circuit": circuit, "direction": direction}

@@ -234,12 +234,11 @@ class Planner:
                                lambda: self._offline(optimize, model, strategy, world, hardware))
 
     def _offline(self, optimize: Job, model: str, strategy: str, world: Any, hardware: str) -> Job:
-        from pilotlab.hardware import host_fingerprint
         test = self.dataset(self.config.offline.data, ["offline", "data"], self.config.models[model].preprocess,
                             world=None if world is None else str(world))
+        profile = self.profile(hardware)
         params = self.params_once(("offline", hardware), lambda: OfflineSpec(
-            hardware=self.profile(hardware).as_dict(), host=host_fingerprint(),
-            batch=self.config.offline.batch).model_dump(mode="json"))
+            hardware=profile.as_dict(), host=profile.host, batch=self.config.offline.batch).model_dump(mode="json"))
         labels = {"model": model, "strategy": strategy, "hardware": hardware,
                   "test_set": self.config.offline.data}
         in_world = world is not None and self.config.datasets[self.config.offline.data].record is not None

@@ -18,8 +18,10 @@ class OfflineSettings(Spec):
 
 
 class OfflineSpec(OfflineSettings):
-    hardware: dict[str, Any] = Field(description='the profile {"name", "device", "threads"} (pilotlab.hardware)')
-    host: dict[str, Any] | None = Field(None, description="the host the planner expects; another is an error")
+    hardware: dict[str, Any] = Field(description='the profile {"name", "device", "threads"[, "worker_resource"]} '
+                                                 '(pilotlab.hardware)')
+    host: dict[str, Any] | None = Field(None, description="the host the planner expects; another is an error "
+                                                          "(None: whichever host the profile's worker resource is on)")
     timing: dict[str, int | float] = Field({}, description="overrides of how long and how often to measure "
                                                      "(pilotlab.offline.TimingSettings), e.g. for quick tests")
 
@@ -28,5 +30,12 @@ def gpu_resources(params) -> dict[str, float]:
     return {"GPU": 1} if (params.get("hardware") or {}).get("device") == "cuda" else {}
 
 
+def timing_resources(params) -> dict[str, float]:
+    """Where a job that times on its profile's hardware may run on Dask: a GPU for a CUDA profile, and
+    the machine a profile stands for (its worker resource)."""
+    machine = (params.get("hardware") or {}).get("worker_resource")
+    return gpu_resources(params) | ({machine: 1} if machine else {})
+
+
 register_kind("offline", "pilotlab.jobs.offline:run_offline", params=OfflineSpec, exclusive=True,
-              resources_for=gpu_resources)
+              resources_for=timing_resources)

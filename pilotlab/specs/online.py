@@ -17,7 +17,7 @@ from pydantic import Field, field_validator, model_validator
 
 from matrix.kinds import register_kind
 from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, InWorld, Spec
-from pilotlab.specs.offline import gpu_resources
+from pilotlab.specs.offline import gpu_resources, timing_resources
 
 
 # the timing modes that charge the brain's time to the lap (pilotlab.online.drive explains all four)
@@ -152,5 +152,11 @@ def timed_live(params) -> bool:
     return params.get("timing", DriveSettings.model_fields["timing"].default) in ("measured", "realtime")
 
 
+def lap_resources(params) -> dict[str, float]:
+    """A lap runs its network on the profile's device (a GPU for CUDA); it needs the profile's machine
+    itself only where the lap reads its clock: a replayed lap replays that machine's timings anywhere."""
+    return timing_resources(params) if timed_live(params) else gpu_resources(params)
+
+
 register_kind("online", "pilotlab.jobs.online:run_online", params=OnlineSpec, exclusive_for=timed_live,
-              resources_for=gpu_resources)
+              resources_for=lap_resources)

@@ -68,3 +68,49 @@ def test_dask_local_cluster_matches_the_local_executor(tmp_path):
     assert sorted(local.keys()) == sorted(remote.keys())
     assert_same_results(results(local, local_plan), results(remote, remote_plan))
     assert not engine.make_plan(recipe, DOMAIN, remote).stale
+
+
+LAB = """\
+name: dask-lab
+datasets:
+  train: {record: {circuits: [simple_circuit], laps: 0.1, camera: {width: 320, height: 240}}}
+  test: {record: {circuits: [simple_circuit], laps: 0.05, seed: 5, camera: {width: 320, height: 240}}}
+models:
+  pilotnet: {epochs: 1, batch_size: 32}
+hardware:
+  jetson: {threads: 1, worker_resource: JETSON}
+online: {timeout_s: 4, references: [expert]}
+matrix:
+  model: [pilotnet]
+  strategy: [baseline]
+  hardware: [jetson]
+  circuit: [simple_circuit]
+"""
+
+
+@pytest.mark.slow
+def test_a_profile_times_on_the_dask_worker_of_its_machine_and_its_lap_replays_those_timings(tmp_path):
+    import distributed
+    import numpy as np
+
+    def worker(host: str, resources: dict) -> dict:   # a worker process that is `host` to pilotlab
+        env = {"MATRIX_HOST": host, "MATRIX_HOST_LOCK": str(tmp_path / f"{host}.lock")}
+        return {"cls": distributed.Nanny, "options": {"nthreads": 1, "resources": resources, "env": env}}
+    path = tmp_path / "recipe.yaml"
+    path.write_text(LAB)
+    store = Store(tmp_path / "store")
+    plan = engine.make_plan(load_recipe(path, DOMAIN), DOMAIN, store)
+    workers = {"jetson": worker("jetson", {"JETSON": 1}), "lab": worker("lab", {})}
+    with distributed.SpecCluster(workers=workers, scheduler={"cls": distributed.Scheduler, "options": {
+            "dashboard_address": None}}) as cluster, distributed.Client(cluster) as client:
+        from matrix.dask_executor import run_dask
+        summary = run_dask(plan.statuses, store, client, kind_modules=DOMAIN.kind_modules)
+    assert not summary.failed, summary.outcomes
+    done = results(store, plan)
+    timing = done["offline pilotnet/baseline on jetson"]["value"]
+    assert timing["hostname"] == "jetson" and timing["hardware"]["worker_resource"] == "JETSON"
+    offline = next(s.job for s in plan.statuses if s.job.name == "offline pilotnet/baseline on jetson")
+    samples = np.load(store.artifacts(offline.key) / timing["latency_samples"])
+    lap = done["online pilotnet/baseline on jetson at simple_circuit cw"]["value"]
+    assert lap["replayed_latency_samples"] == len(samples)
+    assert lap["replayed_latency_ms"] == round(float(np.median(samples)), 4)

@@ -77,3 +77,13 @@ def test_work_that_is_not_timed_keeps_to_its_workers_share_of_the_cores(monkeypa
     assert within_share(BUILTIN["cuda"]) == BUILTIN["cuda"]
     monkeypatch.delenv("OMP_NUM_THREADS")
     assert worker_share() == cpu_count() and within_share(BUILTIN["cpu1"]).threads == 1
+
+
+def test_a_profile_can_name_the_dask_worker_resource_of_its_machine():
+    jetson = make_profile("jetson", {"threads": 4, "worker_resource": "JETSON"})
+    assert jetson.worker_resource == "JETSON" and profile_from_dict(jetson.as_dict()) == jetson
+    assert jetson.host is None   # timed on the machine the resource names, whichever host plans it
+    # a profile without one carries the params it always did (the keys of earlier timings stay)
+    assert make_profile("two", {"threads": 2}).as_dict() == {"name": "two", "device": "cpu", "threads": 2}
+    with pytest.raises(PilotlabError, match="hardware.jetson.worker_resource"):
+        make_profile("jetson", {"worker_resource": "JETSON=1"})

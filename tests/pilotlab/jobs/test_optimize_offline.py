@@ -10,6 +10,7 @@ import pytest
 
 import pilotlab.jobs.offline  # noqa: F401  (registers the kind)
 import pilotlab.jobs.optimize  # noqa: F401
+from matrix.hostlock import host_name
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
 from pilotlab.columns import BY_NAME
 from pilotlab.errors import PilotlabError
@@ -48,8 +49,10 @@ def test_optimize_then_offline(tmp_path, trained, frames, test_frames):
                       {"artifact": dep("optimize", ctx.out, result), "test": (dep("frames", test_frames),)})
     metrics = KINDS.get("offline").handler(offline)
     assert {"mse", "mse_v", "mse_w", "latency_ms", "throughput_ips", "size_mb", "peak_mem_mb"} <= set(metrics)
-    assert set(metrics) - {"strategy", "hardware", "host", "latency_samples", "unstable", "cpu_time"} <= set(BY_NAME)
+    assert set(metrics) - {"strategy", "hardware", "host", "hostname", "latency_samples", "unstable", "cpu_time"} \
+        <= set(BY_NAME)
     assert metrics["host"] == host_fingerprint() and metrics["threads"] == 1 and json.dumps(metrics)
+    assert metrics["hostname"] == host_name()
     samples = np.load(offline.out / metrics["latency_samples"])
     assert samples.dtype == np.float64 and samples.shape == (metrics["latency_runs"],)
     assert np.median(samples) == pytest.approx(metrics["latency_ms"])
