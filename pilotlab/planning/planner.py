@@ -79,6 +79,9 @@ class Planner:
                 world: str | None = None) -> list[Job]:
         """The frames jobs of a dataset, preprocessed as `preprocess` says (default: pilotlab's); with
         `world`, a recorded dataset is recorded in that BM world instead (the same settings and seeds)."""
+        return self.remembered(("dataset", name, preprocess, world), lambda: self._dataset(name, used_by, preprocess, world))
+
+    def _dataset(self, name: str, used_by: list, preprocess: PreprocessConfig | None, world: str | None) -> list[Job]:
         if name not in self.config.datasets:
             raise self.recipe.error(f"dataset {name!r} is not defined; datasets: "
                                     f"{', '.join(self.config.datasets) or '(none)'}", used_by)
