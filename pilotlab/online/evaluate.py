@@ -105,9 +105,9 @@ def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: Progres
     runs = [{**run_metrics(t), **bm_run_metrics(t, checkpoints)} for t in trajectories]
     means, spread = aggregate(runs, METRICS + BM_METRICS)
     if tolerance is not None:
-        # in a BM world the search drives on the network's view too (full frames there cost 4× more); in
-        # pilotlab's own world it keeps the full frames its published figures were measured with
-        view = getattr(brain, "view", None) if spec.world else None
+        # the search drives on the network's view, as the plain lap it starts from did (full frames
+        # cost 2-4× more and made its laps differ from the plain one in the rendering)
+        view = getattr(brain, "view", None)
         means |= cell_tolerance(make_env(spec, camera=brain.needs_camera, view=view, assets=assets), brain, spec,
                                 tolerance, trajectories[0], checkpoints, latency_ms, progress)
     save_npz(trajectories, out / "trajectory.npz")
