@@ -12,7 +12,7 @@ from __future__ import annotations
 from matrix.kinds import JobContext
 from pilotlab.hardware import BUILTIN, profile_from_dict
 from pilotlab.specs.optimize import OptimizeSpec
-from pilotlab.strategies.registry import StrategySource, apply_strategy
+from pilotlab.strategies.apply import StrategySource, apply_strategy
 
 
 def run_optimize(ctx: JobContext) -> dict:

@@ -2,18 +2,17 @@
 `STRATEGIES` (how to write one: registry.py).
 
 Importing this package registers them all from their configs (`pilotlab.strategies.configs`),
-importing no handler and so no torch, onnx, onnxruntime, torchao or tensorflow: planning needs only
-names and configs. Apply one with `apply_strategy(name, options, source)`, which imports its
-handler's module; the artifact it writes is loaded with `pilotlab.predictor.load_predictor`.
+importing no handler and so no torch, onnx, onnxruntime, torchao or tensorflow (nor numpy): planning
+needs only names and configs. Apply one with `pilotlab.strategies.apply.apply_strategy(name, options,
+source)`, which imports its handler's module; the artifact it writes is loaded with
+`pilotlab.predictor.load_predictor`.
 """
 from matrix.fingerprint import module_closure
 from pilotlab.strategies import configs  # noqa: F401  (each config module registers its strategies)
-from pilotlab.strategies.registry import (  # noqa: F401
-    STRATEGIES, StrategySource, apply_strategy, make_strategy_config, register_strategy,
-)
+from pilotlab.strategies.registry import STRATEGIES, make_strategy_config, register_strategy  # noqa: F401
 
-SHARED = ("pilotlab.strategies.registry", "pilotlab.strategies.artifact", "pilotlab.strategies.saving",
-          "pilotlab.strategies.common", "pilotlab.strategies.fold", "pilotlab.strategies.edge",
+SHARED = ("pilotlab.strategies.registry", "pilotlab.strategies.apply", "pilotlab.strategies.artifact",
+          "pilotlab.strategies.saving", "pilotlab.strategies.common", "pilotlab.strategies.fold", "pilotlab.strategies.edge",
           "pilotlab.strategies.configs.checks")
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pilotlab.strategies.common import save_float_model
 from pilotlab.strategies.configs.baseline import BaselineConfig
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 
 
 def baseline(config: BaselineConfig, source: StrategySource) -> dict:

@@ -13,7 +13,7 @@ from pilotlab.errors import PilotlabError
 from pilotlab.strategies.common import finetune, save_float_model, weight_layers
 from pilotlab.strategies.configs.cluster import ClusterConfig
 from pilotlab.strategies.kmeans import cluster_weights, share_gradients, snap_to_centroids
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 
 
 def cluster(config: ClusterConfig, source: StrategySource) -> dict:

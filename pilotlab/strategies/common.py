@@ -15,7 +15,7 @@ from pilotlab.hardware import check_available
 from pilotlab.models import make_config, save_checkpoint
 from pilotlab.strategies.artifact import FLOAT_FORMATS
 from pilotlab.strategies.configs.checks import check_distill
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.saving import export_onnx, save_torchscript
 from pilotlab.training import FitConfig, fit
 

@@ -22,7 +22,7 @@ from matrix.kinds import NotApplicable
 from pilotlab.strategies.common import require_cuda_target
 from pilotlab.strategies.configs.cuda import TensorRTConfig
 from pilotlab.strategies.onnx_runtime import CalibrationReader, first_conv, prepared_fp32, quiet_quantizer
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.saving import export_onnx
 
 DTYPES = {"fp32": "float32", "fp16": "float16", "int8": "int8"}

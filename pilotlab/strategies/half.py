@@ -14,7 +14,7 @@ import torch
 from matrix.kinds import NotApplicable
 from pilotlab.hardware import check_available, cpu_flags
 from pilotlab.strategies.configs.half import HalfConfig
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.saving import save_torchscript
 
 NATIVE_CPU_FLAGS = {"bfloat16": {"avx512_bf16", "amx_bf16"}, "float16": {"avx512_fp16", "amx_fp16"}}

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from pilotlab.strategies.configs.litert import LiteRTCalibratedConfig, LiteRTConfig
 from pilotlab.strategies.litert_convert import save_tflite
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 
 
 def _convert(mode: str, source: StrategySource, calibration_frames: int = 0) -> dict:

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from pilotlab.strategies.artifact import INPUT_NAME
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.saving import export_onnx   # torch before TensorFlow, the order the jobs always had
 
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")   # before TensorFlow loads: its C++ logs are pages long

@@ -49,7 +49,7 @@ from pilotlab.strategies.configs.mot import (CqatConfig, PcqatConfig, PqatConfig
 from pilotlab.strategies.litert_convert import save_tflite
 from pilotlab.strategies.mot_torch import (add_clusters, add_fake_quant, add_masks, bake, calibrate, fold,
                                            magnitude_masks, remove_hooks, weight_figures)
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 
 
 def pruned(config: PruneLiteRTConfig, source: StrategySource) -> tuple[nn.Module, list[dict]]:

@@ -34,7 +34,7 @@ from onnxruntime.quantization.shape_inference import quant_pre_process
 from pilotlab.errors import PilotlabError
 from pilotlab.strategies.artifact import INPUT_NAME
 from pilotlab.strategies.configs.onnx_runtime import DynamicQuantConfig, OnnxRuntimeConfig, OnnxRuntimeInt8Config
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.saving import export_onnx
 
 

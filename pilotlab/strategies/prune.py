@@ -13,7 +13,7 @@ from torch.nn.utils import prune
 
 from pilotlab.strategies.common import finetune, save_float_model, sparsity_report, weight_layers
 from pilotlab.strategies.configs.prune import GlobalPruneConfig, LocalPruneConfig
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 
 
 def local_prune(config: LocalPruneConfig, source: StrategySource) -> dict:

@@ -9,7 +9,7 @@ from pilotlab.strategies.common import sparsity_report
 from pilotlab.strategies.configs.prune_quant import PruneQuantConfig
 from pilotlab.strategies.prune import prune_and_finetune, prune_local
 from pilotlab.strategies.pt2e import quantization_aware_finetune
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 
 
 def prune_quant(config: PruneQuantConfig, source: StrategySource) -> dict:

@@ -19,7 +19,7 @@ from pilotlab.strategies.common import finetune
 from pilotlab.strategies.configs.pt2e import QatConfig, StaticQuantConfig
 from pilotlab.strategies.pt2e_graph import (TrainEvalSwitch, export_graph, freeze_zeros, save_quantized,
                                             x86_quantizer)
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 
 
 def static_quant(config: StaticQuantConfig, source: StrategySource) -> dict:

@@ -10,7 +10,7 @@ from torch import nn
 from torchao.quantization.pt2e import move_exported_model_to_eval, move_exported_model_to_train
 
 from pilotlab.strategies.fold import fold_input_norm
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.saving import example_batch, export_onnx
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 from pilotlab.strategies.channels import multiply_accumulates, remove_channels
 from pilotlab.strategies.common import finetune, save_float_model
 from pilotlab.strategies.configs.structured_prune import StructuredPruneConfig
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 
 
 def structured_prune(config: StructuredPruneConfig, source: StrategySource) -> dict:

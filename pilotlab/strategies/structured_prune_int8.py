@@ -19,7 +19,7 @@ from pilotlab.strategies.common import finetune
 from pilotlab.strategies.configs.onnx_runtime import OnnxRuntimeInt8Config
 from pilotlab.strategies.configs.structured_prune_int8 import StructuredPruneInt8Config
 from pilotlab.strategies.onnx_runtime import quantize_int8
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 
 
 def structured_prune_int8(config: StructuredPruneInt8Config, source: StrategySource) -> dict:

@@ -24,7 +24,7 @@ from pilotlab.strategies.channels import multiply_accumulates, remove_channels
 from pilotlab.strategies.common import finetune
 from pilotlab.strategies.configs.structured_prune_xnnpack import StructuredPruneXnnpackConfig
 from pilotlab.strategies.litert_convert import save_tflite
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 
 
 def _pruned(config: StructuredPruneXnnpackConfig, source: StrategySource) -> tuple[nn.Module, dict]:

@@ -7,7 +7,7 @@ needs a C++ toolchain on every target; a frozen TorchScript file loads anywhere 
 from __future__ import annotations
 
 from pilotlab.strategies.configs.torchscript import TorchScriptConfig
-from pilotlab.strategies.registry import StrategySource
+from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.saving import save_torchscript
 
 

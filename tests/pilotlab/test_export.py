@@ -10,7 +10,7 @@ from pilotlab.cli import main
 from pilotlab.errors import PilotlabError
 from pilotlab.export import export_artifact
 from pilotlab.predictor import load_predictor
-from pilotlab.strategies import StrategySource, apply_strategy
+from pilotlab.strategies.apply import StrategySource, apply_strategy
 
 
 KEY = "ab12" + "0" * 60

@@ -9,7 +9,7 @@ import torch
 from pilotlab.columns import BY_NAME
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.models import load_checkpoint
-from pilotlab.strategies import StrategySource, apply_strategy
+from pilotlab.strategies.apply import StrategySource, apply_strategy
 from pilotlab.offline import TimingSettings, evaluate_offline, measure_latency
 
 QUICK = TimingSettings(warmup_runs=5, warmup_seconds=0.0, min_runs=30, max_seconds=0.5, block_seconds=0.05,

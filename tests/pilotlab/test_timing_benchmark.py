@@ -20,7 +20,7 @@ from matrix.kinds import NotApplicable
 from pilotlab.hardware import apply_profile, make_profile
 from pilotlab.offline import TimingSettings, measure_latency, sample_batch
 from pilotlab.predictor import load_predictor
-from pilotlab.strategies import StrategySource, apply_strategy
+from pilotlab.strategies.apply import StrategySource, apply_strategy
 from tests.pilotlab.conftest import random_frames
 
 QUICKSTART = ("baseline", "dynamic_quant", "onnxruntime_int8", "structured_prune_int8")

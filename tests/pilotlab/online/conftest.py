@@ -13,7 +13,7 @@ import pytest
 import torch
 
 from pilotlab.models import build_model, make_config, save_checkpoint
-from pilotlab.strategies import StrategySource, apply_strategy
+from pilotlab.strategies.apply import StrategySource, apply_strategy
 from pilotlab.strategies.artifact import ArtifactMeta, write_meta
 
 PREPROCESS = {"version": 1, "crop_top": 0.5, "crop_bottom": 1.0, "width": 200, "height": 66, "interpolation": "area"}

@@ -74,7 +74,7 @@ def test_frame_stack_picks_the_nearest_frames_in_time():
 
 
 def test_the_baseline_strategy_keeps_a_stacked_models_input(stacked_artifact, tmp_path):
-    from pilotlab.strategies import StrategySource, apply_strategy
+    from pilotlab.strategies.apply import StrategySource, apply_strategy
     apply_strategy("baseline", {}, StrategySource(stacked_artifact / "model.pt", tmp_path / "out"))
     assert read_meta(tmp_path / "out").input_shape == (None, 6, 66, 200)
 

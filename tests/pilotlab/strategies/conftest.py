@@ -6,7 +6,8 @@ from pathlib import Path
 import pytest
 
 from matrix.kinds import NotApplicable
-from pilotlab.strategies import STRATEGIES, StrategySource, apply_strategy
+from pilotlab.strategies import STRATEGIES
+from pilotlab.strategies.apply import StrategySource, apply_strategy
 
 # Short fine-tuning and calibration: the tests check the mechanics, not the accuracy.
 TEST_OPTIONS = {

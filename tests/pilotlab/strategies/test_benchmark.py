@@ -29,7 +29,8 @@ from pilotlab.offline import TimingSettings, measure_latency, measure_throughput
 from pilotlab.predictor import OnnxPredictor, load_predictor
 from pilotlab.strategies.artifact import read_meta
 from pilotlab.models import load_checkpoint
-from pilotlab.strategies import STRATEGIES, StrategySource, apply_strategy
+from pilotlab.strategies import STRATEGIES
+from pilotlab.strategies.apply import StrategySource, apply_strategy
 from pilotlab.strategies.channels import multiply_accumulates
 from tests.pilotlab.conftest import random_frames
 

@@ -9,7 +9,7 @@ import torch
 from pilotlab.data.frames import FrameSet
 from pilotlab.errors import PilotlabError
 from pilotlab.predictor import load_predictor
-from pilotlab.strategies import StrategySource, apply_strategy
+from pilotlab.strategies.apply import StrategySource, apply_strategy
 from pilotlab.strategies.common import soft_targets
 
 

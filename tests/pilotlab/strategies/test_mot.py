@@ -10,7 +10,7 @@ from torch import nn
 
 from pilotlab.export import export_artifact
 from pilotlab.predictor import load_predictor
-from pilotlab.strategies import StrategySource, apply_strategy
+from pilotlab.strategies.apply import StrategySource, apply_strategy
 from tests.pilotlab.strategies.test_strategies import runnable
 
 NEW = ["prune_litert", "prune_litert_int8", "qat_litert_int8", "pqat_litert_int8", "cqat_litert_int8",

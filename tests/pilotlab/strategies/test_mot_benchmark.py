@@ -23,7 +23,7 @@ from matrix.kinds import NotApplicable
 from pilotlab.hardware import apply_profile, describe_host, host_fingerprint, make_profile
 from pilotlab.offline import TimingSettings, measure_latency, sample_batch
 from pilotlab.predictor import load_predictor
-from pilotlab.strategies import StrategySource, apply_strategy
+from pilotlab.strategies.apply import StrategySource, apply_strategy
 from tests.pilotlab.conftest import random_frames
 
 ROUNDS = int(os.environ.get("PILOTLAB_BENCH_ROUNDS", "5"))

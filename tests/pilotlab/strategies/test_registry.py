@@ -84,13 +84,13 @@ def test_every_handler_is_a_function_of_its_module(name):
 
 
 def test_a_missing_requirement_is_not_applicable_before_the_handler_is_imported(trained, tmp_path):
-    from pilotlab.strategies import StrategySource
+    from pilotlab.strategies.apply import StrategySource, run_handler
     from pilotlab.strategies.configs.litert import LiteRTConfig
     entry = StrategyEntry("litert", LiteRTConfig, "no_such_package_xyz.handlers:run",
                           requires=("no_such_runtime_xyz",), extra="edge")
     with pytest.raises(NotApplicable, match=r"litert needs no_such_runtime_xyz, not installed here "
                                             r"\(pip install -e '\.\[edge\]'\)"):
-        entry.run(LiteRTConfig(), StrategySource(trained / "model.pt", tmp_path, strategy="litert"))
+        run_handler(entry, LiteRTConfig(), StrategySource(trained / "model.pt", tmp_path, strategy="litert"))
 
 
 def test_code_fingerprint_is_the_strategy_modules_and_what_they_build_on():

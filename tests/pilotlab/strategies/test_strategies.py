@@ -184,7 +184,7 @@ def test_cluster_leaves_at_most_k_distinct_weights_per_layer(artifacts):
 def test_half_precision_is_not_applicable_without_native_support(trained, tmp_path):
     from matrix.kinds import NotApplicable
     from pilotlab.hardware import cpu_flags
-    from pilotlab.strategies import StrategySource, apply_strategy
+    from pilotlab.strategies.apply import StrategySource, apply_strategy
     if {"avx512_bf16", "amx_bf16"} & cpu_flags():
         pytest.skip("this CPU computes bf16 natively")
     with pytest.raises(NotApplicable, match="no native bfloat16"):
@@ -195,7 +195,7 @@ def test_half_precision_is_not_applicable_without_native_support(trained, tmp_pa
 def test_cuda_targets_without_a_gpu_are_not_applicable(trained, tmp_path, strategy):
     from matrix.kinds import NotApplicable
     from pilotlab.hardware import BUILTIN, gpu_name
-    from pilotlab.strategies import StrategySource, apply_strategy
+    from pilotlab.strategies.apply import StrategySource, apply_strategy
     if gpu_name():
         pytest.skip("this host has a GPU")
     with pytest.raises(NotApplicable, match="CUDA|GPU|TensorRT|cuda"):

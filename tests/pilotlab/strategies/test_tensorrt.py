@@ -8,7 +8,8 @@ import torch
 
 from pilotlab.data.frames import FrameSet
 from pilotlab.errors import PilotlabError
-from pilotlab.strategies import StrategySource, make_strategy_config
+from pilotlab.strategies import make_strategy_config
+from pilotlab.strategies.apply import StrategySource
 
 
 def test_the_precision_is_one_of_the_studys_three():
