@@ -38,7 +38,8 @@ def register(subparsers) -> None:
 
 
 def list_circuits(args: argparse.Namespace) -> int:
-    from pilotlab.circuits import CIRCUITS, all_circuit_names, csv_path_of, get_circuit
+    from pilotlab.circuits import CIRCUITS, all_circuit_names, csv_path_of
+    from pilotlab.circuits.load import get_circuit
     table = Table(title="circuits")
     for column in ("name", "length (m)", "road (m)", "timeout (s)", "source"):
         table.add_column(column, justify="right" if "(" in column else "left")
@@ -51,7 +52,7 @@ def list_circuits(args: argparse.Namespace) -> int:
 
 
 def show_circuit(args: argparse.Namespace) -> int:
-    from pilotlab.circuits import get_circuit
+    from pilotlab.circuits.load import get_circuit
     from pilotlab.circuits.draw import draw_map
     circuit = get_circuit(args.name, args.direction)
     path = draw_map(circuit, args.out or Path(f"{circuit.name}.png"))

@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     from pilotlab.predictor import load_predictor
     from pilotlab.report import pick_metrics
 
-    from pilotlab.circuits import get_circuit
+    from pilotlab.circuits.load import get_circuit
     check_arguments(args)
     place, assets, world = place_of(args)
     spec = spec_from_args(OnlineSpec, args, **place, **brain_params(args.brain, world), tolerance=args.tolerance)

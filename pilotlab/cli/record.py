@@ -52,7 +52,7 @@ def camera_of(args: argparse.Namespace) -> dict:
 def run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from pilotlab.circuits import get_circuit
+    from pilotlab.circuits.load import get_circuit
     from pilotlab.sim.env import describe_end
     from pilotlab.sim.record import record
     from pilotlab.sim.record import check_rates

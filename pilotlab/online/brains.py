@@ -25,7 +25,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from matrix.registry import Registry
-from pilotlab.circuits import Circuit
+from pilotlab.circuits.circuit import Circuit
 from pilotlab.data.frames import LabelRanges
 from pilotlab.data.preprocess import PreprocessConfig, preprocess
 from pilotlab.errors import PilotlabError

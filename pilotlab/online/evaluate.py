@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from pilotlab.circuits import Circuit
+from pilotlab.circuits.circuit import Circuit
 from pilotlab.online.bm_metrics import BM_METRICS, bm_run_metrics
 from pilotlab.online.brains import Brain
 from pilotlab.online.drive import drive

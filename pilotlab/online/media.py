@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
 
-from pilotlab.circuits import Circuit  # noqa: E402
+from pilotlab.circuits.circuit import Circuit  # noqa: E402
 from pilotlab.circuits.draw import colour, save_figure  # noqa: E402
 from pilotlab.errors import PilotlabError  # noqa: E402
 from pilotlab.online.trajectory import Trajectory  # noqa: E402

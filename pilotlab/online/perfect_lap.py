@@ -34,7 +34,7 @@ def perfect_lap(circuit: str, direction: str = "cw", cache: Path | None = None) 
     the direction and the code that drives it, so the jobs of one store drive it once."""
     if cache is None:
         return _drive_perfect_lap(circuit, direction)
-    from pilotlab.circuits import get_circuit
+    from pilotlab.circuits.load import get_circuit
     driven = get_circuit(circuit, direction)
     path = Path(cache) / f"perfect_lap_{_key(driven.points, driven.road_width)}.npy"
     if not path.is_file():

@@ -63,7 +63,8 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from pilotlab.circuits import Circuit, get_circuit, wrap_angle
+from pilotlab.circuits.circuit import Circuit, wrap_angle
+from pilotlab.circuits.load import get_circuit
 from pilotlab.circuits.circuit import check_direction
 from pilotlab.errors import PilotlabError
 from pilotlab.sim.bullet import p

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from pilotlab.circuits import Circuit
+from pilotlab.circuits.circuit import Circuit
 from pilotlab.circuits.geometry import smooth_closed
 from pilotlab.errors import PilotlabError
 

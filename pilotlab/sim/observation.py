@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from pilotlab.circuits import Circuit
+from pilotlab.circuits.circuit import Circuit
 from pilotlab.errors import PilotlabError
 from pilotlab.sim.camera import CameraSpec
 from pilotlab.sim.car import CarSpec

@@ -14,7 +14,7 @@ import math
 import cv2
 import numpy as np
 
-from pilotlab.circuits import Circuit
+from pilotlab.circuits.circuit import Circuit
 from pilotlab.errors import PilotlabError
 from pilotlab.sim.bullet import p
 from pilotlab.sim.camera import GROUND, LINE, LINE_WIDTH_M, ROAD, SKY, CameraSpec, PixelGrid, sky_polygon

@@ -11,7 +11,7 @@ import math
 import cv2
 import numpy as np
 
-from pilotlab.circuits import Circuit
+from pilotlab.circuits.circuit import Circuit
 from pilotlab.sim.camera import GROUND, LINE, ROAD
 
 PATH = (40, 90, 230)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pilotlab.circuits import Circuit
+from pilotlab.circuits.circuit import Circuit
 from pilotlab.data.preprocess import PreprocessConfig, finish, preprocess
 from pilotlab.sim.camera import CameraSpec, PixelGrid
 from pilotlab.sim.render import GroundRenderer

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from pilotlab.circuits import Circuit
+from pilotlab.circuits.circuit import Circuit
 from pilotlab.sim.bullet import p
 from pilotlab.sim.camera import LINE, LINE_WIDTH_M, ROAD, WALL
 

@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pilotlab.circuits import Circuit, get_circuit
+from pilotlab.circuits.circuit import Circuit
+from pilotlab.circuits.load import get_circuit
 from pilotlab.circuits.registry import CIRCUITS
 from pilotlab.errors import PilotlabError
 from pilotlab.worlds.assets import content_digest, resolve_assets, world_path

@@ -5,7 +5,7 @@ import time
 import numpy as np
 import pytest
 
-from pilotlab.circuits import get_circuit
+from pilotlab.circuits.load import get_circuit
 from pilotlab.errors import PilotlabError
 from tests.pilotlab.tracks import stadium, write_csv
 

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from matrix.registry import DuplicateNameError
-from pilotlab.circuits import CIRCUITS, CircuitConfig, get_circuit, read_points_csv
+from pilotlab.circuits import CIRCUITS, CircuitConfig
+from pilotlab.circuits.load import get_circuit, read_points_csv
 from pilotlab.circuits.circuit import Circuit
 from pilotlab.circuits.geometry import close_loop, polyline_length
 from pilotlab.circuits.registry import builtin_csv

@@ -3,7 +3,7 @@ import pytest
 from rosbags.rosbag2 import Writer
 from rosbags.typesys import Stores, get_typestore
 
-from pilotlab.circuits import get_circuit
+from pilotlab.circuits.load import get_circuit
 from pilotlab.circuits.importer import import_circuit, read_positions
 from pilotlab.cli import main
 from pilotlab.errors import BagError, PilotlabError

@@ -2,7 +2,7 @@
 import cv2
 import numpy as np
 
-from pilotlab.circuits import get_circuit
+from pilotlab.circuits.load import get_circuit
 from pilotlab.online.media import CameraRecorder, plot_trajectories
 from pilotlab.online.trajectory import Trajectory
 

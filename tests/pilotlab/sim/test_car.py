@@ -1,7 +1,7 @@
 import pybullet as p
 import pytest
 
-from pilotlab.circuits import get_circuit
+from pilotlab.circuits.load import get_circuit
 from pilotlab.sim.car import Car, CarSpec
 from pilotlab.sim.world import World
 

@@ -55,7 +55,7 @@ def test_the_expert_follows_the_line_closely_and_fast():
 
 
 def test_the_speed_profile_brakes_before_corners():
-    from pilotlab.circuits import get_circuit
+    from pilotlab.circuits.load import get_circuit
     circuit = get_circuit("simple_circuit")
     config = ExpertConfig()
     profile = speed_profile(circuit, config)
@@ -80,7 +80,7 @@ def test_swerves_take_the_car_off_the_line_and_it_comes_back(stadium_csv):
 
 
 def test_swerves_are_bounded_by_grip_and_the_road_edge():
-    from pilotlab.circuits import get_circuit
+    from pilotlab.circuits.load import get_circuit
     expert = Expert(get_circuit("nurburgring", "cw"))
     swerves = Swerves(0.1, np.random.default_rng(0), expert)
     hairpin = float(expert.circuit.arc[np.argmax(expert.bend)])                  # 2 m radius

@@ -12,7 +12,8 @@ import pydantic
 import pytest
 from rosbags.highlevel import AnyReader
 
-from pilotlab.circuits import CIRCUITS, get_circuit
+from pilotlab.circuits import CIRCUITS
+from pilotlab.circuits.load import get_circuit
 from pilotlab.cli import main
 from pilotlab.errors import PilotlabError
 from pilotlab.data.topics import COMMAND_TOPIC as CMD_TOPIC

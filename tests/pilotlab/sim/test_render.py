@@ -5,7 +5,7 @@ import numpy as np
 import pybullet as p
 import pytest
 
-from pilotlab.circuits import get_circuit
+from pilotlab.circuits.load import get_circuit
 from pilotlab.errors import PilotlabError
 from pilotlab.sim.camera import GROUND, LINE, ROAD, SKY, WALL, CameraSpec, camera_pose
 from pilotlab.sim.car import CarSpec

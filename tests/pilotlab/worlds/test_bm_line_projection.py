@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from pilotlab.circuits import get_circuit
+from pilotlab.circuits.load import get_circuit
 from pilotlab.sim.camera import camera_pose
 from pilotlab.worlds import load_world
 from pilotlab.worlds.render import WorldRenderer
