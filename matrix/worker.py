@@ -7,10 +7,12 @@ job's lock, so two runs sharing a store never run the same job at once.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import importlib
 import logging
 import math
 import os
+import signal
 import sys
 import time
 import traceback
@@ -26,6 +28,7 @@ from matrix.store import INTACT, LOG, Store, result_token
 OK, NOT_APPLICABLE, FAILED, BUSY, DONE_ELSEWHERE = "ok", "not_applicable", "failed", "busy", "done_elsewhere"
 
 _progress_sink: Callable[[str, dict], None] | None = None
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
 _capture_fds = False  # our own pool workers run one job at a time, so they may take over fds 1 and 2
 
 
@@ -41,12 +44,26 @@ def init_worker(kind_modules: Iterable[str], progress_queue: Any = None, threads
     thread count (a timing job) sets it itself. A variable the user set is kept."""
     global _progress_sink, _capture_fds
     _capture_fds = True
+    _die_with_parent()
     for variable in THREAD_VARIABLES if threads else ():
         os.environ.setdefault(variable, str(threads))
     for module in kind_modules:
         importlib.import_module(module)
     if progress_queue is not None:
         _progress_sink = lambda key, update: progress_queue.put((key, update))
+
+
+def _die_with_parent() -> None:
+    """On Linux, the worker gets SIGTERM when the run that started it dies (killed by a job manager, a
+    timeout or `kill`), instead of running its job on as an orphan holding a core. (Ctrl-C reaches
+    the workers anyway: they are in the run's process group.)"""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    except (OSError, AttributeError):   # not Linux
+        return
+    if os.getppid() == 1:               # the run died before prctl took effect
+        os._exit(1)
 
 
 def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = (), replaces: str | None = None) -> dict:

@@ -74,3 +74,44 @@ def test_cli_errors_are_one_line_without_traceback(tmp_path):
     assert process.returncode == 2
     assert err.count("\n") == 1 and "Traceback" not in err
     assert err.startswith(f"toy: error: {recipe}:9: matrix.powr: unknown axis 'powr' (did you mean 'power'?)")
+
+
+def test_workers_die_with_a_killed_run(tmp_path):
+    """The run killed alone (not its process group): its workers stop instead of running on as orphans."""
+    recipe, store = tmp_path / "r.yaml", tmp_path / "store"
+    recipe.write_text(SLOW_RECIPE.replace("sleep: 0.4", "sleep: 30"))
+    process = toy("run", str(recipe), "--store", str(store), "-j", "2")
+    workers = []
+    deadline = time.time() + 60
+    while time.time() < deadline and len(workers) < 2:
+        workers = children(process.pid)
+        time.sleep(0.1)
+    assert len(workers) >= 2
+    process.kill()                      # SIGKILL to the driver only
+    process.wait()
+    deadline = time.time() + 20
+    while time.time() < deadline and any(alive(pid) for pid in workers):
+        time.sleep(0.1)
+    assert not any(alive(pid) for pid in workers)
+
+
+def children(pid: int) -> list[int]:
+    """The worker processes of `pid` (multiprocessing's spawned children, not its resource tracker)."""
+    found = []
+    for status in Path("/proc").glob("[0-9]*/status"):
+        try:
+            text = status.read_text()
+            cmdline = (status.parent / "cmdline").read_bytes()
+        except OSError:
+            continue
+        if f"\nPPid:\t{pid}\n" in text and b"spawn_main" in cmdline:
+            found.append(int(status.parent.name))
+    return found
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
