@@ -18,9 +18,9 @@ from rich.table import Table
 
 from matrix import engine
 from matrix.display import RichDisplay, print_plan
-from matrix.execute import default_jobs
 from matrix.grid import describe_alike
 from matrix.recipe import Domain, load_recipe
+from matrix.runs import default_jobs
 from matrix.store import ARTIFACTS, LOG, Store, read_json
 
 GetDomain = Callable[[], Domain]

@@ -9,51 +9,22 @@ starts after the first failure.
 from __future__ import annotations
 
 import multiprocessing
-import os
 import time
 from collections import deque
 from collections.abc import Iterable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field
 
 from matrix.dag import dependents
 from matrix.display import Display, NullDisplay
 from matrix.jobs import Job
 from matrix.kinds import KINDS
+from matrix.runs import NOT_STARTED, SKIPPED, Outcome, RunSummary, worker_threads
 from matrix.stale import FRESH, JobStatus, results_to_replace
 from matrix.store import Store
 from matrix.worker import BUSY, DONE_ELSEWHERE, FAILED, execute_job, init_worker
 
-SKIPPED, NOT_STARTED = "skipped", "not_started"
 BUSY_RETRY_S = 0.2
-
-
-@dataclass(frozen=True)
-class Outcome:
-    key: str
-    name: str
-    kind: str
-    status: str          # ok | not_applicable | failed | skipped | not_started | done_elsewhere
-    reason: str = ""
-    duration_s: float = 0.0
-
-
-@dataclass
-class RunSummary:
-    outcomes: list[Outcome] = field(default_factory=list)
-    fresh: int = 0
-    wall_s: float = 0.0
-
-    @property
-    def failed(self) -> list[Outcome]:
-        return [o for o in self.outcomes if o.status in (FAILED, SKIPPED, NOT_STARTED)]
-
-    def counts(self) -> dict[str, int]:
-        counts: dict[str, int] = {}
-        for outcome in self.outcomes:
-            counts[outcome.status] = counts.get(outcome.status, 0) + 1
-        return counts
 
 
 class Schedule:
@@ -127,19 +98,6 @@ class Schedule:
 def runs_alone(job: Job) -> bool:
     """A timing job: nothing else runs beside it."""
     return KINDS.get(job.kind).runs_alone(job.params)
-
-
-def default_jobs() -> int:
-    """Jobs at once by default: one per core this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
-def worker_threads(slots: int) -> int:
-    """Threads each of `slots` workers' math libraries may use: the cores shared among them."""
-    return max(1, default_jobs() // max(1, slots))
 
 
 def run_local(statuses: list[JobStatus], store: Store, *, jobs: int = 1, keep_going: bool = False,

@@ -25,6 +25,7 @@ from matrix.errors import MatrixError
 _FILE_HASHES: dict[tuple[str, int, int, int], str] = {}
 _SOURCE_HASHES: dict[Any, str] = {}
 _ORIGINS: dict[str, Path] = {}
+_FOLDERS: dict[Path, frozenset[str]] = {}
 _GENERATION = [0]   # bumped by clear_caches: whatever was derived from source text is stale
 CHUNK = 1 << 20
 MAX_INPUT_FILES = 1_000_000   # files one input folder may hold (a bag folder holds a handful)
@@ -166,8 +167,22 @@ def _is_source(name: str) -> bool:
     parent, _, leaf = name.rpartition(".")
     if not parent:
         return importlib.util.find_spec(name) is not None
-    folder = _module_origin(parent).parent if _is_package(parent) else None
-    return folder is not None and ((folder / f"{leaf}.py").is_file() or (folder / leaf / "__init__.py").is_file())
+    return _is_package(parent) and leaf in _modules_in(_module_origin(parent).parent)
+
+
+def _modules_in(folder: Path) -> frozenset[str]:
+    """The names of the modules and packages in a package's folder, listed once per process (until
+    `clear_caches`): a closure asks whether a name is a module some thousand times, a few per folder."""
+    if folder not in _FOLDERS:
+        names = set()
+        with os.scandir(folder) as entries:
+            for entry in entries:
+                if entry.name.endswith(".py") and entry.is_file():
+                    names.add(entry.name[:-3])
+                elif entry.is_dir() and os.path.isfile(os.path.join(entry.path, "__init__.py")):
+                    names.add(entry.name)
+        _FOLDERS[folder] = frozenset(names)
+    return _FOLDERS[folder]
 
 
 def _is_package(name: str) -> bool:
@@ -187,6 +202,7 @@ def clear_caches() -> None:
     _GENERATION[0] += 1
     _IMPORTS.clear()
     _ORIGINS.clear()
+    _FOLDERS.clear()
     _FILE_HASHES.clear()
     _SOURCE_HASHES.clear()
 

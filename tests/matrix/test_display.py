@@ -7,7 +7,7 @@ from types import SimpleNamespace
 from rich.console import Console
 
 from matrix.display import Estimate, KindStats, RichDisplay, clock
-from matrix.execute import Outcome
+from matrix.runs import Outcome
 from matrix.store import Store
 
 

@@ -204,7 +204,7 @@ def test_a_library_handler_made_in_one_job_logs_into_the_next_jobs_log(tmp_path)
 
 def test_workers_share_the_cores_among_their_math_libraries(tmp_path, monkeypatch):
     """With -j N each worker's OpenMP/BLAS libraries get cores // N threads (not every core each)."""
-    from matrix.execute import default_jobs, worker_threads
+    from matrix.runs import default_jobs, worker_threads
     monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
     store = Store(tmp_path / "store")
     plan, summary = run(recipe_file(tmp_path), store, jobs=2)

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from matrix import engine
-from matrix.execute import default_jobs
+from matrix.runs import default_jobs
 from matrix.recipe import load_recipe
 from matrix.store import Store
 from tests.matrix.toydomain import TOY

@@ -109,7 +109,7 @@ def quickstart(tmp_path_factory) -> tuple[Path, float]:
 
 
 def test_quickstart_cold_run_and_time_per_kind(quickstart):
-    from matrix.execute import default_jobs
+    from matrix.runs import default_jobs
     from matrix.store import Store
     from matrix.times import kind_times, recipe_keys
     store_path, wall = quickstart

@@ -1,0 +1,54 @@
+"""What a run is given and what it did, for both executors (the local process pool, matrix.execute;
+Dask, matrix.dask_executor) and the commands: how many jobs run at once (`default_jobs`,
+`worker_threads`) and one `Outcome` per job that did not start fresh, summed up in a `RunSummary`.
+Nothing here starts processes, so the commands import it at their top and `plan` stays quick; the
+executors are imported when a plan runs (matrix.engine.run_plan).
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+from matrix.worker import FAILED
+
+SKIPPED, NOT_STARTED = "skipped", "not_started"
+
+
+@dataclass(frozen=True)
+class Outcome:
+    key: str
+    name: str
+    kind: str
+    status: str          # ok | not_applicable | failed | skipped | not_started | done_elsewhere
+    reason: str = ""
+    duration_s: float = 0.0
+
+
+@dataclass
+class RunSummary:
+    outcomes: list[Outcome] = field(default_factory=list)
+    fresh: int = 0
+    wall_s: float = 0.0
+
+    @property
+    def failed(self) -> list[Outcome]:
+        return [o for o in self.outcomes if o.status in (FAILED, SKIPPED, NOT_STARTED)]
+
+    def counts(self) -> dict[str, int]:
+        counts: dict[str, int] = {}
+        for outcome in self.outcomes:
+            counts[outcome.status] = counts.get(outcome.status, 0) + 1
+        return counts
+
+
+def default_jobs() -> int:
+    """Jobs at once by default: one per core this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def worker_threads(slots: int) -> int:
+    """Threads each of `slots` workers' math libraries may use: the cores shared among them."""
+    return max(1, default_jobs() // max(1, slots))
