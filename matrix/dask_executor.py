@@ -25,12 +25,13 @@ from collections.abc import Iterable
 
 from matrix.display import NullDisplay
 from matrix.errors import MatrixError
-from matrix.execute import BUSY_RETRY_S, NOT_STARTED, Outcome, RunSummary, Schedule, record_outcome
+from matrix.execute import BUSY_RETRY_S, Schedule, record_outcome
 from matrix.jobs import Job
 from matrix.kinds import KINDS
+from matrix.runs import FAILED, NOT_STARTED, Outcome, RunSummary
 from matrix.stale import FRESH, JobStatus, results_to_replace
 from matrix.store import Store
-from matrix.worker import FAILED, execute_job
+from matrix.worker import execute_job
 
 INSTALL_HINT = "the Dask executor needs Dask distributed: pip install distributed"
 

@@ -19,10 +19,10 @@ from matrix.dag import dependents
 from matrix.display import Display, NullDisplay
 from matrix.jobs import Job
 from matrix.kinds import KINDS
-from matrix.runs import NOT_STARTED, SKIPPED, Outcome, RunSummary, worker_threads
+from matrix.runs import BUSY, DONE_ELSEWHERE, FAILED, NOT_STARTED, SKIPPED, Outcome, RunSummary, worker_threads
 from matrix.stale import FRESH, JobStatus, results_to_replace
 from matrix.store import Store
-from matrix.worker import BUSY, DONE_ELSEWHERE, FAILED, execute_job, init_worker
+from matrix.worker import execute_job, init_worker
 
 BUSY_RETRY_S = 0.2
 

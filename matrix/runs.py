@@ -9,8 +9,8 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
-from matrix.worker import FAILED
-
+# A job's status after a run: what its worker answered (matrix.worker), or what the executor decided.
+OK, NOT_APPLICABLE, FAILED, BUSY, DONE_ELSEWHERE = "ok", "not_applicable", "failed", "busy", "done_elsewhere"
 SKIPPED, NOT_STARTED = "skipped", "not_started"
 
 

@@ -23,9 +23,8 @@ from typing import Any
 from matrix.errors import MatrixError
 from matrix.hostlock import host_slot
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
+from matrix.runs import BUSY, DONE_ELSEWHERE, FAILED, NOT_APPLICABLE, OK
 from matrix.store import INTACT, LOG, Store, result_token
-
-OK, NOT_APPLICABLE, FAILED, BUSY, DONE_ELSEWHERE = "ok", "not_applicable", "failed", "busy", "done_elsewhere"
 
 _progress_sink: Callable[[str, dict], None] | None = None
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
