@@ -49,6 +49,9 @@ def default_jobs() -> int:
         return os.cpu_count() or 1
 
 
-def worker_threads(slots: int) -> int:
-    """Threads each of `slots` workers' math libraries may use: the cores shared among them."""
-    return max(1, default_jobs() // max(1, slots))
+def worker_threads(slots: int) -> int | None:
+    """Threads each of `slots` workers' math libraries may use: the cores shared among them; None when
+    one worker has every core: the libraries' own default then, as before (setting even the same count
+    there changed a fine-tune's outcome: tests/pilotlab/online/test_own_network_lap.py)."""
+    share = max(1, default_jobs() // max(1, slots))
+    return share if share < default_jobs() else None
