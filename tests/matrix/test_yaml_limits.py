@@ -3,6 +3,7 @@ import time
 
 import pytest
 
+from matrix import yamlfile
 from matrix.errors import RecipeError
 from matrix.yamlfile import MAX_VALUES, load_yaml
 
@@ -65,3 +66,48 @@ def test_a_missing_recipe_suggests_the_ones_nearby(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path / "empty")
     with pytest.raises(RecipeError, match=r"no such file$"):
         read_yaml(str(tmp_path / "nowhere" / "x.yaml"))
+
+
+REJECTED = {"an unclosed mapping": "a: {b: 1\nc: 2\n", "a bad indent": "a:\n  b: 1\n c: 2\n",
+            "deep nesting": "a: " + "[" * 1500 + "]" * 1500 + "\n", "a lone surrogate": 'a: "\ud800"\n',
+            "a control character": "a: 1\x07\n"}
+
+
+@pytest.mark.parametrize("text", REJECTED.values(), ids=REJECTED)
+def test_libyaml_and_pyyaml_refuse_a_document_in_the_same_words(text, monkeypatch):
+    """libyaml parses (where PyYAML has it); what it rejects is read again by PyYAML's own parser, so the
+    one-line error is the same either way."""
+    with pytest.raises(RecipeError) as fast:
+        load_yaml(text, "r.yaml")
+    monkeypatch.setattr(yamlfile, "FAST_LOADER", None)
+    with pytest.raises(RecipeError) as slow:
+        load_yaml(text, "r.yaml")
+    assert str(fast.value) == str(slow.value) and "\n" not in str(fast.value)
+
+
+DOCUMENT = """
+name: every style   # a comment
+description: >
+  folded text
+  over lines
+base: &base {epochs: 2, lr: 1e-3, flags: [yes, no, ~, 0x10, 1_000, .inf, 2001-12-14]}
+models:
+  a: {<<: *base, seed: 3}
+  b:
+    <<: *base
+    note: 'single ''quoted'''
+    text: "double\\tescaped"
+    block: |
+      kept
+      lines
+matrix:
+  - [1, 2.5, -3]
+  - {x: null, "quoted key": true}
+"""
+
+
+def test_both_parsers_read_a_document_alike(monkeypatch):
+    fast = load_yaml(DOCUMENT, "r.yaml")
+    monkeypatch.setattr(yamlfile, "FAST_LOADER", None)
+    assert load_yaml(DOCUMENT, "r.yaml") == fast
+    assert fast[0]["models"]["a"]["epochs"] == 2 and fast[1][("models", "b", "block")] == 13
