@@ -1,13 +1,18 @@
-"""What a person sees while a run goes: an overall bar (jobs done / total, time elapsed, time left),
+"""What matrix prints for a person, with rich: the plan's table, `status` and `show`, and what a person
+sees while a run goes: an overall bar (jobs done / total, time elapsed, time left),
 a line per running job with its own progress, and one line per finished job. When the output is not
 a terminal (CI, nohup, a notebook), a status line is printed at a steady interval instead of bars.
 
 Time left is estimated from how long each job kind took before on this store (kept in
 `<store>/stats.json`), corrected by the running jobs' own progress and by how many jobs ran at once,
 and smoothed, so it counts down instead of jumping.
+
+The commands (matrix.cli) import this module when they print for a person: rich takes ~0.03 s to
+import, which `plan --json` and scripts reading it need not pay.
 """
 from __future__ import annotations
 
+import json
 import threading
 import time
 from collections import Counter
@@ -18,7 +23,10 @@ from rich.markup import escape
 from rich.progress import BarColumn, Progress, TaskID, TextColumn
 from rich.table import Table
 
-from matrix.store import Store, read_json, write_json_atomic
+from matrix.errors import MatrixError
+from matrix.runs import RunSummary
+from matrix.store import ARTIFACTS, LOG, Store, read_json, write_json_atomic
+from matrix.times import kind_times, recipe_keys
 
 SYMBOLS = {"ok": "[green]✓[/]", "not_applicable": "[yellow]–[/]", "failed": "[red]✗[/]",
            "skipped": "[red]↷[/]", "not_started": "[red]·[/]", "done_elsewhere": "[green]✓[/]"}
@@ -44,6 +52,20 @@ def print_plan(console: Console, statuses: Sequence, counts: Mapping[str, Counte
         console.print(f"[dim]… the first {len(shown)} of {len(statuses)} jobs; every one: "
                       f"{tool} plan --all, or --json[/]")
     console.print(_counts_line(statuses, counts))
+
+
+def console() -> Console:
+    return Console(highlight=False, soft_wrap=True)
+
+
+def summary_line(summary: RunSummary, tool: str) -> str:
+    counts = summary.counts()
+    parts = [f"{n} {status.replace('_', ' ')}" for status, n in sorted(counts.items())]
+    verdict = "[red]failed[/]" if summary.failed else "[green]done[/]"
+    failed = [o for o in summary.outcomes if o.status == "failed"]
+    hint = "" if not failed else "\n" + "\n".join(f"  {tool} show {o.key[:10]}   # {escape(o.name)}: its error and log"
+                                                for o in failed[:5])
+    return f"{verdict}: {', '.join(parts)}; {summary.fresh} were fresh — {summary.wall_s:.1f} s" + hint
 
 
 def _jobs_table(statuses: Iterable) -> Table:
@@ -278,3 +300,67 @@ class RichDisplay(NullDisplay):
     def _remove(self, key: str) -> None:
         if key in self.tasks:
             self.progress.remove_task(self.tasks.pop(key))
+
+
+# --- what `status` and `show` print -------------------------------------------------------------------
+
+def print_status(out: Console, store: Store) -> int:
+    """`status`: the stored jobs per kind and status, failures, running jobs, recipes run."""
+    out.print(f"store: {store.root.resolve()}")
+    kinds: dict[str, Counter] = {}
+    for key in store.keys():
+        spec, result = store.spec(key) or {}, store.result(key) or {}
+        kinds.setdefault(spec.get("kind", "?"), Counter())[result.get("status", "corrupt")] += 1
+    table = Table("kind", "ok", "not applicable", "corrupt", box=None)
+    for kind, counts in sorted(kinds.items()):
+        table.add_row(kind, str(counts["ok"]), str(counts["not_applicable"]), str(counts["corrupt"]))
+    out.print(table if kinds else "no finished jobs yet")
+    failed = sorted((store.root / "failed").glob("*.json"))
+    running = [p.stem for p in (store.root / "locks").glob("*.lock") if store.is_locked(p.stem)]
+    out.print(f"failed (will rerun): {len(failed)}; running now: {len(running)}")
+    for index in sorted((store.root / "recipes").glob("*.json")):
+        data = read_json(index) or {}
+        out.print(f"recipe {escape(data.get('recipe', index.stem))}: {len(data.get('jobs', {}))} jobs "
+                  f"({escape(str(data.get('file', '?')))})")
+    return 0
+
+
+def print_times(out: Console, store: Store, recipe: str | None) -> int:
+    """`status --times`: how long the stored jobs took, per kind."""
+    keys = None if recipe is None else recipe_keys(store, recipe)
+    if recipe is not None and keys is None:
+        raise MatrixError(f"recipe {recipe!r} never ran on the store {store.root}; give the `name:` of a recipe "
+                          "that ran here, or leave --recipe out for every stored job")
+    rows = kind_times(store, keys)
+    total = sum(row.total_s for row in rows)
+    table = Table("kind", "jobs", "total s", "share", "mean s", "max s", "slowest job", box=None)
+    for row in rows:
+        table.add_row(row.kind, str(row.jobs), f"{row.total_s:.1f}", f"{100 * row.total_s / (total or 1):.0f} %",
+                      f"{row.mean_s:.1f}", f"{row.max_s:.1f}", escape(row.slowest))
+    out.print(table if rows else "no finished jobs yet")
+    what = f"recipe {escape(recipe)}" if recipe else "every stored job"
+    out.print(f"{what}: {sum(r.jobs for r in rows)} jobs, {total:.1f} s of job time "
+              "(jobs run at once overlap: a run's wall time can be less)")
+    return 0
+
+
+def print_job(out: Console, store: Store, key: str) -> int:
+    """`show`: one stored job's spec, result, log and artifacts."""
+    spec = store.spec(key) or (store.failure(key) or {}).get("spec", {})
+    result, failure = store.result(key), store.failure(key)
+    out.print(f"[bold]{escape(spec.get('name', '?'))}[/] ({spec.get('kind', '?')}) {key}")
+    out.print("params: " + escape(json.dumps(spec.get("params", {}), sort_keys=True)))
+    for role, dep in spec.get("deps", {}).items():
+        names = spec.get("dep_names", {})
+        out.print(f"dependency {role}: " + ", ".join(escape(names.get(k, k[:10])) for k in
+                                                      (dep if isinstance(dep, list) else [dep])))
+    if result is not None:
+        out.print(f"status: {result['status']} {escape(result.get('reason', ''))} "
+                  f"({result.get('duration_s', 0):.1f} s, {result.get('finished_at', '')})")
+        out.print("result: " + escape(json.dumps(result.get("value", {}), indent=1, sort_keys=True)))
+        out.print(f"artifacts: {store.job_dir(key) / ARTIFACTS}")
+        out.print(f"log: {store.job_dir(key) / LOG}")
+    if failure is not None:
+        out.print(f"[red]failed last time:[/] {escape(failure.get('error', ''))}")
+        out.print(escape(failure.get("traceback", "")))
+    return 0

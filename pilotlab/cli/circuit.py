@@ -4,9 +4,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rich.console import Console
-from rich.table import Table
-
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser("circuit", help="list, draw and import circuits",
@@ -38,6 +35,8 @@ def register(subparsers) -> None:
 
 
 def list_circuits(args: argparse.Namespace) -> int:
+    from rich.console import Console
+    from rich.table import Table
     from pilotlab.circuits import CIRCUITS, all_circuit_names, csv_path_of
     from pilotlab.circuits.load import get_circuit
     table = Table(title="circuits")

@@ -5,9 +5,6 @@ import argparse
 import math
 from pathlib import Path
 
-from rich.console import Console
-from rich.table import Table
-
 from pilotlab.errors import PilotlabError
 
 ASSETS_HELP = ("BehaviorMetrics' worlds: a folder laid out like RoboticsInfrastructure/CustomRobots/f1 "
@@ -51,6 +48,8 @@ def parse_pose(text: str) -> tuple[float, float, float]:
 
 
 def list_worlds(args: argparse.Namespace) -> int:
+    from rich.console import Console
+    from rich.table import Table
     from pilotlab.worlds.assets import resolve_assets, world_names, world_path
     from pilotlab.worlds.sdf import read_world
     from pilotlab.worlds.world import circuit_of
