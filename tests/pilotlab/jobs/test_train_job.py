@@ -86,3 +86,15 @@ def test_train_job_params_are_checked(tmp_path, frames_deps):
         KINDS.get("train").handler(context(tmp_path, "train", "t1", {"epoch": 3}, deps=deps))
     with pytest.raises(PilotlabError, match="labels = .*: each range needs lo < hi"):
         KINDS.get("train").handler(context(tmp_path, "train", "t2", {"labels": {"v": [1, 1], "w": [-1, 1]}}, deps=deps))
+
+
+
+def test_training_runs_alone_on_every_core(tmp_path, frames_deps):
+    from pilotlab.hardware import cpu_count
+    assert KINDS.get("train").runs_alone({})
+    torch.set_num_threads(1)            # as a worker sharing the cores with another would start
+    ctx = context(tmp_path, "train", "train-threads", {"epochs": 1, "batch_size": 8, "val_fraction": 0.25},
+                  deps={"frames": tuple(dep for dep, _ in frames_deps)})
+    KINDS.get("train").handler(ctx)
+    assert torch.get_num_threads() == cpu_count()
+    torch.set_num_threads(1)
