@@ -93,6 +93,18 @@ def dependents(graph: Graph, nodes: Iterable) -> set:
     return seen - set(nodes)
 
 
+def heights(graph: Graph) -> dict:
+    """For each node, the length of the longest chain of nodes that depend on it (0: nothing does).
+
+    A scheduler that starts the highest first keeps the critical path moving: a job that many
+    stages wait on (a training) goes before a job nothing waits on (a report's reference lap)."""
+    height = {node: 0 for node in graph}
+    for node in reversed(toposort(graph)):   # every dependent comes before the nodes it needs
+        for dep in graph.get(node, ()):
+            height[dep] = max(height.get(dep, 0), height[node] + 1)
+    return height
+
+
 def subgraph(graph: Graph, targets: Iterable) -> dict:
     """The part of `graph` that `targets` need: the targets and all their dependencies."""
     result: dict = {}

@@ -8,14 +8,14 @@ starts after the first failure.
 """
 from __future__ import annotations
 
+import heapq
 import multiprocessing
 import time
-from collections import deque
 from collections.abc import Iterable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 
-from matrix.dag import dependents
+from matrix.dag import dependents, heights
 from matrix.display import Display, NullDisplay
 from matrix.jobs import Job
 from matrix.kinds import KINDS
@@ -28,7 +28,11 @@ BUSY_RETRY_S = 0.2
 
 
 class Schedule:
-    """Which stale jobs may start: all their stale dependencies done, none failed."""
+    """Which stale jobs may start: all their stale dependencies done, none failed.
+
+    Ready jobs start in order of how long a chain of jobs waits on them (`matrix.dag.heights`),
+    then in plan order, so the critical path moves first: a training that the whole study waits on
+    starts before a reference lap that only the report needs."""
 
     def __init__(self, stale: list[Job]):
         self.jobs = {job.key: job for job in stale}
@@ -40,36 +44,54 @@ class Schedule:
         for key, deps in self.graph.items():
             for dep in deps:
                 self.needed_by.setdefault(dep, []).append(key)
-        self.ready = deque(key for key in self.jobs if not self.waiting[key])
+        height = heights(self.graph)
+        self.rank = {key: (-height[key], order) for order, key in enumerate(self.jobs)}
+        self.alone: list[tuple] = []    # heaps of (rank, key): jobs that run alone, and the others
+        self.beside: list[tuple] = []
+        for key in self.jobs:
+            if not self.waiting[key]:
+                self._make_ready(key)
         self.later: list[tuple[float, str]] = []   # jobs another run holds, retried after a pause
         self.settled: set[str] = set()
 
     def has_work(self) -> bool:
-        return bool(self.ready or self.later)
+        return bool(self.alone or self.beside or self.later)
 
     def take(self, exclusive_running: bool, running: int, slots: int) -> Job | None:
         self._wake()
-        if not self.ready or exclusive_running or running >= slots:
+        if exclusive_running or running >= slots or not self.has_ready():
             return None
-        if not running:  # an idle host: the next job, exclusive or not
-            return self.jobs[self.ready.popleft()]
-        # Others run: the first ready job that may run beside them. An exclusive job waits until the
-        # host is idle (it then runs alone); the work it would have held up goes on meanwhile.
-        for position, key in enumerate(self.ready):
-            if not runs_alone(self.jobs[key]):
-                del self.ready[position]
-                return self.jobs[key]
+        if not running:  # an idle host: the first job, exclusive or not
+            return self.next_ready()
+        # Others run: an exclusive job waits until the host is idle (it then runs alone). Work of its
+        # rank or lower goes on meanwhile; work it outranks waits with it, so that a training many
+        # jobs need is not held up behind a long job nothing needs.
+        if self.beside and not (self.alone and self.alone[0][0][0] < self.beside[0][0][0]):
+            return self.jobs[heapq.heappop(self.beside)[1]]
         return None
 
+    def has_ready(self) -> bool:
+        return bool(self.alone or self.beside)
+
     def next_ready(self) -> Job | None:
-        """The next ready job, exclusive or not (on Dask a timing job keeps its host quiet itself)."""
+        """The first ready job, exclusive or not (on Dask a timing job keeps its host quiet itself)."""
         self._wake()
-        return self.jobs[self.ready.popleft()] if self.ready else None
+        heaps = [heap for heap in (self.alone, self.beside) if heap]
+        return self.jobs[heapq.heappop(min(heaps, key=lambda heap: heap[0]))[1]] if heaps else None
+
+    def ready_keys(self) -> list[str]:
+        """The ready jobs' keys, first to start first."""
+        return [key for _, key in sorted(self.alone + self.beside)]
+
+    def _make_ready(self, key: str) -> None:
+        heapq.heappush(self.alone if runs_alone(self.jobs[key]) else self.beside, (self.rank[key], key))
 
     def _wake(self) -> None:
         """Jobs another run held, whose pause is over, are ready again."""
         now = time.monotonic()
-        self.ready.extend(key for at, key in self.later if at <= now)
+        for at, key in self.later:
+            if at <= now:
+                self._make_ready(key)
         self.later = [(at, key) for at, key in self.later if at > now]
 
     def done(self, key: str) -> None:
@@ -77,7 +99,7 @@ class Schedule:
         for other in self.needed_by.get(key, ()):
             self.waiting[other].discard(key)
             if not self.waiting[other]:
-                self.ready.append(other)
+                self._make_ready(other)
 
     def retry_later(self, key: str) -> None:
         self.later.append((time.monotonic() + BUSY_RETRY_S, key))
@@ -87,7 +109,10 @@ class Schedule:
         self.settled.add(key)
         blocked = dependents(self.graph, [key]) - self.settled
         self.settled |= blocked
-        self.ready = deque(k for k in self.ready if k not in blocked)
+        self.alone = [entry for entry in self.alone if entry[1] not in blocked]
+        self.beside = [entry for entry in self.beside if entry[1] not in blocked]
+        heapq.heapify(self.alone)
+        heapq.heapify(self.beside)
         return [self.jobs[k] for k in self.graph if k in blocked]
 
     def pending(self) -> list[Job]:

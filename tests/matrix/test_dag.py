@@ -4,7 +4,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from matrix import CycleError
-from matrix.dag import dependents, find_cycle, graph_of, subgraph, toposort
+from matrix.dag import dependents, find_cycle, graph_of, heights, subgraph, toposort
 from matrix.jobs import Job
 from tests.matrix import toydomain  # noqa: F401
 
@@ -35,6 +35,10 @@ def test_dependents_and_subgraph():
     assert subgraph(GRAPH, ["eval1"]) == {"eval1": ["opt"], "opt": ["train"], "train": ["data"], "data": []}
 
 
+def test_heights_count_the_longest_chain_waiting_on_a_node():
+    assert heights(GRAPH) == {"data": 4, "train": 3, "opt": 2, "eval1": 1, "eval2": 1, "report": 0}
+
+
 def test_graph_of_jobs_shares_equal_jobs():
     source = Job("source", "s", {"value": 1})
     twin = Job("source", "s again", {"value": 1})
@@ -54,3 +58,5 @@ def test_toposort_on_random_dags(edges):
     order = toposort(graph)
     assert all(order.index(d) < order.index(n) for n, deps in graph.items() for d in deps)
     assert find_cycle(graph) is None
+    height = heights(graph)
+    assert all(height[d] > height[n] for n, deps in graph.items() for d in deps)

@@ -231,10 +231,11 @@ def test_a_dependency_under_two_roles_makes_its_dependent_ready_once():
     shared = Job("source", "shared", {"value": 1})
     both = Job("source", "both", {"value": 2}, deps={"timing": shared, "reference": shared})
     schedule = Schedule([shared, both])
-    assert list(schedule.ready) == [shared.key]
-    schedule.ready.popleft()
+    assert schedule.ready_keys() == [shared.key]
+    assert schedule.next_ready() == shared
     schedule.done(shared.key)
-    assert list(schedule.ready) == [both.key]
+    assert schedule.ready_keys() == [both.key]
+    assert schedule.next_ready() == both and schedule.next_ready() is None
 
 
 def test_a_kind_exclusive_for_some_params_runs_those_jobs_alone_and_the_others_beside_work():
@@ -250,3 +251,28 @@ def test_a_kind_exclusive_for_some_params_runs_those_jobs_alone_and_the_others_b
         assert schedule.take(False, 0, 2) == on_host
     finally:
         KINDS._entries.pop("lap_toy")
+
+
+def test_the_critical_path_starts_first_and_a_long_job_nothing_needs_does_not_hold_it_up():
+    """The study's first minutes: a reference lap (nothing but the report needs it) was ready when the
+    training (run alone, every later job waits on it) was, started beside the last recording, and
+    the training waited two minutes for it."""
+    from matrix.execute import Schedule
+    from matrix.kinds import register_kind
+    register_kind("alone_toy", lambda ctx: {}, exclusive=True)
+    try:
+        reference_lap = Job("source", "reference lap", {"value": 1})
+        recording = Job("source", "recording", {"value": 2})
+        training = Job("alone_toy", "training", {}, deps={"data": recording})
+        evaluation = Job("power", "evaluation", {"power": 2}, deps={"source": training})
+        schedule = Schedule([reference_lap, recording, training, evaluation])
+        assert schedule.take(False, 0, 2) == recording        # the longest chain first, not plan order
+        assert schedule.take(False, 1, 2) == reference_lap    # nothing ready outranks it yet
+        schedule = Schedule([reference_lap, recording, training, evaluation])
+        schedule.take(False, 0, 2)
+        schedule.done(recording.key)
+        assert schedule.take(False, 1, 2) is None             # the training outranks the lap: both wait
+        assert schedule.take(False, 0, 2) == training         # the host is idle: the training runs alone
+        assert schedule.take(True, 1, 2) is None
+    finally:
+        KINDS._entries.pop("alone_toy")
