@@ -318,7 +318,8 @@ def pruning_shrinks_only_compressed(data: ReportData) -> ClaimCheck:
     dense, pruned = rows.get("litert"), rows.get("prune_litert")
     if dense is None or pruned is None or not all(r.get(m) for r in (dense, pruned) for m in ("size_mb", "size_gz_mb")):
         return _untestable(claim, _missing_reason(data, "prune_litert") if pruned is None else
-                           "no raw and compressed sizes of litert and prune_litert")
+                           "no litert row (LiteRT fp32, the study's TF Lite baseline): add litert to the matrix"
+                           if dense is None else "no raw and compressed sizes of litert and prune_litert")
     raw = pruned.get("size_mb") / dense.get("size_mb")
     packed = dense.get("size_gz_mb") / pruned.get("size_gz_mb")
     found = (f"prune_litert {pruned.get('size_mb'):.3g} MB raw ({raw:.2f}× litert's), "

@@ -138,3 +138,5 @@ def test_pruning_is_judged_by_raw_and_compressed_size():
     rows[1] = offline_row("prune_litert", size_mb=6.09, size_gz_mb=5.5)       # no zeros to compress
     assert verdicts(rows)[claim][0] == "does not hold"
     assert verdicts(rows[:1])[claim][0] == "not testable here"
+    verdict, found = verdicts(rows[1:])[claim]       # the study once ran without its TF Lite baseline
+    assert verdict == "not testable here" and "add litert to the matrix" in found
