@@ -41,7 +41,7 @@ models:
   # DLS's preprocessing; the label ranges of this simulator's expert (labels: auto): DLS's, for its Gazebo
   # car (w in [-7.1, 7.1]), squeeze this expert's w (about ±1.5 rad/s) into a fifth of the output range
   dls: {network: nets/pilotnet.py:PilotNet, options: {image_shape: [200, 66, 3], num_labels: 2},
-        weights: pilot_net_model_best_123.pth, preset: dls, labels: auto, epochs: 12, patience: null,
+        weights: pilot_net_model_best_123.pth, preset: dls, labels: auto, epochs: 20, patience: null,
         val_fraction: 0.1, val_by: block, augment: {flip: true}}
 online: {references: [], timing: lockstep}
 matrix:
