@@ -41,12 +41,17 @@ class RunSummary:
         return counts
 
 
-def default_jobs() -> int:
-    """Jobs at once by default: one per core this process may use."""
+def cores() -> int:
+    """Cores this process may run on (the affinity mask, not the machine's total)."""
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         return os.cpu_count() or 1
+
+
+def default_jobs() -> int:
+    """Jobs at once by default: one per core this process may use."""
+    return cores()
 
 
 def worker_threads(slots: int) -> int | None:

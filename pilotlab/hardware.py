@@ -31,6 +31,7 @@ import pydantic
 from pydantic import Field
 
 from matrix.kinds import NotApplicable
+from matrix.runs import cores
 from pilotlab.errors import PilotlabError
 from pilotlab.specs.base import Spec
 
@@ -84,10 +85,7 @@ BUILTIN = {
 
 def cpu_count() -> int:
     """Cores this process may run on (the affinity mask, not the machine's total)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
+    return cores()
 
 
 def worker_share() -> int:

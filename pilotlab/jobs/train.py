@@ -26,7 +26,7 @@ from matrix.kinds import JobContext
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.data.split import Split, split_validation
 from pilotlab.errors import PilotlabError
-from pilotlab.hardware import cpu_count
+from matrix.runs import cores
 from pilotlab.models import build_model, input_frames, make_config, save_checkpoint
 from pilotlab.specs.train import TrainSpec
 from pilotlab.training import FitConfig, evaluate, fit, mean_predictor_mse
@@ -123,7 +123,7 @@ def summarise(model, history: list[dict], data: FrameSet, train: FrameSet, val: 
 
 def run_train(ctx: JobContext) -> dict[str, Any]:
     p: TrainSpec = ctx.spec
-    torch.set_num_threads(cpu_count())   # the kind runs alone (specs/train.py): every core is its
+    torch.set_num_threads(cores())   # the kind runs alone (specs/train.py): every core is its
     data, preprocess = load_frames(ctx)
     train, val, split = split_frames(ctx, data, p)
     ranges = label_ranges(p.labels, data)
