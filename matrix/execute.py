@@ -66,9 +66,14 @@ class Schedule:
         # Others run: an exclusive job waits until the host is idle (it then runs alone). Work of its
         # rank or lower goes on meanwhile; work it outranks waits with it, so that a training many
         # jobs need is not held up behind a long job nothing needs.
-        if self.beside and not (self.alone and self.alone[0][0][0] < self.beside[0][0][0]):
+        if self.beside and not self._exclusive_outranks_the_rest():
             return self.jobs[heapq.heappop(self.beside)[1]]
         return None
+
+    def _exclusive_outranks_the_rest(self) -> bool:
+        """The first exclusive job has a longer chain waiting on it than the first of the others."""
+        negated_height = 0   # a heap entry is (rank, key), rank = (-height, plan order)
+        return bool(self.alone) and self.alone[0][0][negated_height] < self.beside[0][0][negated_height]
 
     def has_ready(self) -> bool:
         return bool(self.alone or self.beside)

@@ -23,10 +23,10 @@ import numpy as np
 import torch
 
 from matrix.kinds import JobContext
+from matrix.runs import cores
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.data.split import Split, split_validation
 from pilotlab.errors import PilotlabError
-from matrix.runs import cores
 from pilotlab.models import build_model, input_frames, make_config, save_checkpoint
 from pilotlab.specs.train import TrainSpec
 from pilotlab.training import FitConfig, evaluate, fit, mean_predictor_mse
