@@ -17,6 +17,10 @@ from matrix.errors import RecipeError
 Lines = dict[tuple, int]
 MAX_TEXT_BYTES = 4 * 2**20
 MAX_VALUES = 100_000
+# A recipe nests a handful of levels. The bound is ours, not the interpreter's recursion limit (which
+# whatever else the process imported may have raised), so a deep document gets the same answer anywhere.
+MAX_NESTING = 100
+TOO_DEEP = f"not valid YAML here: nested deeper than {MAX_NESTING} levels; a recipe nests a few"
 # libyaml's loader (PyYAML's C extension), where PyYAML has it and libyaml bounds nesting (0.2.6 and later:
 # 1000 levels; PyYAML's C composer recurses once a level, with no bound of its own); else PyYAML's own.
 FAST_LOADER = yaml.CSafeLoader if yaml.__with_libyaml__ and yaml._yaml.get_version() >= (0, 2, 6) else None
@@ -39,8 +43,8 @@ def load_yaml(text: str, file: str = "<recipe>") -> tuple[Any, Lines]:
         raise _character_error(error, text, file) from None
     except yaml.YAMLError as error:
         raise RecipeError(f"not valid YAML: {' '.join(str(error).split())}", file=file) from None
-    except RecursionError:
-        raise RecipeError("not valid YAML here: an alias refers to itself", file=file) from None
+    except RecursionError:             # the parser's own recursion, on a document nested too deeply
+        raise RecipeError(TOO_DEEP, file=file) from None
     finally:
         if loader is not None:
             loader.dispose()
@@ -92,22 +96,25 @@ def _nearby(path: Path) -> str:
 
 
 def _check_expansion(root: yaml.Node | None, file: str) -> None:
-    """Count the values the document expands to (linear time: each node's count is remembered)."""
+    """Count the values the document expands to (linear time: each node's count is remembered), and
+    bound its nesting."""
     counts: dict[int, int] = {}
 
-    def count(node: yaml.Node) -> int:
+    def count(node: yaml.Node, depth: int) -> int:
+        if depth > MAX_NESTING:
+            raise RecipeError(TOO_DEEP, file=file)
         if id(node) not in counts:
             counts[id(node)] = -1            # in progress: meeting it again means an alias cycle
             if isinstance(node, yaml.MappingNode):
                 children = [n for pair in node.value for n in pair]
             else:
                 children = node.value if isinstance(node, yaml.SequenceNode) else []
-            counts[id(node)] = 1 + sum(count(child) for child in children)
+            counts[id(node)] = 1 + sum(count(child, depth + 1) for child in children)
         if counts[id(node)] < 0:
-            raise RecursionError
+            raise RecipeError("not valid YAML here: an alias refers to itself", file=file)
         return counts[id(node)]
 
-    total = count(root) if root is not None else 0
+    total = count(root, 0) if root is not None else 0
     if total > MAX_VALUES:
         raise RecipeError(f"the document expands to {total:.3g} values through its aliases (at most "
                           f"{MAX_VALUES:,}); write the values out or use fewer nested aliases (*name)", file=file)

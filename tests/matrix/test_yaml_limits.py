@@ -1,11 +1,12 @@
 """Hostile YAML: nested aliases ("billion laughs"), merge-key bombs, self-reference, huge text."""
+import sys
 import time
 
 import pytest
 
 from matrix import yamlfile
 from matrix.errors import RecipeError
-from matrix.yamlfile import MAX_VALUES, load_yaml
+from matrix.yamlfile import MAX_NESTING, MAX_VALUES, load_yaml
 
 
 def laughs(levels: int = 9, width: int = 9) -> str:
@@ -41,6 +42,31 @@ def test_aliases_within_the_bound_still_work():
 def test_an_alias_to_itself_is_one_line():
     with pytest.raises(RecipeError, match="refers to itself"):
         load_yaml("a: &a\n  b: *a\n")
+
+
+@pytest.fixture(params=[None, 20_000], ids=["default recursion limit", "raised recursion limit"])
+def recursion_limit(request):
+    before = sys.getrecursionlimit()
+    sys.setrecursionlimit(request.param or before)
+    yield
+    sys.setrecursionlimit(before)
+
+
+@pytest.mark.parametrize("fast", [True, False], ids=["libyaml", "pyyaml"])
+def test_deep_nesting_is_refused_whatever_the_recursion_limit(fast, recursion_limit, monkeypatch):
+    """The bound is ours: a library raising the interpreter's recursion limit (something in the test run
+    does) must not change the answer; with a raised limit PyYAML's own parser read 1500 levels and the
+    document was taken."""
+    if not fast:
+        monkeypatch.setattr(yamlfile, "FAST_LOADER", None)
+    for depth in (MAX_NESTING + 1, 1500):
+        with pytest.raises(RecipeError, match=f"nested deeper than {MAX_NESTING} levels"):
+            load_yaml("a: " + "[" * depth + "]" * depth + "\n")
+    data, _ = load_yaml("a: " + "[" * (MAX_NESTING - 1) + "]" * (MAX_NESTING - 1) + "\n")
+    levels, value = 0, data["a"]
+    while value:
+        levels, value = levels + 1, value[0]
+    assert levels == MAX_NESTING - 2     # the innermost [] is empty
 
 
 def test_a_huge_document_is_refused_before_parsing():
