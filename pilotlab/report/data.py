@@ -67,7 +67,7 @@ class ReportDataError(PilotlabError):
 
 
 class _Frozen(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", defer_build=True)
 
 
 class Host(_Frozen):
@@ -89,7 +89,7 @@ class Host(_Frozen):
 
 class HistoryPoint(BaseModel):
     """One epoch of training, as `pilotlab.training.fit` returns it (other keys are ignored)."""
-    model_config = ConfigDict(frozen=True, extra="ignore")
+    model_config = ConfigDict(frozen=True, extra="ignore", defer_build=True)
     epoch: int
     train_loss: float
     val_loss: float | None = None
@@ -112,7 +112,7 @@ class Spread(_Frozen):
 class TolerancePoint(_Frozen):
     """One lap of a latency tolerance search (pilotlab.online.tolerance): the online job's
     `tolerance_laps[i]` (other keys are ignored)."""
-    model_config = ConfigDict(frozen=True, extra="ignore")
+    model_config = ConfigDict(frozen=True, extra="ignore", defer_build=True)
     injected_ms: float
     lap_completed: bool
     position_deviation_mae_m: float | None = None

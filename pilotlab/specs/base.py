@@ -22,7 +22,7 @@ class Spec(pydantic.BaseModel):
     """A frozen settings model. In a recipe, a bad value is the recipe's error (file, line, key);
     as job params, the job's (`from_job_params`); built directly, pydantic's ValidationError, which
     `spec_problem` words in one line (the CLI does so)."""
-    model_config = pydantic.ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = pydantic.ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, defer_build=True)
 
     @classmethod
     def from_job_params(cls, params: dict[str, Any], job: str):
@@ -63,6 +63,7 @@ class InWorld(pydantic.BaseModel):
     own world. The world's files come as the job's input `world` (its .world file, keyed by the digest
     of everything the world reads). Without a world the field is left out of the params, so the keys of
     jobs in pilotlab's own world are what they were before worlds existed."""
+    model_config = pydantic.ConfigDict(defer_build=True)
     world: str | None = Field(None, description="a BehaviorMetrics world (pilotlab world list) instead of the "
                                                 "circuit in pilotlab's own world")
 
