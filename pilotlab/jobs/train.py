@@ -135,7 +135,17 @@ def run_train(ctx: JobContext) -> dict[str, Any]:
     result = {**summarise(model, history, data, train, val, split, ranges, fit_config, time.perf_counter() - started),
               "source": origin, "trained": p.trains}
     save_checkpoint(ctx.out / "model.pt", model, arch, config, labels=ranges.as_dict(),
-                    preprocess={**preprocess, "frames": fit_config.frames}, history=history,
-                    training={**p.as_dict(), "fit": fit_config.as_dict()}, result=result, source=origin)
+                    preprocess={**preprocess, "frames": fit_config.frames}, history=without_wall_times(history),
+                    training={**p.as_dict(), "fit": fit_config.as_dict()}, result=without_wall_times(result),
+                    source=origin)
     (ctx.out / "history.json").write_text(json.dumps(history, indent=1))
     return result
+
+
+def without_wall_times(value: Any) -> Any:
+    """`value` less its "seconds": a checkpoint holds what the inputs determine, so the same training gives
+    the same bytes (and the same compressed size) on every run; the times stay in result.json and
+    history.json."""
+    if isinstance(value, dict):
+        return {k: without_wall_times(v) for k, v in value.items() if k != "seconds"}
+    return [without_wall_times(v) for v in value] if isinstance(value, list) else value

@@ -98,3 +98,20 @@ def test_training_runs_alone_on_every_core(tmp_path, frames_deps):
     KINDS.get("train").handler(ctx)
     assert torch.get_num_threads() == cpu_count()
     torch.set_num_threads(1)
+
+
+def test_the_same_training_writes_the_same_checkpoint_bytes(tmp_path, frames_deps):
+    """The checkpoint holds what the inputs determine, not the wall times (they stay in result.json and
+    history.json): two runs of one training give one file, so its compressed size is the same too (the
+    slow Dask and parallel pipeline tests compare it: it had differed by 10 bytes)."""
+    deps = {"frames": tuple(dep for dep, _ in frames_deps[:2])}
+    params = {"epochs": 2, "batch_size": 16, "val_fraction": 0.25}
+    outs = []
+    for run in ("a", "b"):
+        ctx = context(tmp_path / run, "train", "train-twice", params, deps=deps)
+        result = KINDS.get("train").handler(ctx)
+        assert result["seconds"] > 0 and all(row["seconds"] > 0 for row in json.loads((ctx.out / "history.json").read_text()))
+        outs.append((ctx.out / "model.pt").read_bytes())
+    assert outs[0] == outs[1]
+    _, checkpoint = load_checkpoint(ctx.out / "model.pt")
+    assert "seconds" not in checkpoint["result"] and all("seconds" not in row for row in checkpoint["history"])
