@@ -1,6 +1,9 @@
 """Every registered strategy applied once to the shared random checkpoint."""
 from __future__ import annotations
 
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -33,13 +36,26 @@ TEST_OPTIONS = {
 
 @pytest.fixture(scope="session")
 def artifacts(tmp_path_factory, trained, frames) -> dict[str, tuple[Path, dict | str]]:
-    """Every registered strategy applied once: name -> (artifact folder, result or 'n/a: reason')."""
+    """Every registered strategy applied once: name -> (artifact folder, result or 'n/a: reason').
+    Two at a time in their own processes (a TF Lite conversion is ~10 s of one core's Python; there are
+    a dozen), the longest first: this fixture was the default run's slowest step (~200 s alone)."""
     root = tmp_path_factory.mktemp("artifacts")
-    done = {}
-    for name in STRATEGIES:
-        source = StrategySource(trained / "model.pt", root / name, (frames,))
-        try:
-            done[name] = (root / name, apply_strategy(name, TEST_OPTIONS.get(name, {}), source))
-        except NotApplicable as reason:
-            done[name] = (root / name, f"not applicable: {reason}")
-    return done
+    names = sorted(STRATEGIES, key=lambda name: ("litert" not in name, name))
+    workers = max(1, min(2, os.cpu_count() or 1))
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=_one_thread) as pool:
+        futures = {name: pool.submit(_apply, name, trained, root / name, frames) for name in names}
+        return {name: (root / name, futures[name].result()) for name in STRATEGIES}
+
+
+def _one_thread() -> None:
+    import torch
+    torch.set_num_threads(1)     # two workers share the cores
+
+
+def _apply(name: str, trained: Path, out: Path, frames: Path) -> dict | str:
+    source = StrategySource(trained / "model.pt", out, (frames,))
+    try:
+        return apply_strategy(name, TEST_OPTIONS.get(name, {}), source)
+    except NotApplicable as reason:
+        return f"not applicable: {reason}"
