@@ -67,6 +67,23 @@ def test_offline_refuses_to_time_for_another_host(tmp_path, trained, frames, tes
         KINDS.get("offline").handler(offline)
 
 
+def test_an_optimize_job_runs_at_the_workers_thread_count_whatever_ran_before(tmp_path, trained, frames):
+    """A timing job or the training leaves torch at its own thread count in the worker; the fine-tune
+    after it must not inherit it (its figures would then depend on what the worker ran before)."""
+    import torch
+    from pilotlab.jobs.optimize import WORKER_THREADS
+    seen = []
+    torch.set_num_threads(WORKER_THREADS + 1)
+    try:
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr("pilotlab.jobs.optimize.apply_strategy",
+                          lambda *args: seen.append(torch.get_num_threads()) or {"strategy": "baseline"})
+            optimize(tmp_path, trained, frames, "baseline")
+    finally:
+        torch.set_num_threads(WORKER_THREADS)
+    assert seen == [WORKER_THREADS]
+
+
 def test_a_cuda_only_strategy_is_not_applicable_here(tmp_path, trained, frames):
     import torch
     if torch.cuda.is_available():
