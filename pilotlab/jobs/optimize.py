@@ -19,8 +19,9 @@ from pilotlab.strategies.apply import StrategySource, apply_strategy
 
 # Torch's thread count when the worker started (matrix sets the worker's share of the cores before it
 # imports the kinds). A job before this one in the same worker may have left another count (a timing job
-# sets its profile's, the training every core), and a fine-tune's figures follow the thread count: the
-# same strategy gave 1.6x and 2.3x the baseline's MSE in two cold runs of the study.
+# sets its profile's, the training every core), and a fine-tune's figures follow the thread count, so
+# they depended on the schedule (two cold study runs gave one fine-tuned strategy 1.6x and 2.3x the
+# baseline's MSE; this is one way such runs differ).
 WORKER_THREADS = torch.get_num_threads()
 
 
