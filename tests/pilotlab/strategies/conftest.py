@@ -2,13 +2,13 @@
 from __future__ import annotations
 
 import multiprocessing
-import os
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import pytest
 
 from matrix.kinds import NotApplicable
+from matrix.runs import cores
 from pilotlab.strategies import STRATEGIES
 from pilotlab.strategies.apply import StrategySource, apply_strategy
 
@@ -41,7 +41,7 @@ def artifacts(tmp_path_factory, trained, frames) -> dict[str, tuple[Path, dict |
     a dozen), the longest first: this fixture was the default run's slowest step (~200 s alone)."""
     root = tmp_path_factory.mktemp("artifacts")
     names = sorted(STRATEGIES, key=lambda name: ("litert" not in name, name))
-    workers = max(1, min(2, os.cpu_count() or 1))
+    workers = min(2, cores())
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
                              initializer=_one_thread) as pool:
         futures = {name: pool.submit(_apply, name, trained, root / name, frames) for name in names}
