@@ -3,9 +3,10 @@ sees while a run goes: an overall bar (jobs done / total, time elapsed, time lef
 a line per running job with its own progress, and one line per finished job. When the output is not
 a terminal (CI, nohup, a notebook), a status line is printed at a steady interval instead of bars.
 
-Time left is estimated from how long each job kind took before on this store (kept in
-`<store>/stats.json`), corrected by the running jobs' own progress and by how many jobs ran at once,
-and smoothed, so it counts down instead of jumping.
+Time left is estimated from how long each job (or failing that, each job kind) took before on this
+store (kept in `<store>/stats.json`), corrected by the jobs of each kind that finish in this run, by
+the running jobs' own progress and by how many jobs ran at once, and smoothed, so it counts down
+instead of jumping.
 
 The commands (matrix.cli) import this module when they print for a person: rich takes ~0.03 s to
 import, which `plan --json` and scripts reading it need not pay.
@@ -31,6 +32,9 @@ from matrix.times import kind_times, recipe_keys
 SYMBOLS = {"ok": "[green]✓[/]", "not_applicable": "[yellow]–[/]", "failed": "[red]✗[/]",
            "skipped": "[red]↷[/]", "not_started": "[red]·[/]", "done_elsewhere": "[green]✓[/]"}
 DEFAULT_ESTIMATE_S = 5.0
+STATS_FORMAT = 2          # <store>/stats.json: {"format", "kinds": {kind: [mean, n]}, "names": {job name: [mean, n]}}
+MAX_NAMES = 20_000        # job names remembered in stats.json (the least recently run go first)
+KNOWN_WEIGHT = 3          # a kind's mean on the store counts as this many of this run's finished jobs
 NAME_WIDTH = 44           # longer job names are cut, so the times stay on the line
 PLAIN_INTERVAL_S = 10.0   # a status line this often when the output is not a terminal
 SMOOTHING = 0.2           # weight of a new estimate against the shown one, per update
@@ -107,37 +111,65 @@ Display = NullDisplay
 
 
 class KindStats:
-    """Mean duration per job kind on this store, for time-left estimates."""
+    """How long jobs took on this store, for time-left estimates: a moving mean per job kind, and per
+    job name (a rerun of an edited recipe knows what each of its jobs took the last time)."""
 
     def __init__(self, store: Store):
         self.path = store.root / "stats.json"
-        means = read_json(self.path)
-        self.means: dict[str, list[float]] = means if isinstance(means, dict) else {}
+        saved = read_json(self.path)
+        saved = saved if isinstance(saved, dict) else {}
+        if saved.get("format") != STATS_FORMAT:      # the first format: {kind: [mean, count]}
+            saved = {"kinds": {k: v for k, v in saved.items() if isinstance(v, list)}, "names": {}}
+        self.means: dict[str, list[float]] = dict(saved.get("kinds") or {})
+        self.names: dict[str, list[float]] = dict(saved.get("names") or {})
 
-    def estimate(self, kind: str) -> float:
+    def known(self, kind: str) -> bool:
+        return kind in self.means
+
+    def estimate(self, kind: str, name: str | None = None) -> float:
+        """The job's own mean if it ran here before, else its kind's, else the median kind's (a kind
+        never run here is not charged the mean of a few slow ones, a training's)."""
+        if name is not None and name in self.names:
+            return self.names[name][0]
         if kind in self.means:
             return self.means[kind][0]
-        known = [mean for mean, _ in self.means.values()]
-        return sum(known) / len(known) if known else DEFAULT_ESTIMATE_S
+        known = sorted(mean for mean, _ in self.means.values())
+        return known[len(known) // 2] if known else DEFAULT_ESTIMATE_S
 
-    def add(self, kind: str, seconds: float) -> None:
-        mean, count = self.means.get(kind, [0.0, 0])
-        count = min(count + 1, 20)  # a moving mean: recent runs matter more
-        self.means[kind] = [mean + (seconds - mean) / count, count]
+    def add(self, kind: str, seconds: float, name: str | None = None) -> None:
+        _add_to(self.means, kind, seconds)
+        if name is not None:
+            self.names.pop(name, None)                # re-inserted last: the oldest names go first
+            _add_to(self.names, name, seconds)
+            for old in list(self.names)[:max(0, len(self.names) - MAX_NAMES)]:
+                del self.names[old]
 
     def save(self) -> None:
         try:
-            write_json_atomic(self.path, self.means)
+            write_json_atomic(self.path, {"format": STATS_FORMAT, "kinds": self.means, "names": self.names})
         except OSError:
             pass  # estimates are a nicety; a read-only store still runs
 
 
+def _add_to(means: dict[str, list[float]], slot: str, seconds: float) -> None:
+    mean, count = means.get(slot, [0.0, 0])
+    count = min(count + 1, 20)  # a moving mean: recent runs matter more
+    means[slot] = [mean + (seconds - mean) / count, count]
+
+
 class Estimate:
-    """Seconds left: the prior of each job not finished (its kind's mean), the running ones
-    corrected by their own progress, divided by how many jobs have been running at once; smoothed."""
+    """Seconds left: the prior of each job not finished, the running ones corrected by their own
+    progress, divided by how many jobs have been running at once; smoothed. A job's prior is what it
+    took the last time on this store; failing that its kind's mean, which the jobs of the kind that
+    finish in this run correct as they go (a kind never run here has only its own jobs to go by)."""
 
     def __init__(self, stats: KindStats, jobs: Iterable, now: float):
-        self.prior = {job.key: stats.estimate(job.kind) for job in jobs}
+        jobs = list(jobs)
+        self.stats = stats
+        self.kind = {job.key: job.kind for job in jobs}
+        self.own = {job.key for job in jobs if job.name in stats.names}   # priors of the job itself
+        self.prior = {job.key: stats.estimate(job.kind, job.name) for job in jobs}
+        self.finished: dict[str, list[float]] = {}   # kind -> [seconds in all, jobs] of this run
         self.started_at: dict[str, float] = {}
         self.fraction: dict[str, float] = {}
         self.busy_s = 0.0                      # job-seconds of finished jobs
@@ -153,12 +185,17 @@ class Estimate:
 
     def job_finished(self, key: str, now: float) -> None:
         if key in self.started_at:
-            self.busy_s += now - self.started_at.pop(key)
+            seconds = now - self.started_at.pop(key)
+            self.busy_s += seconds
+            if key in self.kind:
+                total = self.finished.setdefault(self.kind[key], [0.0, 0])
+                total[0], total[1] = total[0] + seconds, total[1] + 1
         self.prior.pop(key, None)
         self.fraction.pop(key, None)
 
     def raw(self, now: float) -> float:
-        work = sum(self._left_of(key, now) for key in self.prior)
+        kind_means = {kind: self._kind_mean(kind) for kind in self.finished}
+        work = sum(self._left_of(key, now, kind_means) for key in self.prior)
         running = sum(now - at for at in self.started_at.values())
         parallel = max(1.0, (self.busy_s + running) / max(now - self.began, 1e-9))
         return work / min(parallel, max(1, len(self.started_at)))
@@ -174,8 +211,18 @@ class Estimate:
         self.shown_at = now
         return self.shown
 
-    def _left_of(self, key: str, now: float) -> float:
+    def _kind_mean(self, kind: str) -> float:
+        """The kind's mean, this run's finished jobs included (they count as much as the store's mean
+        from KNOWN_WEIGHT jobs; for a kind new to the store they are all there is)."""
+        seconds, count = self.finished[kind]
+        if not self.stats.known(kind):
+            return seconds / count
+        return (self.stats.estimate(kind) * KNOWN_WEIGHT + seconds) / (KNOWN_WEIGHT + count)
+
+    def _left_of(self, key: str, now: float, kind_means: Mapping[str, float]) -> float:
         prior = self.prior[key]
+        if key not in self.own:
+            prior = kind_means.get(self.kind.get(key, ""), prior)
         if key not in self.started_at:
             return prior
         elapsed, done = now - self.started_at[key], self.fraction.get(key, 0.0)
@@ -217,7 +264,7 @@ class RichDisplay(NullDisplay):
         jobs = list(jobs)
         now = time.monotonic()
         self.total, self.began = len(jobs), now
-        self.weights = {job.key: self.stats.estimate(job.kind) for job in jobs}
+        self.weights = {job.key: self.stats.estimate(job.kind, job.name) for job in jobs}
         self.estimate = Estimate(self.stats, jobs, now)
         self.overall = self.progress.add_task(f"[bold]{short(self.title, 24)}", total=sum(self.weights.values()) or 1,
                                               count=f"0/{self.total}", times=self._times(now))
@@ -262,7 +309,7 @@ class RichDisplay(NullDisplay):
             self.progress.update(self.overall, advance=self.weights.get(outcome.key, 0),
                                  count=f"{self.done}/{self.total}", times=self._times(time.monotonic()))
         if outcome.status == "ok":
-            self.stats.add(outcome.kind, outcome.duration_s)
+            self.stats.add(outcome.kind, outcome.duration_s, outcome.name)
         reason = f" [dim]{escape(outcome.reason)}[/]" if outcome.reason else ""
         took = f" [dim]{outcome.duration_s:.1f}s[/]" if outcome.duration_s else ""
         self.progress.console.print(f"{SYMBOLS.get(outcome.status, '?')} {escape(outcome.name)}{took}{reason}",

@@ -69,3 +69,46 @@ def test_without_a_terminal_a_status_line_comes_at_a_steady_interval(tmp_path):
 
 def test_clock_reads_hours_minutes_seconds():
     assert (clock(55), clock(3725.4), clock(-3)) == ("0:00:55", "1:02:05", "0:00:00")
+
+
+def test_a_kind_new_to_the_store_is_priced_by_the_median_kind_then_by_its_own_finished_jobs(tmp_path):
+    # The study's first run on a store that had trained and fine-tuned only: 100 laps were priced at the
+    # mean of every kind (a training's 688 s among them), "about 6:51:52 left" for a 40-minute run.
+    stats = stats_with(tmp_path, frames=6.0, record=17.0, train=688.0)
+    laps = [job(f"lap{i}", "online") for i in range(10)]
+    estimate = Estimate(stats, laps, now=0.0)
+    assert estimate.raw(0.0) == 10 * 17.0              # the median kind's mean, not (6 + 17 + 688) / 3
+    estimate.job_started("lap0", 0.0)
+    estimate.job_finished("lap0", 30.0)
+    assert abs(estimate.raw(30.0) - 9 * 30.0) < 1e-9   # the run's own laps took 30 s: so will the rest
+
+
+def test_a_known_kinds_mean_moves_towards_this_runs_jobs(tmp_path):
+    estimate = Estimate(stats_with(tmp_path, offline=10.0), [job(f"o{i}", "offline") for i in range(5)], now=0.0)
+    estimate.job_started("o0", 0.0)
+    estimate.job_finished("o0", 50.0)
+    assert abs(estimate.raw(50.0) - 4 * (3 * 10.0 + 50.0) / 4) < 1e-9
+
+
+def test_a_job_that_ran_here_before_is_priced_by_its_own_time(tmp_path):
+    stats = KindStats(Store(tmp_path))
+    stats.add("optimize", 200.0, "optimize pilotnet/qat")
+    stats.add("optimize", 10.0, "optimize pilotnet/baseline")
+    stats.save()
+    again = KindStats(Store(tmp_path))
+    assert again.estimate("optimize", "optimize pilotnet/qat") == 200.0
+    assert again.estimate("optimize", "optimize pilotnet/new") == again.estimate("optimize") == 105.0
+    estimate = Estimate(again, [job("q", "optimize", "optimize pilotnet/qat"),
+                                job("n", "optimize", "optimize pilotnet/new")], now=0.0)
+    estimate.job_started("n", 0.0)
+    estimate.job_finished("n", 1.0)                   # a quick new one does not make qat look quick
+    assert estimate.raw(1.0) == 200.0
+
+
+def test_stats_of_the_first_format_are_read(tmp_path):
+    (tmp_path / "stats.json").write_text('{"train": [60.0, 3], "offline": [10.0, 5]}')
+    stats = KindStats(Store(tmp_path))
+    assert (stats.estimate("train"), stats.estimate("offline", "offline x")) == (60.0, 10.0)
+    stats.add("train", 30.0, "train m")
+    stats.save()
+    assert KindStats(Store(tmp_path)).estimate("train", "train m") == 30.0
