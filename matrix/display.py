@@ -123,9 +123,6 @@ class KindStats:
         self.means: dict[str, list[float]] = dict(saved.get("kinds") or {})
         self.names: dict[str, list[float]] = dict(saved.get("names") or {})
 
-    def known(self, kind: str) -> bool:
-        return kind in self.means
-
     def estimate(self, kind: str, name: str | None = None) -> float:
         """The job's own mean if it ran here before, else its kind's, else the median kind's (a kind
         never run here is not charged the mean of a few slow ones, a training's)."""
@@ -165,7 +162,7 @@ class Estimate:
 
     def __init__(self, stats: KindStats, jobs: Iterable, now: float):
         jobs = list(jobs)
-        self.stats = stats
+        self.known = {kind: mean for kind, (mean, _) in stats.means.items()}   # before this run adds to them
         self.kind = {job.key: job.kind for job in jobs}
         self.own = {job.key for job in jobs if job.name in stats.names}   # priors of the job itself
         self.prior = {job.key: stats.estimate(job.kind, job.name) for job in jobs}
@@ -215,9 +212,9 @@ class Estimate:
         """The kind's mean, this run's finished jobs included (they count as much as the store's mean
         from KNOWN_WEIGHT jobs; for a kind new to the store they are all there is)."""
         seconds, count = self.finished[kind]
-        if not self.stats.known(kind):
+        if kind not in self.known:
             return seconds / count
-        return (self.stats.estimate(kind) * KNOWN_WEIGHT + seconds) / (KNOWN_WEIGHT + count)
+        return (self.known[kind] * KNOWN_WEIGHT + seconds) / (KNOWN_WEIGHT + count)
 
     def _left_of(self, key: str, now: float, kind_means: Mapping[str, float]) -> float:
         prior = self.prior[key]
