@@ -14,6 +14,7 @@ import, which `plan --json` and scripts reading it need not pay.
 from __future__ import annotations
 
 import json
+import math
 import threading
 import time
 from collections import Counter
@@ -119,9 +120,9 @@ class KindStats:
         saved = read_json(self.path)
         saved = saved if isinstance(saved, dict) else {}
         if saved.get("format") != STATS_FORMAT:      # the first format: {kind: [mean, count]}
-            saved = {"kinds": {k: v for k, v in saved.items() if isinstance(v, list)}, "names": {}}
-        self.means: dict[str, list[float]] = dict(saved.get("kinds") or {})
-        self.names: dict[str, list[float]] = dict(saved.get("names") or {})
+            saved = {"kinds": saved, "names": {}}
+        self.means = _means(saved.get("kinds"))
+        self.names = _means(saved.get("names"))
 
     def estimate(self, kind: str, name: str | None = None) -> float:
         """The job's own mean if it ran here before, else its kind's, else the median kind's (a kind
@@ -146,6 +147,15 @@ class KindStats:
             write_json_atomic(self.path, {"format": STATS_FORMAT, "kinds": self.means, "names": self.names})
         except OSError:
             pass  # estimates are a nicety; a read-only store still runs
+
+
+def _means(saved: object) -> dict[str, list[float]]:
+    """The {slot: [mean, count]} entries of a saved mapping that are that (a damaged file loses those only)."""
+    if not isinstance(saved, dict):
+        return {}
+    return {slot: [float(value[0]), int(value[1])] for slot, value in saved.items()
+            if isinstance(value, list) and len(value) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)}
 
 
 def _add_to(means: dict[str, list[float]], slot: str, seconds: float) -> None:

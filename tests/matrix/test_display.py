@@ -114,3 +114,11 @@ def test_stats_of_the_first_format_are_read(tmp_path):
     stats.add("train", 30.0, "train m")
     stats.save()
     assert KindStats(Store(tmp_path)).estimate("train", "train m") == 30.0
+
+
+def test_a_damaged_stats_file_loses_only_its_damaged_entries(tmp_path):
+    (tmp_path / "stats.json").write_text('{"format": 2, "kinds": {"train": [60.0, 3], "offline": "x", '
+                                         '"online": [1, 2, 3], "frames": [NaN, 1]}, "names": "not a mapping"}')
+    stats = KindStats(Store(tmp_path))
+    assert stats.means == {"train": [60.0, 3]} and stats.names == {}
+    assert stats.estimate("offline", "offline x") == 60.0
