@@ -271,8 +271,8 @@ class RichDisplay(NullDisplay):
         jobs = list(jobs)
         now = time.monotonic()
         self.total, self.began = len(jobs), now
-        self.weights = {job.key: self.stats.estimate(job.kind, job.name) for job in jobs}
         self.estimate = Estimate(self.stats, jobs, now)
+        self.weights = dict(self.estimate.prior)      # each job's share of the bar: its prior, priced once
         self.overall = self.progress.add_task(f"[bold]{short(self.title, 24)}", total=sum(self.weights.values()) or 1,
                                               count=f"0/{self.total}", times=self._times(now))
         if self.live:
