@@ -271,6 +271,12 @@ def system_root(resolved: Path) -> Path | None:
     return next((root for root in map(Path, _PSEUDO_ROOTS) if resolved == root or root in resolved.parents), None)
 
 
+def _refuse_system_folder(folder: Path, path: Path) -> None:
+    if root := system_root(path.resolve()):
+        raise MatrixError(f"input folder {shown_path(folder)} holds {shown_path(path)}, which is a system folder "
+                          f"(below {root}), not data; name the recording itself (not a folder above it)")
+
+
 def _file_type(mode: int) -> str:
     for test, name in ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
                        (stat.S_ISFIFO, "a pipe"), (stat.S_ISSOCK, "a socket")):
@@ -283,7 +289,8 @@ def _folder_files(folder: Path) -> list[tuple[Path, int]]:
     """(file, size) of every regular file below `folder`, sorted as before (by path parts), so keys
     stay the same. Symbolic links to files count as files, links to folders are not followed (as
     `rglob` did); a device, pipe or socket, or an unreadable folder, is an error naming it, found
-    before anything is hashed (names are walked in sorted order, so `/` fails at once on /dev)."""
+    before anything is hashed. A system folder (/proc, /sys, /dev) is refused when it is met, not when
+    the walk reaches a device inside it, so `/` fails at once whatever else it holds."""
     found: list[tuple[Path, int]] = []
     pending = [folder]
     while pending:
@@ -296,6 +303,7 @@ def _folder_files(folder: Path) -> list[tuple[Path, int]]:
             path = Path(entry.path)
             try:
                 if entry.is_dir(follow_symlinks=False):
+                    _refuse_system_folder(folder, path)
                     pending.append(path)
                     continue
                 info = path.stat() if entry.is_symlink() else entry.stat(follow_symlinks=False)

@@ -37,7 +37,7 @@ def test_a_folder_hash_keeps_its_format(tmp_path):
 @pytest.mark.parametrize("target, message", [
     ("/proc/self/mem", "is a system file (below /proc), not data"),
     ("/dev/zero", "is a system file (below /dev), not data"),
-    ("/", "which is a "),
+    ("/", "which is a system folder (below /"),
     ("FIFO", "is not a regular file or folder (a pipe)"),
     ("FOLDER_WITH_FIFO", "which is a pipe, not data"),
     ("a" * 5000, "cannot be read: File name too long"),
