@@ -23,6 +23,7 @@ from pilotlab.strategies.saving import export_onnx   # torch before TensorFlow, 
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")   # before TensorFlow loads: its C++ logs are pages long
 import onnx2tf  # noqa: E402
 import tensorflow as tf  # noqa: E402
+import tf_keras  # noqa: E402   (onnx2tf's Keras)
 from ai_edge_litert.interpreter import Interpreter  # noqa: E402
 
 MODES = {  # mode -> (artifact dtype, what artifact.json says about it)
@@ -51,10 +52,17 @@ def save_tflite(model, source: StrategySource, mode: str, calibration_frames: in
 
 
 def _saved_model(model, source: StrategySource, tmp: Path) -> Path:
+    """The SavedModel onnx2tf writes with output_signaturedefs=True (one `serving_default` endpoint),
+    written here from the Keras model it returns: onnx2tf's own save also converts the model to two
+    .tflite files (~1.5 s) that the strategies do not use."""
     export_onnx(model, tmp / "model.onnx", source.input_shape)
-    onnx2tf.convert(input_onnx_file_path=str(tmp / "model.onnx"), output_folder_path=str(tmp / "saved"),
-                    keep_ncw_or_nchw_or_ncdhw_input_names=[INPUT_NAME], output_signaturedefs=True,
-                    non_verbose=True)
+    keras_model = onnx2tf.convert(input_onnx_file_path=str(tmp / "model.onnx"), output_folder_path=str(tmp / "saved"),
+                                  keep_ncw_or_nchw_or_ncdhw_input_names=[INPUT_NAME], output_signaturedefs=True,
+                                  non_verbose=True, disable_model_save=True)
+    archive = tf_keras.export.ExportArchive()
+    archive.add_endpoint(name="serving_default", fn=lambda *inputs: keras_model(inputs),
+                         input_signature=[tf.TensorSpec(t.shape, t.dtype, t.name) for t in keras_model.inputs])
+    archive.write_out(str(tmp / "saved"))
     return tmp / "saved"
 
 

@@ -4,9 +4,11 @@ frozen TorchScript, with the example batch both trace with. Strategy handlers im
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import logging
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 
 import torch
@@ -33,12 +35,40 @@ def export_onnx(model: nn.Module, path: Path, input_shape: tuple) -> None:
         return
     model = fold_input_norm(model)
     batch = torch.export.Dim("batch", min=1)
-    with warnings.catch_warnings(), _quiet_onnx_exporter():
+    with warnings.catch_warnings(), _quiet_onnx_exporter(), _torchlib_built_once():
         warnings.simplefilter("ignore")
         program = torch.onnx.export(model, (example_batch(input_shape),), dynamo=True,
                                     input_names=[INPUT_NAME], output_names=[OUTPUT_NAME],
                                     dynamic_shapes=({0: batch},), verbose=False)
     program.save(str(path), external_data=False)
+
+
+@contextlib.contextmanager
+def _torchlib_built_once() -> Iterator[None]:
+    """torch.onnx rebuilds its table of ONNX decompositions on every export, parsing the source of each
+    of ~500 onnxscript functions: ~1 s of a LiteRT strategy's ~6 s. The table depends on the installed
+    torch and onnxscript and on which operators the process has registered (torchao's quantized ones
+    appear when it is imported), so it is built once per set of operators and lent to each export
+    (which only reads it). Where torch's private hooks are not there (another torch), the export
+    builds its own table, as before."""
+    try:
+        from torch.onnx._internal.exporter import _registration
+        own = _registration.ONNXRegistry.__dict__["from_torchlib"]
+        operators = frozenset(torch._C._dispatch_get_all_op_names())
+    except (ImportError, AttributeError, KeyError):
+        yield
+        return
+    _registration.ONNXRegistry.from_torchlib = classmethod(
+        lambda cls, *args, **kwargs: _built_torchlib(own.__get__(None, cls), operators, *args, **kwargs))
+    try:
+        yield
+    finally:
+        _registration.ONNXRegistry.from_torchlib = own
+
+
+@functools.cache
+def _built_torchlib(build, operators: frozenset, *args, **kwargs):
+    return build(*args, **kwargs)
 
 
 def _export_torchscript_onnx(module, path: Path, input_shape: tuple) -> None:
