@@ -80,6 +80,7 @@ def run_user_laps(tmp_path, timeout_s: float | None):
     return store.result(lap.key)["value"], report_folder(recipe)
 
 
+@pytest.mark.slow   # a lap through the store and a report, ~13 s; test_pilotlab_drive_with_a_user_brain drives one
 def test_a_user_brain_s_lap_runs_in_the_store_and_gets_its_report_row(tmp_path):
     result, reports = run_user_laps(tmp_path, timeout_s=4.0)
     assert result["strategy"] == "mine" and result["brain"] == "mine" and result["runs"][0]["termination"] == "timeout"

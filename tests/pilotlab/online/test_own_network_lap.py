@@ -73,6 +73,7 @@ def run_recipe(folder, text: str) -> dict[str, dict]:
     return {job.name: store.result(job.key) for job in jobs}
 
 
+@pytest.mark.slow   # a whole recipe, ~22 s; the DLS weights' own path is in models/test_user_models.py
 def test_dls_weights_as_they_are_go_through_a_recipe(tmp_path):
     results = run_recipe(user_folder(tmp_path), QUICK)
     train = results["train dls"]["value"]
