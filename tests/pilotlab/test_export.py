@@ -111,17 +111,13 @@ def test_the_readme_says_predict_is_normalised_and_how_to_get_v_and_w(store, tmp
 
 
 @pytest.mark.parametrize("strategy", ["litert_full_int8", "litert_int8"])
-def test_the_readme_runs_an_edge_artifact_with_its_runtime_alone(trained, frames, tmp_path, monkeypatch, strategy):
+def test_the_readme_runs_an_edge_artifact_with_its_runtime_alone(artifacts, tmp_path, monkeypatch, strategy):
     """The README's own "Load and run" code (the LiteRT interpreter, no pilotlab, no TensorFlow)
     gives what pilotlab's predictor gives: for the integer-only model that includes (de)quantizing."""
-    from matrix.kinds import NotApplicable
-    from pilotlab.export import readme
-    try:
-        value = apply_strategy(strategy, {"calibration_frames": 16},
-                               StrategySource(trained / "model.pt", tmp_path / "a", (frames,)))
-    except NotApplicable as reason:
-        pytest.skip(str(reason))
-    out = export_artifact(tmp_path / "a", value, tmp_path / "deploy")
+    folder, value = artifacts[strategy]          # (the strategy applied once for every test: conftest.py)
+    if isinstance(value, str):
+        pytest.skip(value)
+    out = export_artifact(folder, value, tmp_path / "deploy")
     text = (out / "README.md").read_text()
     code = text.split("## Load and run")[1].split("```python")[1].split("```")[0]
     images = np.random.default_rng(0).random((20, 3, 66, 200), dtype=np.float32)
