@@ -18,6 +18,7 @@ from matrix.recipe import Domain, load_recipe
 from matrix.runs import default_jobs
 
 GetDomain = Callable[[], Domain]
+ENGINE_COMMANDS = ("run", "plan", "status", "show", "gc")   # what add_engine_commands adds
 
 
 def add_engine_commands(subparsers, get_domain: GetDomain,

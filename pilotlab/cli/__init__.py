@@ -18,20 +18,29 @@ from matrix.errors import MatrixError
 from pilotlab.specs.base import spec_problem
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The parser; given the arguments, only the module of the command they name is imported (its
+    options come from spec models that other commands do not need), else every command's."""
     parser = argparse.ArgumentParser(prog="pilotlab", description=__import__("pilotlab").__doc__)
     parser.add_argument("-v", "--verbose", action="store_true", help="show tracebacks and debug logs")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
-        if info.name.startswith("_"):   # helpers, not commands
-            continue
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        module.register(subparsers)
+    for name in _command_modules(argv):
+        importlib.import_module(f"{__name__}.{name}").register(subparsers)
     return parser
 
 
+def _command_modules(argv: list[str] | None) -> list[str]:
+    """The modules that define commands: a module is named like its command, but for the engine's."""
+    from matrix.cli import ENGINE_COMMANDS
+    modules = sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))  # _helpers
+    command = next((arg for arg in argv or () if not arg.startswith("-")), None)
+    owner = "engine" if command in ENGINE_COMMANDS else command
+    return [owner] if owner in modules else modules
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_parser(argv).parse_args(argv)
     try:
         return int(args.func(args) or 0)
     except (MatrixError, pydantic.ValidationError) as error:

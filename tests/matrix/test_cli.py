@@ -117,3 +117,11 @@ def test_status_times_sums_job_durations_per_kind(recipe, tmp_path, capsys):
     assert float(lines[1].split()[2]) >= 0.5 and "source b" in lines[1]
     assert "recipe toy: 5 jobs" in out
     assert cli(capsys, "status", "--store", store, "--times", "--recipe", "nope")[0] == 2
+
+
+def test_engine_commands_are_the_ones_named_for_command_lines_that_load_commands_lazily():
+    import argparse
+    from matrix.cli import ENGINE_COMMANDS, add_engine_commands
+    subparsers = argparse.ArgumentParser().add_subparsers()
+    add_engine_commands(subparsers, lambda: TOY)
+    assert tuple(subparsers.choices) == ENGINE_COMMANDS

@@ -25,3 +25,17 @@ def test_bad_arguments_are_one_line_before_anything_starts(tmp_path, capsys, arg
     assert message in captured.err and captured.err.count("\n") == 1
     assert captured.out == ""                      # no progress bar was drawn
     assert not out.exists() and time.monotonic() - started < 10
+
+
+def test_a_command_s_parser_loads_its_own_module_and_help_lists_every_command(capsys):
+    from pilotlab.cli import build_parser
+    commands = lambda argv: set(build_parser(argv)._subparsers._group_actions[0].choices)
+    assert commands(["-v", "plan", "r.yaml"]) == {"run", "plan", "status", "show", "gc"}
+    assert commands(["circuit", "list"]) == {"circuit"}
+    every = commands([])
+    assert every == commands(["--help"]) == commands(["nosuch"])
+    assert {"run", "plan", "record", "drive", "circuit", "dataset", "export", "report", "world"} <= every
+    with pytest.raises(SystemExit):
+        main(["nosuch"])
+    err = capsys.readouterr().err
+    assert "invalid choice: 'nosuch'" in err and "'record'" in err and "'plan'" in err
