@@ -2,15 +2,17 @@
 
 Code is fingerprinted by its source text, so editing a strategy's module changes the keys of that
 strategy's jobs and nothing else; which modules a module imports is read from its source, parsed
-once per text (the names are remembered across processes by its sha256). Files are hashed by
-content (sha256), remembered by (path, size, mtime, inode) in the process and, for large files,
-across processes (HashCache), so an unchanged multi-GB bag is read once.
+once per text (the names are remembered across processes by its sha256), and a whole closure is
+remembered with the file hashes and folder listings it was read from. Files are hashed by content
+(sha256), remembered by (path, size, mtime, inode) in the process and, for large files, across
+processes, so an unchanged multi-GB bag is read once (both memories: matrix.hashcache).
 """
 from __future__ import annotations
 
 import ast
 import hashlib
 import importlib.util
+import json
 import os
 import stat
 import sys
@@ -21,11 +23,12 @@ from types import ModuleType
 from typing import Any
 
 from matrix.errors import MatrixError
+from matrix.hashcache import HASH_CACHE
 
 _FILE_HASHES: dict[tuple[str, int, int, int], str] = {}
 _SOURCE_HASHES: dict[Any, str] = {}
 _ORIGINS: dict[str, Path] = {}
-_FOLDERS: dict[Path, frozenset[str]] = {}
+_FOLDERS: dict[str, frozenset[str]] = {}
 _GENERATION = [0]   # bumped by clear_caches: whatever was derived from source text is stale
 CHUNK = 1 << 20
 MAX_INPUT_FILES = 1_000_000   # files one input folder may hold (a bag folder holds a handful)
@@ -55,7 +58,7 @@ def closure_fingerprint(modules: Iterable[str], extra: Iterable[Any] = ()) -> st
 def _own_source_hash(module: str) -> tuple[str, str]:
     ident = f"{module}#own"
     if ident not in _SOURCE_HASHES:
-        _SOURCE_HASHES[ident] = hashlib.sha256(_module_origin(module).read_bytes()).hexdigest()
+        _SOURCE_HASHES[ident] = _file_sha256(_module_origin(module))
     return ident, _SOURCE_HASHES[ident]
 
 
@@ -105,34 +108,123 @@ def module_closure(name: str, within: str, exclude: Iterable[str] = ()) -> list[
     """`name` and the modules below package `within` that it imports, transitively (imports inside
     functions included), found by reading the source: nothing is imported, so a domain can name the
     code behind a job without loading the heavy libraries that code uses. Modules in `exclude` (and
-    what only they import) are left out: shared code a kind fingerprints anyway."""
+    what only they import) are left out: shared code a kind fingerprints anyway. A closure is
+    remembered in the process (until `clear_caches`) and across processes with what it was read from
+    (each file's sha256, each package folder's modules), believed only while all of that still holds."""
+    skip = tuple(sorted(set(exclude)))
+    memo = (_GENERATION[0], name, within, skip)
+    if memo not in _CLOSURES:
+        _CLOSURES[memo] = _remembered_closure(name, within, skip)
+    return list(_CLOSURES[memo])
+
+
+_CLOSURES: dict[tuple, tuple[str, ...]] = {}
+
+
+def _remembered_closure(name: str, within: str, skip: tuple[str, ...]) -> tuple[str, ...]:
+    where = [name, within, list(skip), str(_module_origin(within))]   # another checkout: another closure
+    key = hashlib.sha256(json.dumps(where).encode()).hexdigest()
+    record = HASH_CACHE.get_closure(key)
+    if record is not None and _facts_hold(record.get("facts")):
+        return tuple(record["modules"])
+    found, facts = _walked_closure(name, within, set(skip))
+    if not facts.unknown:
+        HASH_CACHE.put_closure(key, {"modules": found, "facts": facts.as_dict()})
+    HASH_CACHE.commit()
+    return tuple(found)
+
+
+def _walked_closure(name: str, within: str, skip: set[str]) -> tuple[list[str], _Facts]:
     found: list[str] = []
-    pending, skip = [name], set(exclude)
+    facts, pending = _Facts(), [name]
     while pending:
         module = pending.pop()
         if module not in found and module not in skip:
             found.append(module)
-            pending += _imported_modules(module, within)
-    HASH_CACHE.commit()
-    return found
+            imported, read_from = _imported_modules(module, within)
+            facts.merge(read_from)
+            pending += imported
+    return found, facts
 
 
-_IMPORTS: dict[tuple, list[str]] = {}
+class _Facts:
+    """What reading a module's imports rests on: the files read (module -> path, sha256), the module
+    files that only had to exist (a package's `__init__.py`) and the package folders listed. A closure
+    that named a package not found (`unknown`) is not remembered: nothing here would tell it appeared."""
+
+    def __init__(self) -> None:
+        self.files: dict[str, list[str]] = {}
+        self.exists: set[str] = set()
+        self.folders: dict[str, list[str]] = {}
+        self.unknown: set[str] = set()
+
+    def merge(self, other: _Facts) -> None:
+        self.files |= other.files
+        self.exists |= other.exists
+        self.folders |= other.folders
+        self.unknown |= other.unknown
+
+    def as_dict(self) -> dict:
+        return {"files": self.files, "exists": sorted(self.exists), "folders": self.folders}
 
 
-def _imported_modules(name: str, within: str) -> list[str]:
-    """The modules below package `within` that `name`'s source imports (read once per process,
-    until `clear_caches`)."""
+def _facts_hold(facts: dict | None) -> bool:
+    """Whether a remembered closure's facts are still true; the file hashes read to tell are kept for
+    the code fingerprint (`_own_source_hash`)."""
+    try:
+        files = facts["files"]
+        if any(_file_sha256(path) != sha for path, sha in files.values()) or \
+                not all(_is_file(path) for path in facts["exists"]) or \
+                any(sorted(_modules_in(folder)) != names for folder, names in facts["folders"].items()):
+            return False
+    except (OSError, TypeError, KeyError, ValueError, AttributeError):   # gone, or a damaged record: re-read
+        return False
+    for module, (path, sha) in files.items():
+        if module not in _ORIGINS:
+            _ORIGINS[module] = Path(path)
+            _SOURCE_HASHES.setdefault(f"{module}#own", sha)
+    return True
+
+
+def _file_sha256(path: Path | str) -> str:
+    """A source file's sha256, read once per process (until `clear_caches`): closures share most files."""
+    path = os.fspath(path)   # (paths as text: a closure's check looks up some thousand of them)
+    if path not in _SOURCE_FILES:
+        with open(path, "rb") as source:
+            _SOURCE_FILES[path] = hashlib.sha256(source.read()).hexdigest()
+    return _SOURCE_FILES[path]
+
+
+_SOURCE_FILES: dict[str, str] = {}
+
+
+def _is_file(path: str) -> bool:
+    if path not in _FILES_FOUND:
+        _FILES_FOUND[path] = os.path.isfile(path)
+    return _FILES_FOUND[path]
+
+
+_FILES_FOUND: dict[str, bool] = {}
+
+
+_IMPORTS: dict[tuple, tuple[list[str], _Facts]] = {}
+
+
+def _imported_modules(name: str, within: str) -> tuple[list[str], _Facts]:
+    """The modules below package `within` that `name`'s source imports, and what telling rests on
+    (read once per process, until `clear_caches`)."""
     key = (_GENERATION[0], name, within)
     if key not in _IMPORTS:
         _IMPORTS[key] = _read_imports(name, within)
     return _IMPORTS[key]
 
 
-def _read_imports(name: str, within: str) -> list[str]:
-    origin = _module_origin(name)
+def _read_imports(name: str, within: str) -> tuple[list[str], _Facts]:
+    origin, facts = _module_origin(name), _Facts()
+    facts.files[name] = [str(origin), _own_source_hash(name)[1]]
     package = name if origin.name == "__init__.py" else name.rpartition(".")[0]
-    return [m for m in _import_names(origin, package) if m.startswith(within + ".") and _is_source(m)]
+    names = [m for m in _import_names(origin, package) if m.startswith(within + ".") and _is_source(m, facts)]
+    return names, facts
 
 
 def _import_names(origin: Path, package: str) -> list[str]:
@@ -161,18 +253,26 @@ def _statements(body: list[ast.stmt]) -> Iterator[ast.AST]:
             yield from _statements(getattr(node, field, None) or [])
 
 
-def _is_source(name: str) -> bool:
+def _is_source(name: str, facts: _Facts) -> bool:
     """Whether `name` is a module or package (`from m import f` also yields `m.f`, which is none),
-    found on disk: no module but the packages above it is imported."""
+    found on disk: no module but the packages above it is imported. What telling rests on goes into
+    `facts`."""
     parent, _, leaf = name.rpartition(".")
     if not parent:
         return importlib.util.find_spec(name) is not None
-    return _is_package(parent) and leaf in _modules_in(_module_origin(parent).parent)
+    if not _is_package(parent):   # a module (it stays one while its file exists), or none at all
+        facts.exists.add(str(_ORIGINS[parent])) if parent in _ORIGINS else facts.unknown.add(parent)
+        return False
+    folder = _module_origin(parent).parent
+    facts.exists.add(str(folder / "__init__.py"))
+    facts.folders[str(folder)] = sorted(_modules_in(folder))
+    return leaf in facts.folders[str(folder)]
 
 
-def _modules_in(folder: Path) -> frozenset[str]:
+def _modules_in(folder: Path | str) -> frozenset[str]:
     """The names of the modules and packages in a package's folder, listed once per process (until
     `clear_caches`): a closure asks whether a name is a module some thousand times, a few per folder."""
+    folder = os.fspath(folder)
     if folder not in _FOLDERS:
         names = set()
         with os.scandir(folder) as entries:
@@ -201,6 +301,9 @@ def clear_caches() -> None:
     """Forget remembered hashes (for long-lived processes that watch code change)."""
     _GENERATION[0] += 1
     _IMPORTS.clear()
+    _CLOSURES.clear()
+    _SOURCE_FILES.clear()
+    _FILES_FOUND.clear()
     _ORIGINS.clear()
     _FOLDERS.clear()
     _FILE_HASHES.clear()
@@ -382,93 +485,3 @@ class _HashProgress:
 
 def _size(n: int) -> str:
     return f"{n / 1e9:.1f} GB" if n >= 1e9 else f"{n / 1e6:.1f} MB"
-
-
-class HashCache:
-    """sha256 of input files remembered across processes by (path, size, mtime, inode), as DVC does,
-    in a small SQLite file: `$MATRIX_HASH_CACHE`, else `$XDG_CACHE_HOME/matrix/file_hashes.sqlite`
-    (`~/.cache/...`). Only files of at least `min_size` bytes are kept (smaller ones hash faster than a
-    look-up). The same file remembers the import names of source files by the sha256 of their text
-    (`module_closure`). A cache that cannot be opened or written is ignored: it only saves time."""
-
-    def __init__(self, min_size: int = 1 << 20):
-        self.min_size, self._db, self._broken, self._pid = min_size, None, False, 0
-
-    @staticmethod
-    def location() -> Path:
-        if os.environ.get("MATRIX_HASH_CACHE"):
-            return Path(os.environ["MATRIX_HASH_CACHE"])
-        base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-        return Path(base) / "matrix" / "file_hashes.sqlite"
-
-    def get(self, marker: tuple) -> str | None:
-        if marker[1] < self.min_size:
-            return None
-        row = self._query("SELECT sha256 FROM hashes WHERE path=? AND size=? AND mtime_ns=? AND inode=?", marker)
-        return row[0] if row else None
-
-    def put(self, marker: tuple, sha256: str) -> str:
-        if marker[1] >= self.min_size:
-            self._query("INSERT OR REPLACE INTO hashes VALUES (?, ?, ?, ?, ?)", (*marker, sha256), commit=True)
-        return sha256
-
-    def get_names(self, key: str) -> list[str] | None:
-        """The import names remembered for a source text's sha256 (`_import_names`)."""
-        row = self._query("SELECT names FROM imports WHERE key=?", (key,))
-        return row[0].split() if row else None
-
-    def put_names(self, key: str, names: list[str]) -> None:
-        """Remember them (committed by `commit`: one transaction for a closure's new files)."""
-        self._query("INSERT OR REPLACE INTO imports VALUES (?, ?)", (key, " ".join(names)))
-
-    def commit(self) -> None:
-        import sqlite3
-        try:
-            if self._db is not None and self._pid == os.getpid() and not self._broken:
-                self._db.commit()
-        except sqlite3.Error:
-            self._broken = True
-
-    def _query(self, sql: str, args: tuple, commit: bool = False):
-        import sqlite3
-        try:
-            db = self._connect()
-            if db is None:
-                return None
-            row = db.execute(sql, args).fetchone()
-            if commit:
-                db.commit()
-            return row
-        except (sqlite3.Error, OSError):
-            self._broken = True
-            return None
-
-    def _connect(self):
-        import sqlite3
-        if self._pid != os.getpid():   # a forked child never uses its parent's connection
-            self._db, self._pid = None, os.getpid()
-        if self._db is None and not self._broken:
-            location = self.location()
-            location.parent.mkdir(parents=True, exist_ok=True)
-            self._db = sqlite3.connect(location, timeout=5)
-            self._db.execute("CREATE TABLE IF NOT EXISTS hashes (path TEXT PRIMARY KEY, size INTEGER, "
-                             "mtime_ns INTEGER, inode INTEGER, sha256 TEXT)")
-            self._db.execute("CREATE TABLE IF NOT EXISTS imports (key TEXT PRIMARY KEY, names TEXT)")
-        return self._db
-
-
-HASH_CACHE = HashCache()
-
-
-def host_fingerprint_cpu() -> dict[str, Any]:
-    """CPU model and core count (generic part of a host fingerprint; the domain adds GPUs)."""
-    model = ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        import platform
-        model = platform.processor()
-    return {"cpu": model, "cores": os.cpu_count()}

@@ -1,4 +1,5 @@
 """Code fingerprints by module name: what a module builds on is read from its source, never imported."""
+import json
 import os
 import sqlite3
 import subprocess
@@ -70,11 +71,51 @@ def test_the_imports_read_are_remembered_across_processes_by_the_text(shop, tmp_
     cache = tmp_path / "hashes.sqlite"
     closure = closure_in_a_new_process(shop, cache)
     assert closure == ["shop.config", "shop.kernels", "shop.maths", "shop.strategy", "shop.tables"]
-    # the next process believes what the first one read (proof that it parses no file again) ...
+    # without the closure itself remembered, the next process believes the names the first one read
+    # (proof that it parses no file again) ...
     with sqlite3.connect(cache) as db:
+        db.execute("DELETE FROM closures")
         db.execute("UPDATE imports SET names = names || ' shop.unrelated'")
     assert closure_in_a_new_process(shop, cache) == sorted(closure + ["shop.unrelated"])
     # ... until a file's text changes
     for name in PACKAGE:
         (shop / name).write_text(PACKAGE[name] + "# edited\n")
     assert closure_in_a_new_process(shop, cache) == closure
+
+
+def believed_closure(shop: Path, cache: Path) -> list[str]:
+    """The closure a new process gives after the remembered one was tampered with (it names
+    shop.unrelated): tampered, when the process believed the record."""
+    with sqlite3.connect(cache) as db:
+        for key, record in db.execute("SELECT key, record FROM closures").fetchall():
+            record = json.loads(record)
+            record["modules"] = [m for m in record["modules"] if m != "shop.unrelated"] + ["shop.unrelated"]
+            db.execute("UPDATE closures SET record=? WHERE key=?", (json.dumps(record), key))
+    return closure_in_a_new_process(shop, cache)
+
+
+@pytest.mark.parametrize("edit", ["nothing", "a file's text", "a new module", "a module becomes a package",
+                                  "a module removed"])
+def test_a_closure_is_remembered_across_processes_while_what_it_was_read_from_holds(shop, tmp_path, edit):
+    cache = tmp_path / "hashes.sqlite"
+    closure = closure_in_a_new_process(shop, cache)
+    if edit == "a file's text":
+        (shop / "strategy.py").write_text(PACKAGE["strategy.py"].replace("    from shop import tables\n", ""))
+        closure.remove("shop.tables")
+    elif edit == "a new module":   # strategy.py imports the name shop.shared.helper: now a module
+        (shop / "shared").mkdir()
+        (shop / "shared" / "__init__.py").write_text("")
+        (shop / "shared" / "helper.py").write_text("")
+        (shop / "shared.py").unlink()
+        closure = sorted(closure + ["shop.shared.helper"])
+    elif edit == "a module becomes a package":
+        (shop / "config.py").unlink()
+        (shop / "config").mkdir()
+        (shop / "config" / "__init__.py").write_text("from . import Settings\n")
+        (shop / "config" / "Settings.py").write_text("")
+        closure = sorted(closure + ["shop.config.Settings"])
+    elif edit == "a module removed":   # strategy.py still names shop.tables: no longer a module
+        (shop / "tables.py").unlink()
+        closure.remove("shop.tables")
+    tampered = sorted(closure + ["shop.unrelated"])
+    assert believed_closure(shop, cache) == (tampered if edit == "nothing" else closure)
