@@ -117,8 +117,10 @@ class ReportSpec(Spec):
 
     @model_validator(mode="after")
     def _known_study(self):
+        if self.compare_with is None:   # (the studies' checks are imported only for a comparison)
+            return self
         from pilotlab.report.studies import STUDIES
-        if self.compare_with is not None and self.compare_with not in STUDIES:
+        if self.compare_with not in STUDIES:
             raise ValueError(f"unknown study {self.compare_with!r}{did_you_mean(self.compare_with, STUDIES)}; "
                              f"known: {', '.join(STUDIES.names())}")
         return self
