@@ -105,6 +105,8 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
      ":10: strategies.prune_more.use: `use` names one strategy (got a mapping); e.g. use: local_prune"),
     (("laps: 0.2}}", "laps: 0.2, camera: {width: 8}}}"),
      ":3: datasets.train.record.camera.width: Input should be greater than or equal to 16 (got 8)"),
+    (("matrix:", "report: {compare_with: study2002}\nmatrix:"),
+     ":11: report: unknown study 'study2002' (did you mean 'study2022'?); known: study2022"),
 ])
 def test_recipe_errors_name_the_line_and_key(tmp_path, edit, message):
     with pytest.raises(RecipeError) as caught:
