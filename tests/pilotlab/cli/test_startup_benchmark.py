@@ -1,7 +1,9 @@
 """How long `pilotlab plan recipes/study2022.yaml` takes from interpreter start to plan done (issue 26:
 target < 0.5 s), in fresh interpreters after one warm-up run (bytecode written, the imports each source
-file names remembered): prints the median wall and CPU seconds, and how much of it is importing
-pilotlab.cli and the planning modules. Never asserts a timing.
+file names remembered): prints the median wall and CPU seconds, how much of it is importing
+pilotlab.cli and the planning modules, and the floor under both: a bare interpreter's start, and
+pydantic's import with its first model validated (the recipe schema is pydantic; it loads
+pydantic_core and, through its plugin loader, importlib.metadata). Never asserts a timing.
 Run: python -m pytest -m benchmark -s tests/pilotlab/cli/test_startup_benchmark.py
 """
 import json
@@ -18,6 +20,9 @@ import pytest
 ROOT = Path(__file__).resolve().parents[3]
 IMPORTS = ("import json, time; started = time.perf_counter(); import pilotlab.cli, pilotlab.domain; "
            "print(json.dumps(time.perf_counter() - started))")
+PYDANTIC = ("import json, time; started = time.perf_counter(); import pydantic\n"
+            "class First(pydantic.BaseModel):\n    x: int = 1\n"
+            "First(x=2); print(json.dumps(time.perf_counter() - started))")
 RUNS = 5
 
 
@@ -43,8 +48,11 @@ def test_plan_start_up(tmp_path):
     jobs = len(json.loads(timed(plan, env)[2]))     # the warm-up: bytecode and remembered imports written
     runs = [timed(plan, env) for _ in range(RUNS)]
     imports = [json.loads(timed(["-c", IMPORTS], env)[2]) for _ in range(RUNS)]
+    pydantic_s = [json.loads(timed(["-c", PYDANTIC], env)[2]) for _ in range(RUNS)]
+    bare = statistics.median(timed(["-c", "pass"], env)[0] for _ in range(RUNS))
     wall, cpu = statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)
     print(f"\n`pilotlab plan recipes/study2022.yaml --json` ({jobs} jobs), interpreter start to plan done, "
           f"median of {RUNS} fresh interpreters: {wall:.2f} s wall, {cpu:.2f} s CPU (target < 0.5 s; "
           f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores); of it importing pilotlab.cli "
-          f"and pilotlab.domain: {statistics.median(imports):.2f} s")
+          f"and pilotlab.domain: {statistics.median(imports):.2f} s; the floor: a bare interpreter {bare:.2f} s, "
+          f"pydantic's import and first model {statistics.median(pydantic_s):.2f} s")
