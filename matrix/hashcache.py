@@ -48,9 +48,10 @@ class HashCache:
         """A module closure remembered under `key`, with the facts it was read from (not yet checked)."""
         row = self._query("SELECT record FROM closures WHERE key=?", (key,))
         try:
-            return json.loads(row[0]) if row else None
+            record = json.loads(row[0]) if row else None
         except ValueError:   # a damaged row is only a miss
             return None
+        return record if isinstance(record, dict) and isinstance(record.get("modules"), list) else None
 
     def put_closure(self, key: str, record: dict) -> None:
         """Remember it (committed by `commit`)."""

@@ -119,3 +119,12 @@ def test_a_closure_is_remembered_across_processes_while_what_it_was_read_from_ho
         closure.remove("shop.tables")
     tampered = sorted(closure + ["shop.unrelated"])
     assert believed_closure(shop, cache) == (tampered if edit == "nothing" else closure)
+
+
+@pytest.mark.parametrize("damage", ["not json", "[]", '{"facts": {}}', '{"modules": ["shop.unrelated"]}'])
+def test_a_damaged_closure_record_is_read_again(shop, tmp_path, damage):
+    cache = tmp_path / "hashes.sqlite"
+    closure = closure_in_a_new_process(shop, cache)
+    with sqlite3.connect(cache) as db:
+        db.execute("UPDATE closures SET record=?", (damage,))
+    assert closure_in_a_new_process(shop, cache) == closure
