@@ -197,8 +197,9 @@ def _ort_session(path: Path, meta: ArtifactMeta, profile: HardwareProfile, spin:
     options.intra_op_num_threads = profile.cpu_threads
     options.inter_op_num_threads = 1
     options.log_severity_level = 3
+    providers = _providers(meta, profile)   # outside the try: a missing provider is "not applicable"
     try:
-        return onnxruntime.InferenceSession(str(path), options, providers=_providers(meta, profile))
+        return onnxruntime.InferenceSession(str(path), options, providers=providers)
     except Exception as error:  # onnxruntime raises its own Fail/InvalidGraph/... for a bad model
         first = (str(error).splitlines() or [""])[0][:300]
         raise PilotlabError(f"{path}: ONNX Runtime cannot load it ({type(error).__name__}: {first})") from None
