@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from matrix.kinds import NotApplicable
-from pilotlab.errors import PilotlabError
+from pilotlab.errors import PilotlabError, library_message
 from pilotlab.hardware import BUILTIN, HardwareProfile, apply_profile, make_profile, profile_from_dict
 from pilotlab.strategies.artifact import INPUT_NAME, OUTPUT_NAME, ArtifactMeta, read_meta
 
@@ -169,7 +169,7 @@ def _torch_module(path: Path, meta: ArtifactMeta, profile: HardwareProfile):
         try:
             module = torch.jit.load(str(path), map_location=profile.device)
         except Exception as error:  # torch raises RuntimeError/ValueError/... for a bad archive
-            first = (str(error).splitlines() or [""])[0][:300]
+            first = library_message(error)
             raise PilotlabError(f"{path}: not a readable TorchScript file ({type(error).__name__}: {first})") from None
     elif meta.format == "pilotlab-checkpoint":
         from pilotlab.models import load_checkpoint
@@ -201,7 +201,7 @@ def _ort_session(path: Path, meta: ArtifactMeta, profile: HardwareProfile, spin:
     try:
         return onnxruntime.InferenceSession(str(path), options, providers=providers)
     except Exception as error:  # onnxruntime raises its own Fail/InvalidGraph/... for a bad model
-        first = (str(error).splitlines() or [""])[0][:300]
+        first = library_message(error)
         raise PilotlabError(f"{path}: ONNX Runtime cannot load it ({type(error).__name__}: {first})") from None
 
 

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from matrix.registry import Registry
-from pilotlab.errors import PilotlabError
+from pilotlab.errors import PilotlabError, library_message
 from pilotlab.specs.base import build_config
 
 if TYPE_CHECKING:
@@ -118,7 +118,7 @@ def load_checkpoint(path: Path) -> tuple[nn.Module, dict[str, Any]]:
                             f"({first.strip() or 'weights_only load failed'}); a pilotlab checkpoint never does, "
                             "so do not load it unless you trust its origin") from None
     except Exception as error:  # torch raises many types for a bad file
-        first = (str(error).splitlines() or [""])[0][:200]
+        first = library_message(error, 200)
         raise PilotlabError(f"{path}: not a readable checkpoint ({type(error).__name__}: {first})") from None
     if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
         raise PilotlabError(f"{path}: not a pilotlab checkpoint (expected format {CHECKPOINT_FORMAT})")
@@ -126,6 +126,6 @@ def load_checkpoint(path: Path) -> tuple[nn.Module, dict[str, Any]]:
         model = build_model(payload["arch"], make_config(payload["arch"], payload["config"]))
         model.load_state_dict(payload["state_dict"])
     except (KeyError, TypeError, ValueError, RuntimeError) as error:
-        first = (str(error).splitlines() or [""])[0][:200]
+        first = library_message(error, 200)
         raise PilotlabError(f"{path}: a damaged pilotlab checkpoint ({type(error).__name__}: {first})") from None
     return model.eval(), payload

@@ -70,6 +70,31 @@ def test_the_gpu_name_is_torchs_wherever_a_gpu_driver_is_present(monkeypatch):
     hardware.gpu_name.cache_clear()
 
 
+def test_the_gpu_name_comes_from_the_nvidia_driver_without_torch_when_unambiguous(tmp_path, monkeypatch):
+    """`plan` fingerprints the host: on a GPU host torch's import and CUDA start-up cost seconds."""
+    from pilotlab import hardware
+    for bus, model in (("0000:01:00.0", "NVIDIA H100 80GB HBM3"), ("0000:02:00.0", "NVIDIA H100 80GB HBM3")):
+        (tmp_path / bus).mkdir()
+        (tmp_path / bus / "information").write_text(f"Model: \t\t {model}\nIRQ:   42\nBus Type:  PCIe\n")
+    monkeypatch.setattr(hardware, "GPU_DEVICE_FILES", ("/dev/null",))
+    monkeypatch.setattr(hardware, "NVIDIA_GPU_INFO", str(tmp_path / "*" / "information"))
+    monkeypatch.delenv("CUDA_VISIBLE_DEVICES", raising=False)
+    monkeypatch.setattr(torch.cuda, "get_device_name", lambda *args: "asked torch")
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    try:
+        hardware.gpu_name.cache_clear()
+        assert hardware.gpu_name() == "NVIDIA H100 80GB HBM3"
+        monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "1")      # which GPU is device 0: torch knows
+        hardware.gpu_name.cache_clear()
+        assert hardware.gpu_name() == "asked torch"
+        monkeypatch.delenv("CUDA_VISIBLE_DEVICES")
+        (tmp_path / "0000:02:00.0" / "information").write_text("Model: NVIDIA A100-SXM4-40GB\n")   # two models
+        hardware.gpu_name.cache_clear()
+        assert hardware.gpu_name() == "asked torch"
+    finally:
+        hardware.gpu_name.cache_clear()
+
+
 def test_work_that_is_not_timed_keeps_to_its_workers_share_of_the_cores(monkeypatch):
     from pilotlab.hardware import BUILTIN, cpu_count, within_share, worker_share
     monkeypatch.setenv("OMP_NUM_THREADS", "1")

@@ -79,7 +79,8 @@ def test_an_image_outside_the_folder_is_refused(tmp_path, name):
     (folder / "data.csv").write_text(f"image_name,v,w\n0.png,1,0\n{name},1,0\n")
     with pytest.raises(BagError) as caught:
         read_folder(folder, CONFIG)
-    assert str(caught.value).startswith(f"{folder}/data.csv: row 2 names image '{name}', outside {folder}; ")
+    shown = name[:80]   # a long name is cut (a temporary folder's path can be longer)
+    assert str(caught.value).startswith(f"{folder}/data.csv: row 2 names image '{shown}', outside {folder}; ")
 
 
 def test_an_image_linked_to_a_system_file_is_refused(tmp_path):

@@ -1,0 +1,10 @@
+from pilotlab.errors import library_message
+
+
+def test_a_library_message_keeps_the_reason_on_its_later_lines():
+    """ONNX Runtime 1.30 (seen on the GPU host): the first line ends in 'failed:', the reason follows."""
+    error = RuntimeError("[ONNXRuntimeError] : 1 : FAIL : Load model from m.onnx failed:\n  External data path "
+                         "escapes the model's folder\n\n")
+    assert library_message(error) == ("[ONNXRuntimeError] : 1 : FAIL : Load model from m.onnx failed: External "
+                                      "data path escapes the model's folder")
+    assert len(library_message(RuntimeError("x" * 1000), 200)) == 200
