@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from matrix.fingerprint import clear_caches, code_fingerprint, module_closure
+from tests.child import python_path
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -62,7 +63,7 @@ CLOSURE_IN_A_PROCESS = ("from matrix.fingerprint import module_closure; "
 
 
 def closure_in_a_new_process(shop: Path, cache: Path) -> list[str]:
-    env = {**os.environ, "MATRIX_HASH_CACHE": str(cache), "PYTHONPATH": f"{ROOT}{os.pathsep}{shop.parent}"}
+    env = {**os.environ, "MATRIX_HASH_CACHE": str(cache), "PYTHONPATH": python_path(ROOT, shop.parent)}
     return sorted(subprocess.run([sys.executable, "-c", CLOSURE_IN_A_PROCESS], env=env, check=True,
                                  capture_output=True, text=True).stdout.split())
 

@@ -11,6 +11,7 @@ import pytest
 
 from matrix.errors import MatrixError
 from matrix.fingerprint import _HashProgress, clear_caches, hash_path
+from tests.child import python_path
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -93,7 +94,7 @@ HASH_IN_A_PROCESS = "import sys; from matrix.fingerprint import hash_path; print
 
 
 def hash_in_a_new_process(path: Path, cache: Path) -> str:
-    env = {**os.environ, "MATRIX_HASH_CACHE": str(cache), "PYTHONPATH": str(ROOT)}
+    env = {**os.environ, "MATRIX_HASH_CACHE": str(cache), "PYTHONPATH": python_path(ROOT)}
     return subprocess.run([sys.executable, "-c", HASH_IN_A_PROCESS, str(path)], env=env, check=True,
                           capture_output=True, text=True).stdout.strip()
 

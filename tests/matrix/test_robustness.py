@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from matrix.store import Store
+from tests.child import python_path
 
 ROOT = Path(__file__).resolve().parents[2]
 SLOW_RECIPE = """\
@@ -24,7 +25,7 @@ matrix:
 
 
 def toy(*args, **popen):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env = dict(os.environ, PYTHONPATH=python_path(ROOT))
     return subprocess.Popen([sys.executable, "-m", "tests.matrix.toycli", *args], cwd=ROOT, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True, **popen)

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.child import python_path
+
 ROOT = Path(__file__).resolve().parents[2]
 RECIPE = """
 name: edits
@@ -41,7 +43,7 @@ def tree(tmp_path_factory) -> Path:
 def plan_keys(root: Path) -> dict[str, str]:
     """Job name -> key, planned with the code under `root`."""
     process = subprocess.run([sys.executable, "-m", "pilotlab", "plan", "edits.yaml", "--json", "--store", "store"],
-                             cwd=root, env={"PYTHONPATH": str(root), "PATH": "/usr/bin:/bin"},
+                             cwd=root, env={"PYTHONPATH": python_path(root), "PATH": "/usr/bin:/bin"},
                              capture_output=True, text=True, timeout=120)
     assert process.returncode == 0, process.stderr
     return {job["name"]: job["key"] for job in json.loads(process.stdout)}

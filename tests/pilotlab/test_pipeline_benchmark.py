@@ -20,6 +20,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.child import python_path
+
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.benchmark
 
@@ -31,7 +33,7 @@ def load() -> str:
 def cli(*args: str, cwd: Path) -> tuple[float, subprocess.CompletedProcess]:
     started = time.perf_counter()
     done = subprocess.run([sys.executable, "-m", "pilotlab", *args], cwd=cwd, capture_output=True, text=True,
-                          env={**os.environ, "PYTHONPATH": str(ROOT)})
+                          env={**os.environ, "PYTHONPATH": python_path(ROOT)})
     assert done.returncode == 0, done.stderr[-2000:]
     return time.perf_counter() - started, done
 

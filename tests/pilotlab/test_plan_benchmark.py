@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.child import python_path
+
 ROOT = Path(__file__).resolve().parents[2]
 PLAN = """
 import json, sys, time
@@ -50,7 +52,8 @@ def recipe(path: Path, models: int, strategies: int, circuits: list[str], distin
 
 def planned(path: Path, store: Path) -> dict:
     out = subprocess.run([sys.executable, "-c", PLAN, str(path), str(store)], cwd=ROOT, capture_output=True,
-                         text=True, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": str(store.parent)})
+                         text=True, env={"PYTHONPATH": python_path(ROOT), "PATH": "/usr/bin:/bin",
+                                         "HOME": str(store.parent)})
     assert out.returncode == 0, out.stderr
     return json.loads(out.stdout.splitlines()[-1])
 

@@ -14,6 +14,7 @@ import pytest
 from matrix.kinds import KINDS
 from matrix.store import Store
 from pilotlab.specs import KIND_MODULES
+from tests.child import python_path
 
 for _module in KIND_MODULES:   # registers pilotlab's job kinds
     importlib.import_module(_module)
@@ -45,7 +46,7 @@ def span(log: Path) -> tuple[datetime, datetime]:
 def test_two_runs_of_one_recipe_in_one_folder(tmp_path):
     (tmp_path / "tiny.yaml").write_text(TINY)
     command = [sys.executable, "-m", "pilotlab", "run", "tiny.yaml", "--store", "store"]
-    env = {"PYTHONPATH": str(ROOT), **__import__("os").environ}
+    env = {**__import__("os").environ, "PYTHONPATH": python_path(ROOT)}
     runs = [subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                              env=env) for _ in range(2)]
     outputs = [run.communicate(timeout=1200)[0] for run in runs]

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.child import python_path
+
 ROOT = Path(__file__).resolve().parents[3]
 IMPORTS = ("import json, time; started = time.perf_counter(); import pilotlab.cli, pilotlab.domain; "
            "print(json.dumps(time.perf_counter() - started))")
@@ -42,7 +44,7 @@ def timed(argv: list[str], env: dict) -> tuple[float, float, str]:
 @pytest.mark.benchmark
 def test_plan_start_up(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    env |= {"PYTHONPYCACHEPREFIX": str(tmp_path / "pycache"), "PYTHONPATH": str(ROOT)}
+    env |= {"PYTHONPYCACHEPREFIX": str(tmp_path / "pycache"), "PYTHONPATH": python_path(ROOT)}
     plan = ["-c", "import sys; from pilotlab.cli import main; sys.exit(main(sys.argv[1:]))", "plan",
             "recipes/study2022.yaml", "--json", "--store", str(tmp_path / "store")]
     jobs = len(json.loads(timed(plan, env)[2]))     # the warm-up: bytecode and remembered imports written

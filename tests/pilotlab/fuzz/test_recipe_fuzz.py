@@ -5,6 +5,7 @@ import sys
 
 import pytest
 
+from tests.child import python_path
 from tests.pilotlab.fuzz.harness import fuzz, write_mutations
 from tests.pilotlab.fuzz.recipes import ROOT
 
@@ -30,7 +31,7 @@ def test_mutated_recipes_through_the_command_line(tmp_path):
     for path in write_mutations(tmp_path, 4, seed=5):
         run = subprocess.run([sys.executable, "-m", "pilotlab", "plan", str(path), "--store", str(tmp_path / "store")],
                              capture_output=True, text=True, cwd=tmp_path, timeout=30,
-                             env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)})
+                             env={"PYTHONPATH": python_path(ROOT), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)})
         assert "Traceback" not in run.stderr, run.stderr
         assert run.returncode in (0, 2), run.stderr
         if run.returncode == 2:

@@ -21,6 +21,7 @@ from pilotlab.data.topics import COMPRESSED_IMAGE_TOPIC as COMPRESSED_TOPIC
 from pilotlab.data.topics import IMAGE_TOPIC, METADATA_TOPIC
 from pilotlab.data.topics import ODOMETRY_TOPIC as ODOM_TOPIC
 from pilotlab.sim.record import RecordSpec, record
+from tests.child import python_path
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -116,7 +117,7 @@ def test_ctrl_c_leaves_a_valid_readable_bag(tmp_path):
     out = tmp_path / "interrupted.bag"
     command = [sys.executable, "-m", "pilotlab", "record", "--circuit", "montreal", "--out", str(out),
                "--size", "64x48", "--rate", "20"]
-    process = subprocess.Popen(command, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
+    process = subprocess.Popen(command, cwd=ROOT, env={**os.environ, "PYTHONPATH": python_path(ROOT)},
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     deadline = time.time() + 60
     while not (out.exists() and out.stat().st_size > 500_000) and time.time() < deadline:

@@ -15,6 +15,7 @@ import torch
 from pilotlab.data.frames import FrameSet
 from pilotlab.predictor import load_predictor
 from pilotlab.strategies import STRATEGIES
+from tests.child import python_path
 
 CUDA_ONLY = {"tensorrt"}
 INT8 = {"static_quant", "qat", "prune_quant", "onnxruntime_int8", "litert_dynamic_range",
@@ -63,7 +64,8 @@ def test_reloads_in_a_fresh_process_and_predicts_the_same(artifacts, test_frames
         "for name, folder in folders.items():\n"
         "    np.save(f'{sys.argv[3]}/{name}.npy', load_predictor(folder, 'cpu1').predict(batch))\n")
     subprocess.run([sys.executable, "-c", script, json.dumps(runnable), str(tmp_path / "batch.npy"), str(tmp_path)],
-                   check=True, cwd=ROOT, env={"PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "PATH": "/usr/bin"})
+                   check=True, cwd=ROOT,
+                   env={"PYTHONPATH": python_path(ROOT), "OMP_NUM_THREADS": "1", "PATH": "/usr/bin"})
     for name, folder in runnable.items():
         here = load_predictor(folder, "cpu1").predict(batch)
         there = np.load(tmp_path / f"{name}.npy")

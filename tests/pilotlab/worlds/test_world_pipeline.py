@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from tests.child import python_path
 
 ROOT = Path(__file__).resolve().parents[3]
 RECIPE = """
@@ -29,7 +30,7 @@ matrix:
 
 
 def pilotlab(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = {**os.environ, "PYTHONPATH": python_path(ROOT)}
     return subprocess.run([sys.executable, "-m", "pilotlab", *args], cwd=cwd, env=env, capture_output=True,
                           text=True, timeout=1200)
 
