@@ -1,6 +1,7 @@
 """The CUDA rows on a host with a GPU (skipped elsewhere; the "not applicable" side is tested beside each
 strategy): the cuda baseline, fp16 and bf16 run on the GPU and agree with the fp32 network on the CPU,
-the offline job times them there, and TensorRT builds its engines where ONNX Runtime has the provider.
+the offline job times them there, `cuda_graph` replays the same network as CUDA graphs, and TensorRT
+builds its engines where ONNX Runtime has the provider.
 First run on an H100 (2026-11-26): an ONNX artifact on the cuda profile, with an ONNX Runtime that has
 no CUDA provider, failed instead of being "not applicable"; that case runs on every host below."""
 from __future__ import annotations
@@ -12,15 +13,17 @@ import torch
 import pilotlab.jobs.offline  # noqa: F401  (registers the kind)
 from matrix.kinds import KINDS, NotApplicable
 from pilotlab.data.frames import FrameSet
+from pilotlab.errors import PilotlabError
 from pilotlab.hardware import BUILTIN, host_fingerprint, make_profile
-from pilotlab.predictor import load_predictor
+from pilotlab.predictor import CudaGraphs, load_predictor
+from pilotlab.strategies import make_strategy_config
 from pilotlab.strategies.apply import StrategySource, apply_strategy
 from tests.pilotlab.jobs.test_optimize_offline import QUICK, context, dep
 
 gpu = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
 
 # outputs are normalised to about [0, 1]; 16-bit floats keep ~3 (fp16) or ~2 (bf16) significant digits
-TOLERANCE = {"baseline": 1e-3, "fp16": 2e-2, "bf16": 6e-2}
+TOLERANCE = {"baseline": 1e-3, "fp16": 2e-2, "bf16": 6e-2, "fp32": 1e-3}
 
 
 @pytest.fixture(scope="module")
@@ -89,3 +92,27 @@ def test_an_onnx_artifact_on_a_cuda_profile_without_the_cuda_provider_is_not_app
     monkeypatch.setattr("pilotlab.predictor.apply_profile", lambda profile: None)   # as on a host with a GPU
     with pytest.raises(NotApplicable, match="needs ONNX Runtime provider.s. CUDAExecutionProvider for 'cuda'"):
         load_predictor(tmp_path, BUILTIN["cuda"])
+
+
+def test_cuda_graph_precision_is_fp16_or_fp32():
+    assert make_strategy_config("cuda_graph", {}).precision == "fp16"
+    with pytest.raises(PilotlabError, match="precision: 'int8' is not one of fp32, fp16"):
+        make_strategy_config("cuda_graph", {"precision": "int8"})
+
+
+@gpu
+@pytest.mark.parametrize("precision", ["fp32", "fp16"])
+def test_cuda_graph_replays_the_network_at_each_batch_size(precision, trained, tmp_path, images, monkeypatch):
+    result = apply_strategy("cuda_graph", {"precision": precision},
+                            StrategySource(trained / "model.pt", tmp_path / "graph", hardware=BUILTIN["cuda"]))
+    assert result["precision"] == precision and result["device"] == "cuda"
+    predictor = load_predictor(tmp_path / "graph", BUILTIN["cuda"])
+    expected = reference(trained, tmp_path, images)
+    monkeypatch.setattr(CudaGraphs, "MAX_SIZES", 2)
+    for size in (1, 16, 1, 3, 16):      # 3: a third size runs the module as it is
+        np.testing.assert_allclose(predictor.predict(images[:size]), expected[:size], atol=TOLERANCE[precision])
+    assert sorted(shape[0] for shape in predictor._graphs._graphs) == [1, 16]
+    first = predictor.predict(images[:1])
+    kept = first.copy()
+    predictor.predict(images[1:2])      # replays into the same output buffer: `first` must be a copy
+    np.testing.assert_array_equal(first, kept)

@@ -1,4 +1,4 @@
-"""The config of `tensorrt` (its handler: pilotlab/strategies/cuda.py)."""
+"""The configs of `tensorrt` and `cuda_graph` (their handlers: pilotlab/strategies/cuda.py and cuda_graph.py)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -23,3 +23,16 @@ class TensorRTConfig:
 
 
 register_strategy("tensorrt", TensorRTConfig, "pilotlab.strategies.cuda:tensorrt", hardware_dependent=True)
+
+
+@dataclass(frozen=True)
+class CudaGraphConfig:
+    version: int = 1
+    precision: str = "fp16"          # fp16 or fp32: the network's weights and compute on the GPU
+
+    def __post_init__(self) -> None:
+        if self.precision not in ("fp32", "fp16"):
+            raise PilotlabError(f"precision: {self.precision!r} is not one of fp32, fp16")
+
+
+register_strategy("cuda_graph", CudaGraphConfig, "pilotlab.strategies.cuda_graph:cuda_graph", hardware_dependent=True)

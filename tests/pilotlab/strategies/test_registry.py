@@ -14,7 +14,7 @@ from pilotlab.strategies.registry import StrategyEntry
 
 STUDY = {"baseline", "dynamic_quant", "static_quant", "qat", "local_prune", "global_prune", "prune_quant"}
 BEYOND = {"torchscript", "onnxruntime", "onnxruntime_int8", "bf16", "fp16", "structured_prune", "structured_prune_int8",
-          "cluster", "tensorrt"}
+          "cluster", "tensorrt", "cuda_graph"}
 
 
 def test_the_study_set_and_beyond_are_registered():

@@ -17,7 +17,7 @@ from pilotlab.predictor import load_predictor
 from pilotlab.strategies import STRATEGIES
 from tests.child import python_path
 
-CUDA_ONLY = {"tensorrt"}
+CUDA_ONLY = {"tensorrt", "cuda_graph"}
 INT8 = {"static_quant", "qat", "prune_quant", "onnxruntime_int8", "litert_dynamic_range",
         "litert_int8", "litert_full_int8", "prune_litert_int8", "qat_litert_int8",
         "pqat_litert_int8", "cqat_litert_int8", "pcqat_litert_int8"}
@@ -193,7 +193,7 @@ def test_half_precision_is_not_applicable_without_native_support(trained, tmp_pa
         apply_strategy("bf16", {}, StrategySource(trained / "model.pt", tmp_path))
 
 
-@pytest.mark.parametrize("strategy", ["fp16", "bf16", "tensorrt"])
+@pytest.mark.parametrize("strategy", ["fp16", "bf16", "tensorrt", "cuda_graph"])
 def test_cuda_targets_without_a_gpu_are_not_applicable(trained, tmp_path, strategy):
     from matrix.kinds import NotApplicable
     from pilotlab.hardware import BUILTIN, gpu_name
