@@ -255,8 +255,10 @@ def _providers(meta: ArtifactMeta, profile: HardwareProfile) -> list[Any]:
     available = onnxruntime.get_available_providers()
     missing = [p for p in wanted if p not in available]
     if missing:
+        build = "onnxruntime-gpu with TensorRT" if "TensorrtExecutionProvider" in missing else "onnxruntime-gpu"
         raise NotApplicable(f"artifact {meta.strategy} needs ONNX Runtime provider(s) {', '.join(missing)} "
-                            f"for {profile.name!r}; this onnxruntime has {', '.join(available)}")
+                            f"for {profile.name!r}; this onnxruntime has {', '.join(available)} "
+                            f"(install {build} in place of onnxruntime)")
     options = {"TensorrtExecutionProvider": {"trt_fp16_enable": bool(meta.extra.get("trt_fp16")),
                                              "trt_int8_enable": bool(meta.extra.get("trt_int8"))}}
     return [(p, options.get(p, {})) for p in wanted] + ["CPUExecutionProvider"]

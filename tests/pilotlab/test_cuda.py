@@ -90,7 +90,8 @@ def test_an_onnx_artifact_on_a_cuda_profile_without_the_cuda_provider_is_not_app
         pytest.skip("this onnxruntime has the CUDA provider")
     apply_strategy("onnxruntime", {}, StrategySource(trained / "model.pt", tmp_path))
     monkeypatch.setattr("pilotlab.predictor.apply_profile", lambda profile: None)   # as on a host with a GPU
-    with pytest.raises(NotApplicable, match="needs ONNX Runtime provider.s. CUDAExecutionProvider for 'cuda'"):
+    reason = r"needs ONNX Runtime provider.s. CUDAExecutionProvider for 'cuda'; this onnxruntime has .*\(install "
+    with pytest.raises(NotApplicable, match=reason + r"onnxruntime-gpu in place of onnxruntime\)"):
         load_predictor(tmp_path, BUILTIN["cuda"])
 
 
