@@ -48,6 +48,7 @@ from pydantic import (BaseModel, ConfigDict, Field, StrictBool, ValidationError,
 
 from pilotlab.columns import BY_NAME
 from pilotlab.errors import PilotlabError
+from pilotlab.hardware import cpu_model, gpu_name
 from matrix.errors import did_you_mean
 
 Kind = Literal["offline", "online"]
@@ -79,8 +80,8 @@ class Host(_Frozen):
 
     @classmethod
     def detect(cls) -> Host:
-        """This machine: CPU model from /proc/cpuinfo, logical cores, the CUDA device if torch sees one."""
-        return cls(cpu=_cpu_model(), cores=os.cpu_count(), gpu=_cuda_device(), os=platform.platform(terse=True))
+        """This machine: CPU model, logical cores, the CUDA device (as the timing jobs fingerprint it)."""
+        return cls(cpu=cpu_model(), cores=os.cpu_count(), gpu=gpu_name(), os=platform.platform(terse=True))
 
     def describe(self) -> str:
         cores = f", {self.cores} cores" if self.cores else ""
@@ -370,21 +371,3 @@ def _unmeasured(value: Any) -> bool:
 
 def _unique(values: Iterable[str | None]) -> list[str]:
     return [v for v in dict.fromkeys(values) if v is not None]
-
-
-def _cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine() or "unknown CPU"
-
-
-def _cuda_device() -> str | None:
-    try:
-        import torch
-    except ImportError:
-        return None
-    return torch.cuda.get_device_name(0) if torch.cuda.is_available() else None
