@@ -41,7 +41,11 @@ def test_offline_metrics_of_the_baseline(baseline, trained, test_frames):
     assert 0 < result["latency_p10_ms"] <= result["latency_ms"] <= result["latency_p90_ms"] <= result["latency_p99_ms"]
     assert result["throughput_p10_ips"] <= result["throughput_ips"] <= result["throughput_p90_ips"]
     assert result["timing_blocks"] >= 2 and "reference_ms" not in result   # no kernel beside: it meant nothing
-    assert result["latency_runs"] >= 30 and result["throughput_ips"] > 0 and result["size_mb"] > 5
+    assert result["throughput_ips"] > 0 and result["size_mb"] > 5
+    # 30 calls (QUICK's min_runs) unless the time budget ran out first on a loaded machine, which the
+    # result then says (a fresh clone's run beside other work timed 28: a count under a budget is measured)
+    said = {**result.get("unstable", {}), **result.get("cpu_time", {})}
+    assert result["latency_runs"] >= 30 or "latency_ms" in said, (result["latency_runs"], said)
     assert result["peak_mem_mb"] >= 0
     assert 0 < result["size_gz_mb"] < result["size_mb"]    # random fp32 weights compress a little (~8 %)
 
