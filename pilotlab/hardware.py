@@ -177,17 +177,24 @@ GPU_DEVICE_FILES = ("/dev/nvidia*", "/dev/nvhost-*", "/dev/nvgpu", "/dev/kfd", "
 
 
 NVIDIA_GPU_INFO = "/proc/driver/nvidia/gpus/*/information"   # the driver's "Model: NVIDIA H100 80GB HBM3"
+NVIDIA_MIG_INSTANCES = "/proc/driver/nvidia/capabilities/gpu*/mig/gi*"   # a GPU split into MIG instances
 
 
 @cache
 def gpu_name() -> str | None:
-    """The first CUDA GPU's name as torch sees it; None without one. Read from the NVIDIA driver where
-    that is unambiguous (one model, no CUDA_VISIBLE_DEVICES): `plan` fingerprints the host, and torch's
-    import and CUDA start-up cost seconds (7.6 s for the study's plan on an H100 host, 2026-11-26)."""
+    """The first CUDA GPU's name as torch sees it; None without one (or with a torch built without CUDA).
+
+    `plan` fingerprints the host, and torch's import and CUDA start-up cost seconds (7.6 s for the
+    study's plan on an H100 host, 2026-11-26), so the name is read from the NVIDIA driver where that is
+    the same answer: one GPU model, no device selection (CUDA_/NVIDIA_VISIBLE_DEVICES), no MIG instance
+    (torch names the slice, "... MIG 1g.10gb"), and a torch built with CUDA. Else torch is asked."""
     if not any(glob.glob(pattern) for pattern in GPU_DEVICE_FILES):
         return None
+    if _torch_cuda_build() is False:
+        return None
     models = _nvidia_driver_models()
-    if len(models) == 1 and "CUDA_VISIBLE_DEVICES" not in os.environ:
+    selected = "CUDA_VISIBLE_DEVICES" in os.environ or "MIG" in os.environ.get("NVIDIA_VISIBLE_DEVICES", "")
+    if len(models) == 1 and not selected and not glob.glob(NVIDIA_MIG_INSTANCES):
         return models.pop()
     import torch
     return torch.cuda.get_device_name(0) if torch.cuda.is_available() else None
@@ -201,6 +208,19 @@ def _nvidia_driver_models() -> set[str]:
                 if line.startswith("Model:") and line.split(":", 1)[1].strip():
                     models.add(line.split(":", 1)[1].strip())
     return models
+
+
+def _torch_cuda_build() -> bool | None:
+    """Whether the installed torch was built with CUDA, read from its version file without importing
+    it (`cuda: Optional[str] = None` in a CPU wheel); None when that cannot be told."""
+    import importlib.util
+    with contextlib.suppress(ImportError, ValueError, OSError, TypeError):
+        spec = importlib.util.find_spec("torch")
+        for folder in (spec.submodule_search_locations or []) if spec else []:
+            for line in (Path(folder) / "version.py").read_text().splitlines():
+                if line.startswith("cuda"):
+                    return line.split("=", 1)[1].strip() != "None"
+    return None
 
 
 def host_fingerprint() -> dict[str, Any]:

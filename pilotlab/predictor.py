@@ -71,7 +71,8 @@ class TorchPredictor(Predictor):
 class CudaGraphs:
     """A CUDA module replayed as one CUDA graph per batch size (captured at that size's first call):
     one launch instead of one per layer. The graph reads and writes fixed tensors on the GPU; a call
-    copies the batch in, replays, and copies the float32 output back."""
+    copies the batch in, replays, and copies the float32 output back. One caller at a time (the
+    buffers are shared), as a predictor is used."""
     MAX_SIZES = 8    # batch sizes beyond these run the module as it is (each graph holds its buffers)
 
     def __init__(self, module, dtype):
@@ -85,7 +86,12 @@ class CudaGraphs:
             if len(self._graphs) >= self.MAX_SIZES:
                 with torch.inference_mode():
                     return self._module(torch.from_numpy(batch).to("cuda", self._dtype)).float().cpu().numpy()
-            self._graphs[batch.shape] = self._capture(batch.shape)
+            try:
+                self._graphs[batch.shape] = self._capture(batch.shape)
+            except RuntimeError as error:   # torch's error for work that a capture cannot record
+                raise PilotlabError(f"cuda_graph: the network could not be captured as a CUDA graph at input shape "
+                                    f"{list(batch.shape)} ({library_message(error)}); use the fp16 strategy "
+                                    "for this network") from None
         inputs, outputs, graph = self._graphs[batch.shape]
         inputs.copy_(torch.from_numpy(batch))
         graph.replay()
@@ -241,10 +247,22 @@ def _ort_session(path: Path, meta: ArtifactMeta, profile: HardwareProfile, spin:
     options.log_severity_level = 3
     providers = _providers(meta, profile)   # outside the try: a missing provider is "not applicable"
     try:
-        return onnxruntime.InferenceSession(str(path), options, providers=providers)
+        session = onnxruntime.InferenceSession(str(path), options, providers=providers)
     except Exception as error:  # onnxruntime raises its own Fail/InvalidGraph/... for a bad model
         first = library_message(error)
         raise PilotlabError(f"{path}: ONNX Runtime cannot load it ({type(error).__name__}: {first})") from None
+    _check_first_provider(session, providers, meta)
+    return session
+
+
+def _check_first_provider(session, providers: list[Any], meta: ArtifactMeta) -> None:
+    """ONNX Runtime falls back to the next provider when the first cannot start (TensorRT's libraries
+    missing, say): the artifact would be timed as what it is not."""
+    wanted = providers[0] if isinstance(providers[0], str) else providers[0][0]
+    running = session.get_providers()[0]
+    if running != wanted:
+        raise NotApplicable(f"artifact {meta.strategy}: ONNX Runtime could not start {wanted} here and fell back to "
+                            f"{running}; install what {wanted} needs (TensorRT's libraries for TensorRT)")
 
 
 def _providers(meta: ArtifactMeta, profile: HardwareProfile) -> list[Any]:

@@ -9,5 +9,5 @@ def python_path(*first: Path | str) -> str:
     """PYTHONPATH for the child: `first` (the checkout under test), then this process's own PYTHONPATH,
     which may be where the dependencies are (a host that installs nothing, as the GPU machine lent to a
     session: its carried packages sit in a folder named there)."""
-    inherited = [entry for entry in os.environ.get("PYTHONPATH", "").split(os.pathsep) if entry]
+    inherited = [os.path.abspath(entry) for entry in os.environ.get("PYTHONPATH", "").split(os.pathsep) if entry]
     return os.pathsep.join([*map(str, first), *inherited])

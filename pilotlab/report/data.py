@@ -81,7 +81,7 @@ class Host(_Frozen):
     @classmethod
     def detect(cls) -> Host:
         """This machine: CPU model, logical cores, the CUDA device (as the timing jobs fingerprint it)."""
-        return cls(cpu=cpu_model(), cores=os.cpu_count(), gpu=gpu_name(), os=platform.platform(terse=True))
+        return cls(cpu=cpu_model() or "unknown CPU", cores=os.cpu_count(), gpu=gpu_name(), os=platform.platform(terse=True))
 
     def describe(self) -> str:
         cores = f", {self.cores} cores" if self.cores else ""

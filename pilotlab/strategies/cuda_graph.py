@@ -1,7 +1,7 @@
 """`cuda_graph`: the network in fp16 (or fp32) on the GPU, replayed as a CUDA graph.
 
 At batch 1 a small network on a GPU is bound by kernel launches, not arithmetic: PilotNet in eager
-fp32 on an H100 took 0.95 ms a frame for ~20 kernels and its copies, fp16 0.72 ms (2026-11-26). A
+fp32 on an H100 took 0.72-0.95 ms a frame (two runs, 2026-11-26) for ~20 kernels and its copies. A
 CUDA graph records the whole forward pass once per batch size and replays it with one launch (the
 launch overhead that TensorRT's engines remove too; this needs nothing beyond torch). The artifact is
 frozen TorchScript on the device, like `fp16`; the predictor captures a graph for each batch size it

@@ -110,10 +110,34 @@ def test_cuda_graph_replays_the_network_at_each_batch_size(precision, trained, t
     predictor = load_predictor(tmp_path / "graph", BUILTIN["cuda"])
     expected = reference(trained, tmp_path, images)
     monkeypatch.setattr(CudaGraphs, "MAX_SIZES", 2)
-    for size in (1, 16, 1, 3, 16):      # 3: a third size runs the module as it is
-        np.testing.assert_allclose(predictor.predict(images[:size]), expected[:size], atol=TOLERANCE[precision])
+    # a size seen again is given other frames (a replay must read the new input), 3: past the limit of 2
+    for start, size in ((0, 1), (0, 16), (5, 1), (2, 3), (0, 16), (9, 1)):
+        np.testing.assert_allclose(predictor.predict(images[start:start + size]), expected[start:start + size],
+                                   atol=TOLERANCE[precision])
     assert sorted(shape[0] for shape in predictor._graphs._graphs) == [1, 16]
     first = predictor.predict(images[:1])
     kept = first.copy()
-    predictor.predict(images[1:2])      # replays into the same output buffer: `first` must be a copy
-    np.testing.assert_array_equal(first, kept)
+    np.testing.assert_allclose(predictor.predict(images[1:2]), expected[1:2], atol=TOLERANCE[precision])
+    np.testing.assert_array_equal(first, kept)   # the replay wrote its output buffer again: `first` is a copy
+
+
+def test_a_session_that_fell_back_from_its_first_provider_is_not_applicable():
+    """ONNX Runtime quietly retries with the CUDA and CPU providers when TensorRT cannot start: the
+    artifact would be timed as TensorRT while running without it."""
+    from pilotlab.predictor import _check_first_provider
+    from pilotlab.strategies.artifact import ArtifactMeta
+
+    class Session:
+        def __init__(self, running):
+            self.running = running
+
+        def get_providers(self):
+            return self.running
+    meta = ArtifactMeta(strategy="tensorrt", strategy_version=2, format="onnx", file="model.onnx",
+                        runtime="onnxruntime", dtype="float16", input_shape=(1, 3, 66, 200), arch="pilotnet", config={}, labels={},
+                        preprocess={}, device="cuda", extra={})
+    wanted = [("TensorrtExecutionProvider", {}), ("CUDAExecutionProvider", {}), "CPUExecutionProvider"]
+    _check_first_provider(Session(["TensorrtExecutionProvider", "CPUExecutionProvider"]), wanted, meta)
+    with pytest.raises(NotApplicable, match="could not start TensorrtExecutionProvider here and fell back to "
+                                            "CUDAExecutionProvider"):
+        _check_first_provider(Session(["CUDAExecutionProvider", "CPUExecutionProvider"]), wanted, meta)

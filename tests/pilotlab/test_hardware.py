@@ -74,25 +74,42 @@ def test_the_gpu_name_comes_from_the_nvidia_driver_without_torch_when_unambiguou
     """`plan` fingerprints the host: on a GPU host torch's import and CUDA start-up cost seconds."""
     from pilotlab import hardware
     for bus, model in (("0000:01:00.0", "NVIDIA H100 80GB HBM3"), ("0000:02:00.0", "NVIDIA H100 80GB HBM3")):
-        (tmp_path / bus).mkdir()
-        (tmp_path / bus / "information").write_text(f"Model: \t\t {model}\nIRQ:   42\nBus Type:  PCIe\n")
+        (tmp_path / "gpus" / bus).mkdir(parents=True)
+        (tmp_path / "gpus" / bus / "information").write_text(f"Model: \t\t {model}\nIRQ:   42\nBus Type:  PCIe\n")
     monkeypatch.setattr(hardware, "GPU_DEVICE_FILES", ("/dev/null",))
-    monkeypatch.setattr(hardware, "NVIDIA_GPU_INFO", str(tmp_path / "*" / "information"))
+    monkeypatch.setattr(hardware, "NVIDIA_GPU_INFO", str(tmp_path / "gpus" / "*" / "information"))
+    monkeypatch.setattr(hardware, "NVIDIA_MIG_INSTANCES", str(tmp_path / "capabilities" / "gpu*" / "mig" / "gi*"))
+    monkeypatch.setattr(hardware, "_torch_cuda_build", lambda: True)
     monkeypatch.delenv("CUDA_VISIBLE_DEVICES", raising=False)
+    monkeypatch.delenv("NVIDIA_VISIBLE_DEVICES", raising=False)
     monkeypatch.setattr(torch.cuda, "get_device_name", lambda *args: "asked torch")
     monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+
+    def name() -> str | None:
+        hardware.gpu_name.cache_clear()
+        return hardware.gpu_name()
     try:
-        hardware.gpu_name.cache_clear()
-        assert hardware.gpu_name() == "NVIDIA H100 80GB HBM3"
-        monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "1")      # which GPU is device 0: torch knows
-        hardware.gpu_name.cache_clear()
-        assert hardware.gpu_name() == "asked torch"
+        assert name() == "NVIDIA H100 80GB HBM3"
+        monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "1")            # which GPU is device 0: torch knows
+        assert name() == "asked torch"
         monkeypatch.delenv("CUDA_VISIBLE_DEVICES")
-        (tmp_path / "0000:02:00.0" / "information").write_text("Model: NVIDIA A100-SXM4-40GB\n")   # two models
-        hardware.gpu_name.cache_clear()
-        assert hardware.gpu_name() == "asked torch"
+        monkeypatch.setenv("NVIDIA_VISIBLE_DEVICES", "MIG-4f2c")   # a container given one MIG slice
+        assert name() == "asked torch"
+        monkeypatch.delenv("NVIDIA_VISIBLE_DEVICES")
+        (tmp_path / "capabilities" / "gpu0" / "mig" / "gi1").mkdir(parents=True)   # torch names the slice
+        assert name() == "asked torch"
+        (tmp_path / "capabilities" / "gpu0" / "mig" / "gi1").rmdir()
+        (tmp_path / "gpus" / "0000:02:00.0" / "information").write_text("Model: NVIDIA A100-SXM4-40GB\n")
+        assert name() == "asked torch"                                  # two models
+        monkeypatch.setattr(hardware, "_torch_cuda_build", lambda: False)
+        assert name() is None                                           # a CPU-only torch uses no GPU
     finally:
         hardware.gpu_name.cache_clear()
+
+
+def test_a_cpu_only_torch_is_told_from_its_version_file():
+    from pilotlab import hardware
+    assert hardware._torch_cuda_build() is (torch.version.cuda is not None)
 
 
 def test_work_that_is_not_timed_keeps_to_its_workers_share_of_the_cores(monkeypatch):
