@@ -205,8 +205,9 @@ def _nvidia_driver_models() -> set[str]:
     for info in glob.glob(NVIDIA_GPU_INFO):
         with contextlib.suppress(OSError):
             for line in Path(info).read_text().splitlines():
-                if line.startswith("Model:") and line.split(":", 1)[1].strip():
-                    models.add(line.split(":", 1)[1].strip())
+                key, _, value = line.partition(":")
+                if key == "Model" and value.strip():
+                    models.add(value.strip())
     return models
 
 

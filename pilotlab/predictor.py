@@ -59,8 +59,8 @@ class TorchPredictor(Predictor):
         self._graphs = CudaGraphs(module, self._dtype) if meta.extra.get("cuda_graph") else None
 
     def _run(self, batch: np.ndarray) -> np.ndarray:
-        if self._graphs is not None:
-            return self._graphs.run(batch)
+        if self._graphs is not None and (replayed := self._graphs.run(batch)) is not None:
+            return replayed
         inputs = self._torch.from_numpy(batch)
         with self._torch.inference_mode():
             if self._cast:
@@ -73,19 +73,18 @@ class CudaGraphs:
     one launch instead of one per layer. The graph reads and writes fixed tensors on the GPU; a call
     copies the batch in, replays, and copies the float32 output back. One caller at a time (the
     buffers are shared), as a predictor is used."""
-    MAX_SIZES = 8    # batch sizes beyond these run the module as it is (each graph holds its buffers)
+    MAX_SIZES = 8    # beyond these, run() answers None: the caller runs the module as it is (a graph holds buffers)
 
     def __init__(self, module, dtype):
         import torch
         self._torch, self._module, self._dtype = torch, module, dtype
         self._graphs: dict[tuple, tuple[Any, Any, Any]] = {}   # shape -> (input, output, graph)
 
-    def run(self, batch: np.ndarray) -> np.ndarray:
+    def run(self, batch: np.ndarray) -> np.ndarray | None:
         torch = self._torch
         if batch.shape not in self._graphs:
             if len(self._graphs) >= self.MAX_SIZES:
-                with torch.inference_mode():
-                    return self._module(torch.from_numpy(batch).to("cuda", self._dtype)).float().cpu().numpy()
+                return None
             try:
                 self._graphs[batch.shape] = self._capture(batch.shape)
             except RuntimeError as error:   # torch's error for work that a capture cannot record
