@@ -1,6 +1,7 @@
 """Pure functions over a job graph given as `{node: [dependencies]}` (as in Dask's task graphs).
 
-`graph_of(jobs)` builds that mapping from Job objects (by key), pulling in every dependency.
+`graph_of(jobs)` builds that mapping from Job objects (by key), pulling in every dependency;
+`in_order(jobs)` lists them, dependencies first, without building it (a plan's one pass).
 """
 from __future__ import annotations
 
@@ -25,6 +26,29 @@ def graph_of(jobs: Iterable) -> tuple[dict[str, list[str]], dict[str, object]]:
         graph[job.key] = list(dict.fromkeys(d.key for d in deps))
         stack.extend(reversed(deps))
     return graph, by_key
+
+
+def in_order(jobs: Iterable) -> list:
+    """`jobs` and everything they depend on, each once (by key), every dependency before its dependents;
+    ties keep the given order: the order of `toposort(graph_of(jobs)[0])`, in one pass. Jobs fix their
+    dependencies when they are made (a job's key is made of its dependencies' keys), so they hold no cycle."""
+    order, seen = [], set()
+    for root in jobs:
+        if root.key in seen:
+            continue
+        seen.add(root.key)
+        stack = [(root, iter(root.dep_jobs()))]
+        while stack:
+            job, deps = stack[-1]
+            for dep in deps:
+                if dep.key not in seen:
+                    seen.add(dep.key)
+                    stack.append((dep, iter(dep.dep_jobs())))
+                    break
+            else:
+                stack.pop()
+                order.append(job)
+    return order
 
 
 def find_cycle(graph: Graph) -> list | None:

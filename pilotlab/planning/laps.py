@@ -14,9 +14,11 @@ from pilotlab.specs.online import LapSettings, OnlineSpec
 def online_jobs(planner, optimize: Job, combination: dict, hardware: str, timing: Job) -> list[Job]:
     model, strategy, place = combination["model"], combination["strategy"], lap_place(combination)
     labels = {"model": model, "strategy": strategy, "hardware": hardware}
-    brain, deps, inputs = replay_inputs(planner, combination, hardware, timing)
-    return [_lap(planner, f"online {model}/{strategy} on {hardware}", labels, hardware, place, direction,
-                 brain, {"artifact": optimize, **deps}, inputs)
+    # the same for every circuit of a (model, strategy, hardware, world): worked out once
+    brain, deps, inputs = planner.remembered(("replay", model, strategy, hardware, combination.get("world")),
+                                             lambda: replay_inputs(planner, combination, hardware, timing))
+    name, deps = f"online {model}/{strategy} on {hardware}", {"artifact": optimize, **deps}
+    return [_lap(planner, name, labels, hardware, place, direction, brain, deps, inputs)
             for direction in planner.config.online.directions]
 
 
@@ -27,7 +29,8 @@ def lap_place(combination: dict) -> tuple[str, str]:
 
 def replay_inputs(planner, combination: dict, hardware: str, timing: Job) -> tuple[dict, dict, dict]:
     """(params, deps, inputs) of a network lap for the latencies it replays: the offline job's samples
-    (and the baseline's, to scale them to latency_scale_to_ms), or the hardware profile's latency file."""
+    (and the baseline's, to scale them to latency_scale_to_ms), or the hardware profile's latency file.
+    (Shared by the laps of every circuit: read-only.)"""
     online, model = planner.config.online, str(combination["model"])
     params: dict[str, Any] = {"brain": "network"}
     if online.timing != "replay":
@@ -80,11 +83,19 @@ def _lap(planner, name: str, labels: dict, hardware: str, place: tuple[str, str]
          brain: dict, deps: dict, inputs: dict | None = None) -> Job:
     axis, circuit = place
     # The params of every lap of one (hardware, place, direction, brain) are equal: built once.
-    slot = ("online", hardware, axis, circuit, direction, repr(sorted(brain.items())))
+    slot = ("online", hardware, axis, circuit, direction, _brain_slot(brain))
     params, circuit_inputs, place_labels = planner.remembered(slot, lambda: _lap_params(
         planner, hardware, axis, circuit, direction, brain))
     return Job("online", f"{name} at {circuit} {direction}", params, deps=deps,
                inputs={**circuit_inputs, **inputs} if inputs else circuit_inputs, labels={**labels, **place_labels})
+
+
+def _brain_slot(brain: dict) -> str:
+    """The brain's part of a lap's params slot: its name alone for a plain brain (most laps: a network
+    replaying its offline job's latencies), else every setting written out (never starts like a name)."""
+    if brain.keys() == {"brain"}:
+        return brain["brain"]
+    return repr(sorted(brain.items()))
 
 
 def _lap_params(planner, hardware: str, axis: str, circuit: str, direction: str, brain: dict) -> tuple:

@@ -57,8 +57,8 @@ class Planner:
         return jobs
 
     def combination_jobs(self, combination: dict[str, Any]) -> list[Job]:
-        missing = [axis for axis in ("model", "strategy") if axis not in combination]
-        if missing:
+        if "model" not in combination or "strategy" not in combination:
+            missing = [axis for axis in ("model", "strategy") if axis not in combination]
             raise self.recipe.error(f"the combination {combination} has no {' and no '.join(missing)}; "
                                     "every combination needs a model and a strategy", ["matrix"])
         if "circuit" in combination and "world" in combination:

@@ -4,7 +4,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from matrix import CycleError
-from matrix.dag import dependents, find_cycle, graph_of, heights, subgraph, toposort
+from matrix.dag import dependents, find_cycle, graph_of, heights, in_order, subgraph, toposort
 from matrix.jobs import Job
 from tests.matrix import toydomain  # noqa: F401
 
@@ -60,3 +60,14 @@ def test_toposort_on_random_dags(edges):
     assert find_cycle(graph) is None
     height = heights(graph)
     assert all(height[d] > height[n] for n, deps in graph.items() for d in deps)
+
+
+@given(dags, st.lists(st.integers(0, 24), max_size=6))
+def test_in_order_is_toposort_of_graph_of_in_one_pass(edges, roots):
+    jobs: list[Job] = []
+    for i, deps in enumerate(edges):   # job i depends on lower ids; jobs 2k and k (k odd) have equal params: equal keys where their deps are too
+        jobs.append(Job("source", f"n{i}", {"value": i // 2 if i % 2 == 0 else i},
+                        deps={f"d{k}": jobs[j] for k, j in enumerate(deps) if j < i}))
+    chosen = [jobs[r % len(jobs)] for r in roots] or jobs
+    graph, by_key = graph_of(chosen)
+    assert [job.key for job in in_order(chosen)] == toposort(graph)

@@ -3,7 +3,7 @@ import math
 
 import pytest
 
-from matrix.jobs import Job, UnserialisableError, canonical_json, input_file, make_key
+from matrix.jobs import InputFile, Job, UnserialisableError, canonical_json, input_file, make_key
 from tests.matrix import toydomain  # noqa: F401  (registers the toy kinds)
 
 
@@ -22,6 +22,19 @@ def test_golden_key_pins_the_format():
 def test_golden_key_of_an_empty_job():
     assert make_key("noop", {}, {}, {}, "") == \
         "801d3eee219c57d6fda717edb8bb89289bdf25e8bcab3584c86735ebeec2fba3"
+
+
+def test_a_jobs_key_is_make_key_of_its_parts():
+    # Job.key writes the canonical JSON from its jobs and files directly: the same text as make_key's
+    source = Job("source", "s", {"value": 1})
+    other = Job("source", "t", {"value": 2})
+    job = Job("power", "p", {"power": 3, "é": [1, {"b": None, "a": 2.5}]},
+              deps={"z": source, "a": (other, source), "m": [source]},
+              inputs={"bag": InputFile("x.bag", "ef" * 32), "b\"ad": InputFile("y", "01" * 32)})
+    assert job.key == make_key("power", dict(job.params), {"z": source.key, "a": [other.key, source.key],
+                                                          "m": [source.key]},
+                               {"bag": "ef" * 32, "b\"ad": "01" * 32}, job.code)
+    assert Job("source", "n").key == make_key("source", {}, {}, {}, Job("source", "n").code)
 
 
 @pytest.mark.parametrize("bad", [{1: "int key"}, {"x": {1, 2}}, {"x": object()}, {"x": math.nan},
