@@ -65,7 +65,8 @@ def test_toposort_on_random_dags(edges):
 @given(dags, st.lists(st.integers(0, 24), max_size=6))
 def test_in_order_is_toposort_of_graph_of_in_one_pass(edges, roots):
     jobs: list[Job] = []
-    for i, deps in enumerate(edges):   # job i depends on lower ids; jobs 2k and k (k odd) have equal params: equal keys where their deps are too
+    # job i depends on lower ids; jobs 2k and k (k odd) have equal params (equal keys where their deps are too)
+    for i, deps in enumerate(edges):
         jobs.append(Job("source", f"n{i}", {"value": i // 2 if i % 2 == 0 else i},
                         deps={f"d{k}": jobs[j] for k, j in enumerate(deps) if j < i}))
     chosen = [jobs[r % len(jobs)] for r in roots] or jobs
