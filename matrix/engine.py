@@ -12,8 +12,7 @@ import re
 import shutil
 import time
 from collections import Counter
-from collections.abc import Iterable, Iterator
-from contextlib import contextmanager
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -73,28 +72,39 @@ def plan_jobs(recipe: Recipe, domain: Domain) -> list:
 
 
 def make_plan(recipe: Recipe, domain: Domain, store: Store, force: Iterable[str] = ()) -> Plan:
-    with _collector_paused():
+    with _CollectorPaused() as paused:
         jobs = plan_jobs(recipe, domain)
+        paused.freeze = len(jobs) >= FREEZE_FROM_JOBS
         forced = _check_forced(force)
         previous = (read_json(store.recipe_path(slug(recipe.name))) or {}).get("jobs", {})
         listing = StoreListing.of(store)
         return Plan(recipe, [job_status(job, store, previous, forced, listing) for job in jobs])
 
 
-@contextmanager
-def _collector_paused() -> Iterator[None]:
+FREEZE_FROM_JOBS = 10_000
+
+
+class _CollectorPaused:
     """Python's cycle collector paused: a plan makes a few objects a job and no cycles, and the collector
     would walk every object made so far again and again as they pile up (a quarter of the time of a
-    100,000-job plan). Afterwards every object alive is frozen (gc.freeze: left out of later collections,
-    still freed by reference counting) rather than walked once more when collecting resumes, which took
-    another 6 % of such a plan; a cycle among them is never collected, and a plan makes none."""
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was_enabled:
-            gc.freeze()
+    100,000-job plan). After a plan of FREEZE_FROM_JOBS jobs or more, every object alive is frozen
+    (gc.freeze: left out of later collections, still freed by reference counting) rather than walked once
+    more when collecting resumes (another 6 % of such a plan). Not after a smaller one, where that walk is
+    short: a cycle left for the collector at that moment would never be collected, and a long-lived
+    process (the tests, a Dask client) plans many times."""
+
+    def __init__(self) -> None:
+        self.freeze = False
+
+    def __enter__(self) -> _CollectorPaused:
+        self.was_enabled = gc.isenabled()
+        gc.disable()
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        if self.was_enabled:
+            if self.freeze:
+                gc.freeze()
             gc.enable()
 
 

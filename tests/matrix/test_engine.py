@@ -276,3 +276,18 @@ def test_the_critical_path_starts_first_and_a_long_job_nothing_needs_does_not_ho
         assert schedule.take(True, 1, 2) is None
     finally:
         KINDS._entries.pop("alone_toy")
+
+
+@pytest.mark.parametrize("freeze_from, frozen", [(10_000, False), (1, True)])
+def test_planning_pauses_the_collector_and_freezes_only_after_a_large_plan(tmp_path, monkeypatch, freeze_from,
+                                                                        frozen):
+    import gc
+    monkeypatch.setattr(engine, "FREEZE_FROM_JOBS", freeze_from)
+    recipe = load_recipe(recipe_file(tmp_path), TOY)
+    gc.unfreeze()
+    try:
+        plan = engine.make_plan(recipe, TOY, Store(tmp_path / "store"))
+        assert gc.isenabled() and len(plan.statuses) == 10   # 3 sources, 6 powers, their total
+        assert (gc.get_freeze_count() > 0) == frozen
+    finally:
+        gc.unfreeze()
