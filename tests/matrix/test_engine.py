@@ -1,4 +1,5 @@
 """Incremental runs on the toy domain: exactly the jobs downstream of an edit rerun."""
+import gc
 import importlib
 import sys
 
@@ -281,7 +282,6 @@ def test_the_critical_path_starts_first_and_a_long_job_nothing_needs_does_not_ho
 @pytest.mark.parametrize("freeze_from, frozen", [(10_000, False), (1, True)])
 def test_planning_pauses_the_collector_and_freezes_only_after_a_large_plan(tmp_path, monkeypatch, freeze_from,
                                                                         frozen):
-    import gc
     monkeypatch.setattr(engine, "FREEZE_FROM_JOBS", freeze_from)
     recipe = load_recipe(recipe_file(tmp_path), TOY)
     gc.unfreeze()
