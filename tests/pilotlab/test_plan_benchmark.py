@@ -5,11 +5,13 @@
 - a recipe of distinct entries: 100 models × 100 strategies × 2 hardware × 4 circuits (80,000 cells,
   about 110,000 jobs; target ≤ 5 s).
 
-Each is planned in a fresh interpreter (so its peak memory is its own): seconds of load + plan, and the
-process's peak resident memory (imports included). Never asserts timings.
+Each is planned in a fresh interpreter (so its peak memory is its own): seconds of load + plan, the
+process's peak resident memory (imports included) and, where `perf` is installed, the instructions it ran
+(a steadier measure than seconds on a shared machine). Never asserts timings.
 Run: python -m pytest -m benchmark -s tests/pilotlab/test_plan_benchmark.py
 """
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -51,11 +53,21 @@ def recipe(path: Path, models: int, strategies: int, circuits: list[str], distin
 
 
 def planned(path: Path, store: Path) -> dict:
-    out = subprocess.run([sys.executable, "-c", PLAN, str(path), str(store)], cwd=ROOT, capture_output=True,
-                         text=True, env={"PYTHONPATH": python_path(ROOT), "PATH": "/usr/bin:/bin",
-                                         "HOME": str(store.parent)})
+    """The child's figures; with `perf` on the machine, also the instructions it ran (user mode, imports
+    included): a count that moves well under 1 % between runs where wall time on a shared machine can
+    move by a quarter, so two versions of the planner compare by it."""
+    perf = shutil.which("perf")
+    counted = store.parent / "perf.csv"
+    prefix = [perf, "stat", "-x", ",", "-e", "instructions:u", "-o", str(counted)] if perf else []
+    out = subprocess.run([*prefix, sys.executable, "-c", PLAN, str(path), str(store)], cwd=ROOT,
+                         capture_output=True, text=True, env={"PYTHONPATH": python_path(ROOT),
+                                                             "PATH": "/usr/bin:/bin", "HOME": str(store.parent)})
     assert out.returncode == 0, out.stderr
-    return json.loads(out.stdout.splitlines()[-1])
+    figures = json.loads(out.stdout.splitlines()[-1])
+    if perf and counted.exists():
+        count = next((line.split(",")[0] for line in counted.read_text().splitlines() if "instructions" in line), "")
+        figures["instructions"] = int(count) if count.isdigit() else None   # "<not supported>" in some VMs
+    return figures
 
 
 @pytest.mark.benchmark
@@ -65,6 +77,7 @@ def planned(path: Path, store: Path) -> dict:
 ])
 def test_plan_cost_follows_jobs(tmp_path, name, models, strategies, circuits, distinct, target):
     figures = planned(recipe(tmp_path / "r.yaml", models, strategies, circuits, distinct), tmp_path / "store")
+    counted = f", {figures['instructions'] / 1e9:.2f} G instructions" if figures.get("instructions") else ""
     print(f"\nplan of {name}: {figures['cells']:,} cells, {figures['jobs']:,} jobs: {figures['seconds']:.2f} s, "
-          f"peak {figures['peak_mb']:.0f} MB (target {target})")
+          f"peak {figures['peak_mb']:.0f} MB{counted} (target {target})")
     assert figures["cells"] == models * strategies * 2 * len(circuits)
