@@ -71,6 +71,9 @@ def plan_jobs(recipe: Recipe, domain: Domain) -> list:
     return jobs
 
 
+FREEZE_FROM_JOBS = 10_000   # plans this large freeze what is alive after them (_CollectorPaused)
+
+
 def make_plan(recipe: Recipe, domain: Domain, store: Store, force: Iterable[str] = ()) -> Plan:
     with _CollectorPaused() as paused:
         jobs = plan_jobs(recipe, domain)
@@ -79,9 +82,6 @@ def make_plan(recipe: Recipe, domain: Domain, store: Store, force: Iterable[str]
         previous = (read_json(store.recipe_path(slug(recipe.name))) or {}).get("jobs", {})
         listing = StoreListing.of(store)
         return Plan(recipe, [job_status(job, store, previous, forced, listing) for job in jobs])
-
-
-FREEZE_FROM_JOBS = 10_000
 
 
 class _CollectorPaused:

@@ -96,13 +96,13 @@ def _walk(value: Any, where: str) -> None:
 def make_key(kind: str, params: Mapping[str, Any], deps: Mapping[str, Any],
              inputs: Mapping[str, str], code: str) -> str:
     """The job key: sha256 hex of canonical JSON. Golden tests pin this format."""
-    return _key_of(kind, canonical_json(params), deps, inputs, code)
+    return _key_of(kind, canonical_json(params), _names(deps), _names(inputs), code)
 
 
-def _key_of(kind: str, params_json: str, deps: Mapping[str, Any], inputs: Mapping[str, str], code: str) -> str:
-    """make_key with the params written already: canonical JSON of the payload is its parts' canonical
+def _key_of(kind: str, params_json: str, deps_json: str, inputs_json: str, code: str) -> str:
+    """make_key with its parts written already: canonical JSON of the payload is its parts' canonical
     JSON in sorted key order, so params shared by many jobs are written once, not once a job."""
-    text = (f'{{"code":{_string(code)},"deps":{_names(deps)},"format":{KEY_FORMAT},"inputs":{_names(inputs)},'
+    text = (f'{{"code":{_string(code)},"deps":{deps_json},"format":{KEY_FORMAT},"inputs":{inputs_json},'
             f'"kind":{_string(kind)},"params":{params_json}}}')
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -120,19 +120,12 @@ def _names(mapping: Mapping[str, Any]) -> str:
 
 
 def _dep_keys_json(deps: Mapping[str, Job | tuple[Job, ...]]) -> str:
-    """_names of {role: dep key or [dep keys]}, from the jobs."""
+    """_names of a job's {role: dep key or [dep keys]}, written from the jobs (no dict made on the way)."""
     if not deps:
         return "{}"
     return "{" + ",".join([_string(role) + ":" + ("[" + ",".join([_string(d.key) for d in dep]) + "]"
                                                    if type(dep) is tuple else _string(dep.key))
                            for role, dep in sorted(deps.items())]) + "}"
-
-
-def _input_hashes_json(inputs: Mapping[str, InputFile]) -> str:
-    """_names of {role: the file's sha256}."""
-    if not inputs:
-        return "{}"
-    return "{" + ",".join([_string(role) + ":" + _string(file.sha256) for role, file in sorted(inputs.items())]) + "}"
 
 
 def _list(value: Any) -> str:
@@ -246,11 +239,9 @@ class Job:
 
     @_once
     def key(self) -> str:
-        # make_key's canonical JSON, its deps and inputs written straight from the jobs and files (a plan
-        # makes a key a job; a golden test pins that both write the same text)
-        text = (f'{{"code":{_string(self.code)},"deps":{_dep_keys_json(self.deps)},"format":{KEY_FORMAT},'
-                f'"inputs":{_input_hashes_json(self.inputs)},"kind":{_string(self.kind)},"params":{self.params.json}}}')
-        return hashlib.sha256(text.encode()).hexdigest()
+        # the deps written straight from the jobs (a plan makes a key a job; a test pins it to make_key)
+        return _key_of(self.kind, self.params.json, _dep_keys_json(self.deps),
+                       _names({role: f.sha256 for role, f in self.inputs.items()}), self.code)
 
     def dep_keys(self) -> dict[str, str | list[str]]:
         return {role: [d.key for d in dep] if isinstance(dep, tuple) else dep.key
