@@ -9,10 +9,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from matrix.registry import Registry
-from pilotlab.report.data import ReportData, ReportRow, timing_issue
+
+if TYPE_CHECKING:   # the rows are read only when a report is written; a recipe names a study to plan
+    from pilotlab.report.data import ReportData, ReportRow
 
 Verdict = Literal["holds", "does not hold", "not testable here"]
 
@@ -24,7 +26,7 @@ class ClaimCheck:
     found: str          # what we measured
 
 
-Check = Callable[[ReportData], ClaimCheck]
+Check = Callable[["ReportData"], ClaimCheck]
 STUDIES: Registry[tuple[str, tuple[Check, ...]]] = Registry("study")   # name -> (title, checks)
 
 
@@ -78,6 +80,7 @@ def _lowest(claim: str, data: ReportData, strategy: str, metric: str, label: str
 
 def _untrusted_timing(claim: str, rows) -> ClaimCheck | None:
     """A "not testable here" verdict when the latencies of `rows` cannot be compared, else None."""
+    from pilotlab.report.data import timing_issue
     issue = timing_issue([r for r in rows if r is not None])
     return _untestable(claim, f"timings not to be trusted: {issue}") if issue else None
 

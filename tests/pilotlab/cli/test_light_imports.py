@@ -68,6 +68,7 @@ def test_planning_the_study_imports_no_heavy_library(tmp_path):
     print(f"\n`pilotlab plan recipes/study2022.yaml` in a fresh interpreter: {seconds:.2f} s (target < 0.5 s)")
     assert modules & HEAVY == set() and modules & HANDLERS == set()
     assert "numpy" not in modules
+    assert "pilotlab.report.data" not in modules   # a study to compare with is a name to plan, not its rows
     assert "rich" not in modules and "multiprocessing" not in modules   # --json prints no table, runs no job
     assert seconds < 20
 
