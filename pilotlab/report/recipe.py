@@ -43,6 +43,7 @@ def write_recipe_report(recipe: Recipe, store: Store, jobs: list, force: bool = 
     The report is written into a new folder beside the old one, then swapped in: a reader (or a
     second run writing the same report) never sees half a report. Writers of one folder take turns."""
     folder = report_folder(recipe)
+    _check_replaceable(folder)
     stamp = _stamp(recipe, jobs, store)
     if not force and read_json(folder / STAMP) == stamp:
         return None
@@ -74,8 +75,21 @@ def _writing(folder: Path) -> Iterator[Path]:
         lock.close()
 
 
+def _check_replaceable(folder: Path) -> None:
+    """A report replaces only a report (a folder holding our stamp) or an empty folder: never a file or
+    a folder of the user's that happens to sit where the recipe's name and report.folder point."""
+    if not (folder.exists() or folder.is_symlink()):
+        return
+    if folder.is_dir() and not folder.is_symlink() and ((folder / STAMP).is_file() or not any(folder.iterdir())):
+        return
+    what = "a folder that is not a pilotlab report (it has no .stamp)" if folder.is_dir() else "not a folder"
+    raise PilotlabError(f"report.folder: {folder} is {what}, and writing the report would replace it; move it "
+                        "away, or give the recipe another name or report.folder")
+
+
 def _swap(staging: Path, folder: Path) -> None:
     """Put `staging` where `folder` is: the old report moves aside first, then goes."""
+    _check_replaceable(folder)       # again, under the writers' lock: a folder may have appeared since
     old = folder.parent / f".{folder.name}.old-{os.getpid()}"
     if folder.exists():
         os.replace(folder, old)

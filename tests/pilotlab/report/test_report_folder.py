@@ -61,3 +61,28 @@ def test_a_run_writes_where_git_ignores_and_showcases_live_elsewhere():
     ignored = subprocess.run(["git", "check-ignore", "-q", str(folder / "README.md")], cwd=ROOT)
     assert ignored.returncode == 0
     assert (ROOT / "docs" / "reports" / "quickstart" / "README.md").is_file()
+
+
+def test_a_report_replaces_only_a_report_never_a_folder_or_file_of_yours(tmp_path, capsys):
+    """Outside test: a recipe named like a folder of the user's (`name: src`, `report: {folder: .}`)
+    had its report swapped in over that folder, deleting it. Now it is refused with one line, and the
+    folder and file stay; an empty folder or an earlier report is replaced as before."""
+    recipe, store = recipe_with_a_result(tmp_path, tmp_path / "out")
+    mine = tmp_path / "out" / "quickstart"
+    (mine / "src").mkdir(parents=True)
+    (mine / "src" / "main.py").write_text("print(1)\n")
+    assert main(["report", str(recipe), "--store", str(store)]) == 2
+    err = capsys.readouterr().err
+    assert "not a pilotlab report" in err and "another name or report.folder" in err and len(err.splitlines()) == 1
+    assert (mine / "src" / "main.py").read_text() == "print(1)\n"
+    (mine / "src" / "main.py").unlink()
+    (mine / "src").rmdir()
+    mine.rmdir()
+    mine.write_text("my thesis\n")                       # a file where the report folder would go
+    assert main(["report", str(recipe), "--store", str(store)]) == 2
+    assert "is not a folder" in capsys.readouterr().err and mine.read_text() == "my thesis\n"
+    mine.unlink()
+    mine.mkdir()                                         # an empty folder: taken
+    assert main(["report", str(recipe), "--store", str(store)]) == 0
+    assert main(["report", str(recipe), "--store", str(store)]) == 0   # its own report: replaced
+    assert (mine / ".stamp").is_file() and (mine / "README.md").is_file()
