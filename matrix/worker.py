@@ -20,7 +20,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from matrix.errors import MatrixError
+from matrix.errors import MatrixError, exit_message
 from matrix.hostlock import host_slot
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
 from matrix.runs import BUSY, DONE_ELSEWHERE, FAILED, NOT_APPLICABLE, OK
@@ -116,6 +116,8 @@ def _call_handler(store: Store, spec: dict, deps: dict, workdir: Path) -> tuple[
         except NotApplicable as na:
             log.info("not applicable: %s", na)
             return NOT_APPLICABLE, str(na), {}
+        except SystemExit as exit_:   # else it would pass the pool and end the whole run with its code
+            raise MatrixError(exit_message(exit_)) from exit_
     value = dict(value or {})
     where = non_finite(value)
     if where:

@@ -88,6 +88,17 @@ def test_failure_skips_dependents_and_reruns_next_time(tmp_path):
     assert reason.startswith("failed last time: RuntimeError: source source c was told to fail")
 
 
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_a_job_whose_code_calls_exit_fails_with_a_reason_and_the_run_goes_on(tmp_path, jobs):
+    """Outside test: a user's brain calling sys.exit(3) ended `pilotlab run` with code 3 and no word
+    (SystemExit passed the process pool). Now it is that job's failure, with what to do."""
+    store = Store(tmp_path / "store")
+    plan, summary = run(recipe_file(tmp_path, c_extra=", fail: exit"), store, keep_going=True, jobs=jobs)
+    status = {o.name: (o.status, o.reason) for o in summary.outcomes}
+    assert status["source c"][0] == "failed" and "called exit(3)" in status["source c"][1]
+    assert status["power a^2"][0] == "ok" and summary.failed
+
+
 def test_without_keep_going_nothing_new_starts_after_a_failure(tmp_path):
     store = Store(tmp_path / "store")
     _, summary = run(recipe_file(tmp_path, c_extra=", fail: true"), store, jobs=1)

@@ -14,8 +14,9 @@ import contextlib
 import json
 import logging
 import os
+import sys
 import time
-from typing import Any
+from typing import Any, Literal
 
 import pydantic
 
@@ -29,7 +30,7 @@ class SourceConfig(pydantic.BaseModel):
     model_config = pydantic.ConfigDict(extra="forbid", frozen=True)
     value: int
     sleep: float = 0.0
-    fail: bool = False
+    fail: bool | Literal["exit"] = False     # exit: call sys.exit(3), as a user's module may
     not_applicable: bool = False
     noise: bool = False           # write to file descriptor 2 directly, as C libraries do
     library_log: bool = False     # log through a handler on sys.stderr made once per process, as torch does
@@ -70,6 +71,8 @@ def run_source(ctx) -> dict[str, Any]:
         library_logger().warning("library warning from %s", ctx.name)
     with timed(ctx):
         time.sleep(ctx.params["sleep"])
+    if ctx.params["fail"] == "exit":
+        sys.exit(3)
     if ctx.params["fail"]:
         raise RuntimeError(f"source {ctx.name} was told to fail")
     if ctx.params["not_applicable"]:

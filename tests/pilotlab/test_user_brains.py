@@ -132,6 +132,17 @@ def test_pilotlab_drive_names_the_line_of_a_broken_brain(tmp_path, monkeypatch, 
     assert f"{tmp_path / 'brains' / 'bad.py'}:2: syntax error" in capsys.readouterr().err
 
 
+def test_pilotlab_drive_with_a_brain_that_calls_exit_is_one_line_and_fails(tmp_path, monkeypatch, capsys):
+    """Outside test: a brain raising SystemExit(0) ended `pilotlab drive` with code 0, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "brains").mkdir()
+    (tmp_path / "brains" / "quits.py").write_text("class Quits:\n    def act(self, image):\n        raise SystemExit(0)\n")
+    assert main(["drive", "--brain", "brains/quits.py:Quits", "--circuit", "simple_circuit", "--timeout", "1",
+                 "--out", "run"]) == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert len(error) == 1 and "called exit(0)" in error[0]
+
+
 def test_planning_reads_a_user_brain_but_never_runs_it(tmp_path):
     recipe = recipe_at(tmp_path)
     (tmp_path / "brains" / "mine.py").write_text("raise SystemExit('planning ran the brain')\n")
