@@ -52,6 +52,9 @@ def connect(scheduler: str | None, workers: int = 2):
             return distributed.Client(scheduler, timeout="20s")
         except (OSError, TimeoutError) as error:
             raise MatrixError(f"cannot reach the Dask scheduler at {scheduler}: {error}") from None
+        except ValueError as error:   # not an address at all (a port that is not a number, a URL)
+            raise MatrixError(f"--scheduler {scheduler}: not a Dask scheduler address ({error}); give "
+                              "tcp://HOST:PORT, e.g. tcp://127.0.0.1:8786") from None
     cluster = distributed.LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
                                        dashboard_address=None)
     return distributed.Client(cluster)

@@ -74,11 +74,15 @@ def load_recipe(path: Path | str, domain: Domain) -> Recipe:
     return recipe
 
 
+NAME_LENGTH = 120   # the name names files and folders (a report's, a run's record): most systems allow 255 bytes
+
+
 def recipe_model(domain: Domain) -> type[pydantic.BaseModel]:
     fields = {key: (annotation, default) for key, (annotation, default) in domain.sections.items()}
     return pydantic.create_model(
         "Recipe", __config__=pydantic.ConfigDict(extra="forbid", frozen=True),
-        name=(str, ...), description=(str, ""), matrix=(dict[str, Any], ...), **fields)
+        name=(pydantic.constr(min_length=1, max_length=NAME_LENGTH), ...), description=(str, ""),
+        matrix=(dict[str, Any], ...), **fields)
 
 
 def line_of(lines: Lines, path: tuple) -> int | None:

@@ -14,7 +14,7 @@ import traceback
 
 import pydantic
 
-from matrix.errors import MatrixError
+from matrix.errors import MatrixError, exit_message
 from pilotlab.specs.base import spec_problem
 
 
@@ -38,6 +38,13 @@ def _command_modules(argv: list[str] | None) -> list[str]:
     return [owner] if owner in modules else modules
 
 
+def os_problem(error: OSError) -> str:
+    """One line for a file-system error on a path the user gave (or one made from it)."""
+    where = f"{error.filename} -> {error.filename2}" if error.filename2 else str(error.filename)
+    return (f"{where}: {error.strerror or error} ({type(error).__name__}); give a path where pilotlab can "
+            "make folders and write files")
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = build_parser(argv).parse_args(argv)
@@ -48,6 +55,18 @@ def main(argv: list[str] | None = None) -> int:
             traceback.print_exc()
         message = spec_problem(error) if isinstance(error, pydantic.ValidationError) else error
         print(f"pilotlab: error: {message}", file=sys.stderr)
+        return 2
+    except OSError as error:        # a path given that cannot be made or written: a file where a folder goes...
+        if error.filename is None:   # no path of the user's in it: a bug, with its traceback
+            raise
+        if args.verbose:
+            traceback.print_exc()
+        print(f"pilotlab: error: {os_problem(error)}", file=sys.stderr)
+        return 2
+    except SystemExit as exit_:     # argparse's exits happen above; here it is code of the user's (a brain)
+        if args.verbose:
+            traceback.print_exc()
+        print(f"pilotlab: error: {exit_message(exit_)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("pilotlab: interrupted", file=sys.stderr)

@@ -4,6 +4,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from pilotlab.errors import PilotlabError
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser("circuit", help="list, draw and import circuits",
@@ -54,9 +56,24 @@ def show_circuit(args: argparse.Namespace) -> int:
     from pilotlab.circuits.load import get_circuit
     from pilotlab.circuits.draw import draw_map
     circuit = get_circuit(args.name, args.direction)
-    path = draw_map(circuit, args.out or Path(f"{circuit.name}.png"))
+    path = draw_map(circuit, _map_path(args.out, circuit.name))
     print(f"{circuit.name} ({circuit.direction}, {circuit.length:.1f} m): map written to {path}")
     return 0
+
+
+def _map_path(out: Path | None, name: str) -> Path:
+    """Where `-o` puts the map: NAME.png by default or inside a folder given; a file name without a
+    suffix gets .png (what is written is what is printed); a suffix matplotlib cannot write is refused."""
+    from matplotlib.backend_bases import FigureCanvasBase
+    if out is None or out.is_dir():
+        return (out or Path()) / f"{name}.png"
+    if not out.suffix:
+        return out.with_suffix(".png")
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if out.suffix[1:].lower() not in formats:
+        raise PilotlabError(f"-o {out}: cannot write a {out.suffix} image; give one of "
+                            f"{', '.join('.' + f for f in sorted(formats))}")
+    return out
 
 
 def import_from_bag(args: argparse.Namespace) -> int:

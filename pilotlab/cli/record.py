@@ -5,10 +5,12 @@ import argparse
 import re
 from pathlib import Path
 
+import pydantic
+
 from pilotlab.cli._options import add_spec_options, spec_from_args
 from pilotlab.cli._world import add_world_options, place_of
 from pilotlab.errors import PilotlabError
-from pilotlab.specs.base import CameraSize
+from pilotlab.specs.base import CameraSize, spec_problem
 from pilotlab.specs.record import RecordSpec
 
 
@@ -45,8 +47,17 @@ def camera_of(args: argparse.Namespace) -> dict:
     width, height = parse_size(args.size)
     try:
         return {"camera": CameraSize(width=width, height=height)}
-    except PilotlabError as error:
-        raise PilotlabError(f"--size {args.size}: {str(error).removeprefix('CameraSize: ')}") from None
+    except pydantic.ValidationError as error:
+        raise PilotlabError(f"--size {args.size}: {spec_problem(error).removeprefix('CameraSize: ')}") from None
+
+
+def check_out(path: Path) -> None:
+    """Before the progress bar: a bag that is there already, or a file where its folder goes."""
+    if path.exists():
+        raise PilotlabError(f"--out: {path} already exists; remove it or choose another output path")
+    folder = next((p for p in path.parents if p.exists()), None)
+    if folder is not None and not folder.is_dir():
+        raise PilotlabError(f"--out: {folder} is a file, so {path} cannot be written below it")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -55,11 +66,12 @@ def run(args: argparse.Namespace) -> int:
     from pilotlab.circuits.load import get_circuit
     from pilotlab.sim.env import describe_end
     from pilotlab.sim.record import record
-    from pilotlab.sim.record import check_rates
+    from pilotlab.sim.record import bag_path, check_rates
     place, assets, world = place_of(args)
     spec = spec_from_args(RecordSpec, args, **place, **camera_of(args),
                           **({"format": "ros1"} if args.out.suffix == ".bag" and not hasattr(args, "format") else {}))
     check_rates(spec)   # before the progress bar: an error is then the only line printed
+    check_out(bag_path(args.out, spec.format))
     columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:.0f} m"),
                TextColumn("{task.fields[frames]} frames"), TimeElapsedColumn(), TimeRemainingColumn())
     circuit = world.circuit(spec.direction) if world is not None else get_circuit(spec.circuit, spec.direction)

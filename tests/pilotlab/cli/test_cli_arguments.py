@@ -39,3 +39,41 @@ def test_a_command_s_parser_loads_its_own_module_and_help_lists_every_command(ca
         main(["nosuch"])
     err = capsys.readouterr().err
     assert "invalid choice: 'nosuch'" in err and "'record'" in err and "'plan'" in err
+
+
+@pytest.mark.parametrize("argv, message", [
+    # outside test: each ended in a traceback (a file where a folder goes, a format matplotlib lacks)
+    (["circuit", "show", "simple_circuit", "-o", "{afile}/map.png"], "{afile}: File exists (FileExistsError)"),
+    (["circuit", "show", "simple_circuit", "-o", "map.xyz"], "-o map.xyz: cannot write a .xyz image; give one of"),
+    (["record", "--circuit", "simple_circuit", "--laps", "0.05", "--out", "{afile}/run"],
+     "--out: {afile} is a file, so {afile}/run cannot be written below it"),
+    (["record", "--circuit", "simple_circuit", "--laps", "0.05", "--out", "{afile}"], "--out: {afile} already exists"),
+    (["record", "--circuit", "simple_circuit", "--size", "0x0", "--out", "run"],
+     "--size 0x0: width: Input should be greater than or equal to 16"),
+    (["run", "{recipe}", "--store", "{afile}"], "{afile}/"),
+    (["run", "{recipe}", "--executor", "dask", "--scheduler", "foo:bar"],
+     "--scheduler foo:bar: not a Dask scheduler address"),
+])
+def test_an_output_path_that_cannot_be_made_is_one_line(tmp_path, monkeypatch, capsys, argv, message):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("mine\n")
+    (tmp_path / "r.yaml").write_text("name: r\ndatasets:\n  train: {record: {circuits: [simple_circuit], laps: 0.1}}\n"
+                                     "  test: {record: {circuits: [simple_circuit], laps: 0.1}}\n"
+                                     "models:\n  m: {arch: pilotnet, epochs: 1}\nmatrix:\n  model: [m]\n"
+                                     "  strategy: [baseline]\n  circuit: [simple_circuit]\n")
+    names = {"afile": str(tmp_path / "afile"), "recipe": str(tmp_path / "r.yaml")}
+    assert main([arg.format(**names) for arg in argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("pilotlab: error: ") and err.count("\n") == 1 and message.format(**names) in err
+    assert (tmp_path / "afile").read_text() == "mine\n"
+
+
+def test_circuit_show_says_the_file_it_wrote(tmp_path, monkeypatch, capsys):
+    """Outside test: `-o mymap` wrote mymap.png and said "map written to mymap"."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "maps").mkdir()
+    assert main(["circuit", "show", "simple_circuit", "-o", "mymap"]) == 0
+    assert main(["circuit", "show", "simple_circuit", "-o", "maps"]) == 0
+    out = capsys.readouterr().out
+    assert "map written to mymap.png" in out and f"map written to {'maps/simple_circuit.png'}" in out
+    assert (tmp_path / "mymap.png").is_file() and (tmp_path / "maps" / "simple_circuit.png").is_file()
