@@ -130,16 +130,20 @@ def _build(loader: yaml.SafeLoader, node: yaml.Node, path: tuple, lines: Lines, 
 
 
 def _build_mapping(loader, node, path, lines, file) -> dict:
-    loader.flatten_mapping(node)  # resolves `<<: *anchor` merge keys
+    own = {id(key_node) for key_node, _ in node.value}   # the keys written here, not merged in
+    loader.flatten_mapping(node)  # resolves `<<: *anchor` merge keys: the merged pairs come first
     result: dict = {}
+    written: set = set()
     for key_node, value_node in node.value:
         key = loader.construct_object(key_node)
         if not isinstance(key, (str, int, float, bool)) and key is not None:
             raise RecipeError("mapping keys must be plain scalars", file=file,
                               line=key_node.start_mark.line + 1, path=path)
-        if key in result:
-            raise RecipeError(f"duplicate key {key!r}", file=file, line=key_node.start_mark.line + 1,
-                              path=path)
+        if id(key_node) in own:       # a key written here overrides a merged one, as YAML's merge says
+            if key in written:
+                raise RecipeError(f"duplicate key {key!r}", file=file, line=key_node.start_mark.line + 1,
+                                  path=path)
+            written.add(key)
         lines[path + (key,)] = key_node.start_mark.line + 1
         result[key] = _build(loader, value_node, path + (key,), lines, file)
     return result

@@ -137,3 +137,14 @@ def test_both_parsers_read_a_document_alike(monkeypatch):
     monkeypatch.setattr(yamlfile, "FAST_LOADER", None)
     assert load_yaml(DOCUMENT, "r.yaml") == fast
     assert fast[0]["models"]["a"]["epochs"] == 2 and fast[1][("models", "b", "block")] == 13
+
+
+def test_a_key_written_beside_a_merge_overrides_the_merged_one_and_duplicates_stay_errors():
+    """Outside test: `m2: {<<: *m, epochs: 1}` where *m has epochs was refused as a duplicate key;
+    YAML's merge lets the key written there override the merged one. Two written keys are an error."""
+    text = "m: &m {arch: a, epochs: 5, lr: 1}\nm2: {<<: *m, epochs: 1, lr: 2}\nm3:\n  <<: [*m]\n  epochs: 7\n"
+    data, lines = load_yaml(text, "r.yaml")
+    assert data["m2"] == {"arch": "a", "epochs": 1, "lr": 2} and data["m3"]["epochs"] == 7
+    assert lines[("m2", "epochs")] == 2
+    with pytest.raises(RecipeError, match=r"r.yaml:2: m2: duplicate key 'epochs'"):
+        load_yaml("m: &m {arch: a}\nm2: {<<: *m, epochs: 1, epochs: 2}\n", "r.yaml")
