@@ -68,9 +68,9 @@ class DatasetSpec(Spec):
 
 
 class CircuitSpec(Spec):
+    """A circuit of the recipe's own: a closed loop (the last point joins the first) whose road is the
+    default width (pilotlab.circuits.registry.DEFAULT_ROAD_WIDTH_M, 6 m); no other option is taken."""
     csv: str                      # x,y points of the centreline, in metres
-    road_width: float | None = None
-    closed: bool = True
 
 
 class ModelSpec(TrainSpec):

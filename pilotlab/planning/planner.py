@@ -202,12 +202,17 @@ class Planner:
         if not isinstance(base, str):
             kind = {list: "a list", dict: "a mapping", type(None): "nothing"}.get(type(base), type(base).__name__)
             raise self.recipe.error(f"`use` names one strategy (got {kind}); e.g. use: local_prune", where + ["use"])
+        if base not in STRATEGIES and base in self.config.strategies:
+            raise self.recipe.error(f"`use` names a built-in strategy, and {base!r} is a variant of this recipe; "
+                                    f"name the strategy {base!r} uses, with the options you want", where + ["use"])
         if base not in STRATEGIES:
             raise self.recipe.error(f"unknown strategy {base!r}{did_you_mean(base, STRATEGIES.names())}; "
                                     f"known: {', '.join(sorted(STRATEGIES.names()))}", where + ["use"])
         if base != name and name in STRATEGIES:
             raise self.recipe.error(f"{name!r} is a built-in strategy; give the variant of {base} a new name",
                                     where + ["use"])
+        if "version" in options:     # the code's own (what the job key follows); a checkpoint keeps its own
+            raise self.recipe.error("version is not an option: it is the strategy code's own", where + ["version"])
         try:
             make_strategy_config(base, options)
         except MatrixError as error:   # said of `base`: say it of this recipe's name

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 import types
 import typing
 from typing import Any, Literal
@@ -86,6 +87,25 @@ def _validator(config_cls: type) -> pydantic.TypeAdapter:
     return pydantic.TypeAdapter(config_cls)
 
 
+def _common_problem(config, options: dict[str, Any]) -> str | None:
+    """What is wrong with an option that means the same in every config, whichever registry it is of
+    (a batch size of 0 failed deep in the job as a ZeroDivisionError): numbers are finite, batch sizes,
+    frame counts, iterations and clusters at least 1, epochs at least 0, learning rates above 0."""
+    for name in options:
+        value = getattr(config, name)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            continue
+        if not math.isfinite(value):
+            return f"{name}: {value} is not a finite number"
+        least = 1 if name in ("batch_size", "iterations", "clusters") or name.endswith("_frames") else \
+            0 if name.endswith("epochs") else None
+        if least is not None and value < least:
+            return f"{name}: {value} must be at least {least}"
+        if name == "lr" and value <= 0:
+            return f"lr: {value} must be above 0"
+    return None
+
+
 def build_config(config_cls: type, options: dict[str, Any] | None, where: str):
     """A registry entry's frozen config dataclass (a strategy's, a model's, a brain's) from a
     recipe's options: unknown names get "did you mean", bad values the config's own words, and
@@ -99,7 +119,12 @@ def build_config(config_cls: type, options: dict[str, Any] | None, where: str):
     try:
         # No options: the config's own defaults, which need no validator (building one is ~1.5 ms a
         # class, most of what planning costs per strategy); its __post_init__ checks run all the same.
-        return _validator(config_cls).validate_python(options) if options else config_cls()
+        if not options:
+            return config_cls()
+        config = _validator(config_cls).validate_python(options)
+        if problem := _common_problem(config, options):
+            raise PilotlabError(problem)
+        return config
     except pydantic.ValidationError as error:
         problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors())
         raise PilotlabError(f"{where}: {problems}") from None

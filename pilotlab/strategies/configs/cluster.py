@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 from pilotlab.strategies.registry import register_strategy
 
@@ -14,7 +15,7 @@ class ClusterConfig:
     finetune_epochs: int = 2
     lr: float = 1e-4
     batch_size: int = 64
-    format: str = "checkpoint"       # checkpoint | torchscript | onnx
+    format: Literal["checkpoint", "torchscript", "onnx"] = "checkpoint"
 
 
 register_strategy("cluster", ClusterConfig, "pilotlab.strategies.cluster:cluster")

@@ -3,6 +3,7 @@ pilotlab/strategies/onnx_runtime.py)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 from pilotlab.strategies.registry import register_strategy
 
@@ -16,10 +17,10 @@ class OnnxRuntimeConfig:
 class OnnxRuntimeInt8Config:
     version: int = 1
     calibration_frames: int = 512         # training frames fed to the calibrator
-    calibrate_method: str = "minmax"      # minmax | entropy | percentile
-    quant_format: str = "qdq"             # qdq | qoperator
+    calibrate_method: Literal["minmax", "entropy", "percentile"] = "minmax"
+    quant_format: Literal["qdq", "qoperator"] = "qdq"
     per_channel: bool = False
-    weight_type: str = "int8"             # int8 | uint8
+    weight_type: Literal["int8", "uint8"] = "int8"
     float_first_conv: bool = True         # keep the 3-channel input conv in fp32 (faster here)
 
 

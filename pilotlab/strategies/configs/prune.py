@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 from pilotlab.strategies.configs.checks import check_fraction
 from pilotlab.strategies.registry import register_strategy
@@ -15,7 +16,7 @@ class LocalPruneConfig:
     finetune_epochs: int = 2
     lr: float = 1e-4
     batch_size: int = 64
-    format: str = "checkpoint"       # checkpoint (eager, as the study) | torchscript | onnx
+    format: Literal["checkpoint", "torchscript", "onnx"] = "checkpoint"   # checkpoint: eager, as the study
 
     def __post_init__(self) -> None:  # checked when the recipe is read, not when the job runs
         check_fraction("conv", self.conv)
@@ -29,7 +30,7 @@ class GlobalPruneConfig:
     finetune_epochs: int = 2
     lr: float = 1e-4
     batch_size: int = 64
-    format: str = "checkpoint"
+    format: Literal["checkpoint", "torchscript", "onnx"] = "checkpoint"
 
     def __post_init__(self) -> None:
         check_fraction("amount", self.amount)

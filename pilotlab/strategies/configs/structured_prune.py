@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 from pilotlab.strategies.configs.checks import check_distill, check_fraction, check_multiple
 from pilotlab.strategies.registry import register_strategy
@@ -14,7 +15,7 @@ class StructuredPruneConfig:
     finetune_epochs: int = 4         # a third of the channels gone is a new network: it needs real training
     lr: float = 1e-3                 # (2 epochs at 1e-4 left the quickstart's MSE 10x the baseline's)
     batch_size: int = 64
-    format: str = "torchscript"      # torchscript | onnx (the shapes change: no checkpoint)
+    format: Literal["torchscript", "onnx"] = "torchscript"   # the shapes change: no checkpoint
     multiple_of: int = 8             # round kept counts to a multiple of this: whole SIMD blocks (1: exact)
     distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs (0-1)
 

@@ -39,7 +39,7 @@ datasets:
   train: {folders: [dls], topics: {image: /cam, command: /cmd}}
   test: {bags: [run.bag]}
 circuits:
-  track: {csv: track.csv, road_width: 6}
+  track: {csv: track.csv}
 models:
   m: {arch: pilotnet, epochs: 1, labels: {v: [0, 5], w: [-1, 1]}}
 offline: {data: test, batch: 8}
