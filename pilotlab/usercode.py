@@ -84,6 +84,13 @@ def load_object(spec: str, base: Path) -> object:
 
 
 def _import_file(code: UserCode) -> object:
+    if (package := _in_package(code.file)) is not None:   # its relative imports need its package
+        root, dotted = package
+        module = _import_module(UserCode(code.spec, None, dotted, code.name), root)
+        if Path(getattr(module, "__file__", "") or "").resolve() != code.file:
+            raise UserCodeError(f"{code.spec}: another module {dotted!r} is loaded already (from "
+                                f"{getattr(module, '__file__', None)}); rename one of the two packages")
+        return module
     folder = str(code.file.parent)
     if folder not in sys.path:
         sys.path.insert(0, folder)
@@ -98,6 +105,18 @@ def _import_file(code: UserCode) -> object:
         sys.modules.pop(name, None)
         raise _import_error(code, error) from None
     return module
+
+
+def _in_package(file: Path) -> tuple[Path, str] | None:
+    """(the folder above its top package, its dotted name) for a file in a package (a folder holding
+    __init__.py), so that it imports as Python would import it from there; None for a plain file."""
+    parts = [] if file.name == "__init__.py" else [file.stem]
+    folder = file.parent
+    while (folder / "__init__.py").is_file() and folder.name.isidentifier() and folder != folder.parent:
+        parts.insert(0, folder.name)
+        folder = folder.parent
+    within = len(parts) > (0 if file.name == "__init__.py" else 1)
+    return (folder, ".".join(parts)) if within and all(p.isidentifier() for p in parts) else None
 
 
 def _import_module(code: UserCode, base: Path) -> object:

@@ -97,3 +97,18 @@ def clean_imports(monkeypatch):
     yield
     for name in set(sys.modules) - before:
         del sys.modules[name]
+
+
+def test_a_module_of_a_package_with_relative_imports_loads_by_its_name_or_its_file(tmp_path, monkeypatch):
+    """Outside test: `network: pkg.mine1:Net` whose module says `from .common import Base` failed in the
+    job ("attempted relative import with no known parent package"): the job loads the file the spec
+    names, which was loaded outside its package. A file in a package now imports as part of it."""
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    package = f"relpkg_{tmp_path.name.replace('-', '_')}"        # unique: sys.modules is per process
+    write(tmp_path, f"{package}/__init__.py", "")
+    write(tmp_path, f"{package}/common.py", "class Base:\n    gain = 2.0\n")
+    write(tmp_path, f"{package}/mine1.py", "from .common import Base\n\n\nclass Net(Base):\n    pass\n")
+    by_name = load_object(f"{package}.mine1:Net", tmp_path)
+    by_file = load_object(f"{tmp_path / package / 'mine1.py'}:Net", tmp_path / "elsewhere")
+    assert by_file is by_name and by_file.gain == 2.0
+    assert [f.name for f in source_files(f"{package}.mine1:Net", tmp_path)] == ["mine1.py", "common.py"]
