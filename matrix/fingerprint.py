@@ -13,6 +13,7 @@ import ast
 import hashlib
 import importlib.util
 import json
+import math
 import os
 import stat
 import sys
@@ -337,10 +338,13 @@ _PSEUDO_ROOTS = ("/proc", "/sys", "/dev")
 
 def _max_input_bytes() -> float:
     try:
-        return float(os.environ.get("MATRIX_MAX_INPUT_GB") or DEFAULT_MAX_INPUT_GB) * 1e9
+        gigabytes = float(os.environ.get("MATRIX_MAX_INPUT_GB") or DEFAULT_MAX_INPUT_GB)
     except ValueError:
-        raise MatrixError(f"MATRIX_MAX_INPUT_GB={os.environ['MATRIX_MAX_INPUT_GB']!r} is not a number "
-                          "(gigabytes one input may hold)") from None
+        gigabytes = math.nan
+    if not (math.isfinite(gigabytes) and gigabytes > 0):   # nan turned the limit off, -1 read as a limit
+        raise MatrixError(f"MATRIX_MAX_INPUT_GB={os.environ['MATRIX_MAX_INPUT_GB']!r} is not a positive number "
+                          "(gigabytes one input may hold)")
+    return gigabytes * 1e9
 
 
 def _check_size(path: Path, size: int, files: int) -> None:

@@ -81,9 +81,10 @@ def test_hashing_is_bounded_with_a_clear_error(tmp_path, monkeypatch):
                                           r"input may hold; .* raise the limit with MATRIX_MAX_INPUT_GB"):
         hash_path(tmp_path / "a")
     assert len(hash_path(tmp_path / "a" / "0.bin")) == 64
-    monkeypatch.setenv("MATRIX_MAX_INPUT_GB", "lots")
-    with pytest.raises(MatrixError, match="MATRIX_MAX_INPUT_GB='lots' is not a number"):
-        hash_path(tmp_path / "a" / "0.bin")
+    for bad in ("lots", "nan", "-1"):       # nan turned the limit off; -1 was read as a limit
+        monkeypatch.setenv("MATRIX_MAX_INPUT_GB", bad)
+        with pytest.raises(MatrixError, match=f"MATRIX_MAX_INPUT_GB='{bad}' is not a positive number"):
+            hash_path(tmp_path / "a" / "0.bin")
     monkeypatch.delenv("MATRIX_MAX_INPUT_GB")
     monkeypatch.setattr(matrix.fingerprint, "MAX_INPUT_FILES", 3)
     with pytest.raises(MatrixError, match=r"input folder .*/a holds more than 3 files; name the recording itself"):
