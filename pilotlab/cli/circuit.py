@@ -39,17 +39,28 @@ def register(subparsers) -> None:
 def list_circuits(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
+    from rich.text import Text
     from pilotlab.circuits import CIRCUITS, all_circuit_names, csv_path_of
     from pilotlab.circuits.load import get_circuit
     table = Table(title="circuits")
     for column in ("name", "length (m)", "road (m)", "timeout (s)", "source"):
         table.add_column(column, justify="right" if "(" in column else "left")
+    broken = []
     for name in all_circuit_names():
-        circuit = get_circuit(name)
         source = "built-in" if name in CIRCUITS else str(csv_path_of(name))
-        table.add_row(name, f"{circuit.length:.1f}", f"{circuit.road_width:g}", f"{circuit.timeout_s:.1f}", source)
-    Console().print(table)
-    return 0
+        try:
+            circuit = get_circuit(name)
+        except PilotlabError as error:   # one bad CSV in ./circuits/ does not hide the good ones
+            table.add_row(Text(name, style="red"), "-", "-", "-", Text(source))
+            broken.append(str(error))
+            continue
+        table.add_row(Text(name), f"{circuit.length:.1f}", f"{circuit.road_width:g}", f"{circuit.timeout_s:.1f}",
+                      Text(source))
+    console = Console()
+    console.print(table)
+    for problem in broken:
+        console.print(f"cannot be driven: {problem}", style="red", markup=False, highlight=False)
+    return 1 if broken else 0
 
 
 def show_circuit(args: argparse.Namespace) -> int:

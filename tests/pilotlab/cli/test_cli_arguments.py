@@ -77,3 +77,13 @@ def test_circuit_show_says_the_file_it_wrote(tmp_path, monkeypatch, capsys):
     out = capsys.readouterr().out
     assert "map written to mymap.png" in out and f"map written to {'maps/simple_circuit.png'}" in out
     assert (tmp_path / "mymap.png").is_file() and (tmp_path / "maps" / "simple_circuit.png").is_file()
+
+
+def test_circuit_list_shows_the_good_circuits_beside_a_bad_csv(tmp_path, monkeypatch, capsys):
+    """Outside test: one bad CSV in ./circuits/ made `circuit list` fail as a whole."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "circuits").mkdir()
+    (tmp_path / "circuits" / "bad.csv").write_text("x,y\n0,0\n1,0\n")
+    assert main(["circuit", "list"]) == 1
+    out = capsys.readouterr().out
+    assert "simple_circuit" in out and "bad" in out and "cannot be driven:" in out and "bad.csv" in out
