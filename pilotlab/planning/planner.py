@@ -146,7 +146,7 @@ class Planner:
     def path(self, value: str, where: list, expect: str = "any") -> Path:
         """The path a recipe value names (relative to the recipe's folder); it must exist, and be what
         `expect` says ("file", "recording": see pilotlab.definitions.path_problem), checked before hashing."""
-        from matrix.fingerprint import shown_path
+        from matrix.fingerprint import shown_path, system_root
         from pilotlab.definitions import path_problem
         try:
             path = Path(value).expanduser()
@@ -158,6 +158,8 @@ class Planner:
         if not exists:
             raise self.recipe.error(f"{shown_path(Path(value))} does not exist (looked for {shown_path(path)}; relative "
                                     "paths are relative to the recipe's folder)", where)
+        if root := system_root(path.resolve()):   # said here, with the recipe's file, line and key
+            raise self.recipe.error(f"{shown_path(Path(value))} is a system file (below {root}), not data", where)
         if problem := path_problem(path, expect):
             raise self.recipe.error(f"{shown_path(Path(value))} {problem}", where)
         return path

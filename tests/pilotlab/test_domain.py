@@ -144,7 +144,8 @@ def test_definitions_the_matrix_does_not_use_are_validated_too(tmp_path, old, ne
 
 @pytest.mark.parametrize("path, message", [
     ("a" * 5000, "datasets.train.bags: aaaaa"),
-    ("/proc/self/mem", "input /proc/self/mem is a system file (below /proc), not data"),
+    ("/proc/self/mem", ":3: datasets.train.bags: /proc/self/mem is a system file (below /proc), not data"),
+    ("/dev/zero", ":3: datasets.train.bags: /dev/zero is a system file (below /dev), not data"),
     ("/", "datasets.train.bags: / is a folder holding neither metadata.yaml (a ROS2 bag) nor data.csv"),
     ("~no_such_user_here/run.bag", "cannot be a path: Could not determine home directory"),
 ])
