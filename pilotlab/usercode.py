@@ -185,8 +185,17 @@ def source_files(spec: str, base: Path) -> list[Path]:
         file = pending.pop()
         if file not in seen:
             seen[file] = None
-            pending += _local_imports(file, [file.parent, *roots])
+            pending += _local_imports(file, [file.parent, *roots]) + _package_inits(file)
     return [first, *sorted(set(seen) - {first})]
+
+
+def _package_inits(file: Path) -> list[Path]:
+    """The __init__.py files that run when `file` is imported as part of its package (see _in_package)."""
+    inits, folder = [], file.parent
+    while (folder / "__init__.py").is_file() and folder.name.isidentifier() and folder != folder.parent:
+        inits.append((folder / "__init__.py").resolve())
+        folder = folder.parent
+    return inits
 
 
 def source_hash(spec: str, base: Path) -> str:

@@ -111,4 +111,4 @@ def test_a_module_of_a_package_with_relative_imports_loads_by_its_name_or_its_fi
     by_name = load_object(f"{package}.mine1:Net", tmp_path)
     by_file = load_object(f"{tmp_path / package / 'mine1.py'}:Net", tmp_path / "elsewhere")
     assert by_file is by_name and by_file.gain == 2.0
-    assert [f.name for f in source_files(f"{package}.mine1:Net", tmp_path)] == ["mine1.py", "common.py"]
+    assert [f.name for f in source_files(f"{package}.mine1:Net", tmp_path)] == ["mine1.py", "__init__.py", "common.py"]
