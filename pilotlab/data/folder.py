@@ -106,8 +106,11 @@ def read_rows(folder: Path | str, rate_hz: float = DEFAULT_RATE_HZ) -> list[Fold
     if not csv_path.is_file():
         raise BagError(f"{folder}: not a dataset folder (no {CSV_NAME} with columns image_name, v, w, timestamp)")
     table = _table(csv_path)
-    columns = set(table[0]) if table else set()
-    if not table or not {"v", "w"} <= columns:
+    if not table:          # a header alone (or nothing): "found columns: none" read as a wrong header
+        raise BagError(f"{csv_path}: holds no rows (a dataset folder needs a header with columns image_name, v, "
+                       "w, timestamp, then a row per image)")
+    columns = set(table[0])
+    if not {"v", "w"} <= columns:
         found = ", ".join(sorted(str(c)[:40] for c in columns if c is not None))[:200]
         raise BagError(f"{csv_path}: needs a header with columns v and w (and image_name, timestamp) "
                        f"and at least one row; found columns: {found or 'none'}")

@@ -63,6 +63,9 @@ def test_folder_errors_say_where_and_what_to_do(tmp_path):
         read_folder(folder, CONFIG)
     assert str(caught.value) == (f"{folder}/data.csv: needs a header with columns v and w (and image_name, "
                                  "timestamp) and at least one row; found columns: image_name, speed")
+    (folder / "data.csv").write_text("image_name,v,w,timestamp\n")     # outside test: read as "found columns: none"
+    with pytest.raises(BagError, match=r"data.csv: holds no rows \(a dataset folder needs a header"):
+        read_folder(folder, CONFIG)
     (folder / "data.csv").write_text("image_name,v,w\n0.png,fast,0\n")
     with pytest.raises(BagError, match="row 1, column 'v' is 'fast', not a number; fix the row"):
         read_folder(folder, CONFIG)
