@@ -53,11 +53,11 @@ def camera_of(args: argparse.Namespace) -> dict:
 
 def check_out(path: Path) -> None:
     """Before the progress bar: a bag that is there already, or a file where its folder goes."""
-    if path.exists():
-        raise PilotlabError(f"--out: {path} already exists; remove it or choose another output path")
-    folder = next((p for p in path.parents if p.exists()), None)
-    if folder is not None and not folder.is_dir():
-        raise PilotlabError(f"--out: {folder} is a file, so {path} cannot be written below it")
+    from pilotlab.data.bagwrite import check_new_bag
+    try:
+        check_new_bag(path)
+    except PilotlabError as error:
+        raise PilotlabError(f"--out: {error}") from None
 
 
 def run(args: argparse.Namespace) -> int:

@@ -53,6 +53,15 @@ def storage_for(path: Path, storage: str = "auto") -> str:
     return storage
 
 
+def check_new_bag(path: Path) -> None:
+    """A bag is written where nothing is yet, below folders (not a file where a folder goes)."""
+    if path.exists():
+        raise BagError(f"{path} already exists; remove it or choose another output path")
+    folder = next((p for p in path.parents if p.exists()), None)
+    if folder is not None and not folder.is_dir():
+        raise BagError(f"{folder} is a file, so {path} cannot be written below it")
+
+
 class BagWriter:
     def __init__(self, path: Path | str, *, storage: str = "auto", image_topic: str | None = None,
                  command_topic: str = COMMAND_TOPIC, odometry_topic: str = ODOMETRY_TOPIC,
@@ -61,8 +70,7 @@ class BagWriter:
         self.storage = storage_for(self.path, storage)
         if compression not in (None, *COMPRESSIONS):
             raise BagError(f"{path}: image compression {compression!r} is not one of {', '.join(COMPRESSIONS)}")
-        if self.path.exists():
-            raise BagError(f"{path} already exists; remove it or choose another output path")
+        check_new_bag(self.path)
         self.compression, self.frame_id = compression, frame_id
         self.image_topic = image_topic or (COMPRESSED_IMAGE_TOPIC if compression else IMAGE_TOPIC)
         self.topics = {"image": self.image_topic, "command": command_topic, "odometry": odometry_topic,
