@@ -110,13 +110,20 @@ def _import_file(code: UserCode) -> object:
 def _in_package(file: Path) -> tuple[Path, str] | None:
     """(the folder above its top package, its dotted name) for a file in a package (a folder holding
     __init__.py), so that it imports as Python would import it from there; None for a plain file."""
-    parts = [] if file.name == "__init__.py" else [file.stem]
-    folder = file.parent
+    packages = _package_folders(file)
+    if not packages or not file.stem.isidentifier():
+        return None
+    names = [folder.name for folder in reversed(packages)] + ([] if file.name == "__init__.py" else [file.stem])
+    return packages[-1].parent, ".".join(names)
+
+
+def _package_folders(file: Path) -> list[Path]:
+    """The package folders `file` is in, innermost first: each holds __init__.py and is named like a module."""
+    folders, folder = [], file.parent
     while (folder / "__init__.py").is_file() and folder.name.isidentifier() and folder != folder.parent:
-        parts.insert(0, folder.name)
+        folders.append(folder)
         folder = folder.parent
-    within = len(parts) > (0 if file.name == "__init__.py" else 1)
-    return (folder, ".".join(parts)) if within and all(p.isidentifier() for p in parts) else None
+    return folders
 
 
 def _import_module(code: UserCode, base: Path) -> object:
@@ -191,11 +198,7 @@ def source_files(spec: str, base: Path) -> list[Path]:
 
 def _package_inits(file: Path) -> list[Path]:
     """The __init__.py files that run when `file` is imported as part of its package (see _in_package)."""
-    inits, folder = [], file.parent
-    while (folder / "__init__.py").is_file() and folder.name.isidentifier() and folder != folder.parent:
-        inits.append((folder / "__init__.py").resolve())
-        folder = folder.parent
-    return inits
+    return [(folder / "__init__.py").resolve() for folder in _package_folders(file)]
 
 
 def source_hash(spec: str, base: Path) -> str:
