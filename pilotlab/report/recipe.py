@@ -43,7 +43,7 @@ def write_recipe_report(recipe: Recipe, store: Store, jobs: list, force: bool = 
     The report is written into a new folder beside the old one, then swapped in: a reader (or a
     second run writing the same report) never sees half a report. Writers of one folder take turns."""
     folder = report_folder(recipe)
-    _check_replaceable(folder)
+    _check_replaceable(folder, recipe.name)
     stamp = _stamp(recipe, jobs, store)
     if not force and read_json(folder / STAMP) == stamp:
         return None
@@ -53,7 +53,7 @@ def write_recipe_report(recipe: Recipe, store: Store, jobs: list, force: bool = 
             return None                   # another run wrote this very report while we waited
         write_report(build_report_data(recipe, jobs, store), staging)
         (staging / STAMP).write_text(json.dumps(stamp))
-        _swap(staging, folder)
+        _swap(staging, folder, recipe.name)
     return folder
 
 
@@ -75,21 +75,35 @@ def _writing(folder: Path) -> Iterator[Path]:
         lock.close()
 
 
-def _check_replaceable(folder: Path) -> None:
-    """A report replaces only a report (a folder holding our stamp) or an empty folder: never a file or
-    a folder of the user's that happens to sit where the recipe's name and report.folder point."""
+def _check_replaceable(folder: Path, name: str) -> None:
+    """A report replaces only this recipe's report (a folder holding our stamp, naming the recipe) or an
+    empty folder: never a file or a folder of the user's that happens to sit where the recipe's name and
+    report.folder point, nor the report of another recipe whose name makes the same folder name."""
     if not (folder.exists() or folder.is_symlink()):
         return
-    if folder.is_dir() and not folder.is_symlink() and ((folder / STAMP).is_file() or not any(folder.iterdir())):
+    if folder.is_dir() and not folder.is_symlink() and (folder / STAMP).is_file():
+        other = _stamped_recipe(folder, name)
+        if other == name:
+            return
+        raise PilotlabError(f"report.folder: {folder} holds the report of recipe {other!r}, and recipe {name!r} makes "
+                            "the same folder name; give one of them another name or report.folder")
+    if folder.is_dir() and not folder.is_symlink() and not any(folder.iterdir()):
         return
     what = "a folder that is not a pilotlab report (it has no .stamp)" if folder.is_dir() else "not a folder"
     raise PilotlabError(f"report.folder: {folder} is {what}, and writing the report would replace it; move it "
                         "away, or give the recipe another name or report.folder")
 
 
-def _swap(staging: Path, folder: Path) -> None:
+def _stamped_recipe(folder: Path, name: str) -> str:
+    """The name of the recipe whose report `folder` holds (a stamp from before names were kept in it
+    is taken for this recipe's: it is a pilotlab report all the same)."""
+    stamp = read_json(folder / STAMP)
+    return stamp.get("recipe", name) if isinstance(stamp, dict) else name
+
+
+def _swap(staging: Path, folder: Path, name: str) -> None:
     """Put `staging` where `folder` is: the old report moves aside first, then goes."""
-    _check_replaceable(folder)       # again, under the writers' lock: a folder may have appeared since
+    _check_replaceable(folder, name)   # again, under the writers' lock: a folder may have appeared since
     old = folder.parent / f".{folder.name}.old-{os.getpid()}"
     if folder.exists():
         os.replace(folder, old)
@@ -210,10 +224,12 @@ def _host(jobs: list, store: Store) -> Host:
     return Host.detect()
 
 
-def _stamp(recipe: Recipe, jobs: list, store: Store) -> str:
+def _stamp(recipe: Recipe, jobs: list, store: Store) -> dict:
+    """What the report shows (its recipe's name, and a digest of the recipe text, the report code and
+    every result it shows): the report is rewritten only when this changes."""
     digest = hashlib.sha256(recipe.text.encode())
     digest.update(code_fingerprint(["pilotlab.report"]).encode())
     for job in jobs:
         result = store.result(job.key) if job.kind in ("offline", "online", "train") else None
         digest.update(f"{job.key}:{result_token(result) if result else 'missing'}\n".encode())   # a rerun is new
-    return digest.hexdigest()
+    return {"recipe": recipe.name, "digest": digest.hexdigest()}

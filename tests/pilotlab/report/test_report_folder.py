@@ -86,3 +86,23 @@ def test_a_report_replaces_only_a_report_never_a_folder_or_file_of_yours(tmp_pat
     assert main(["report", str(recipe), "--store", str(store)]) == 0
     assert main(["report", str(recipe), "--store", str(store)]) == 0   # its own report: replaced
     assert (mine / ".stamp").is_file() and (mine / "README.md").is_file()
+
+
+def test_a_report_never_replaces_the_report_of_another_recipe_named_alike(tmp_path, capsys):
+    """Outside test: `name: my recipe` and `name: my_recipe` make one folder name (my_recipe), and each
+    run overwrote the other's report. Now the second is refused with one line naming both recipes; a
+    stamp from before the recipe's name was kept in it is a report all the same, and replaced."""
+    recipe, store = recipe_with_a_result(tmp_path, tmp_path / "out")
+    text = recipe.read_text()
+    recipe.write_text(text.replace("name: quickstart", "name: my recipe", 1))
+    assert main(["report", str(recipe), "--store", str(store)]) == 0
+    folder = tmp_path / "out" / "my_recipe"
+    readme = (folder / "README.md").read_text()
+    recipe.write_text(text.replace("name: quickstart", "name: my_recipe", 1))
+    assert main(["report", str(recipe), "--store", str(store)]) == 2
+    err = capsys.readouterr().err
+    assert "'my recipe'" in err and "'my_recipe'" in err and "another name or report.folder" in err
+    assert len(err.splitlines()) == 1 and (folder / "README.md").read_text() == readme
+    (folder / ".stamp").write_text('"0123abcd"')          # the stamp of an older pilotlab: no recipe name
+    assert main(["report", str(recipe), "--store", str(store)]) == 0
+    assert "my_recipe" in (folder / "README.md").read_text()
