@@ -13,6 +13,7 @@ import sys
 from collections.abc import Callable
 
 from matrix import engine
+from matrix.errors import MatrixError
 from matrix.grid import describe_alike
 from matrix.recipe import Domain, load_recipe
 from matrix.runs import default_jobs
@@ -116,23 +117,30 @@ def cmd_show(args, domain: Domain) -> int:
 def cmd_gc(args, domain: Domain) -> int:
     store = engine.open_store(domain, args.store)
     keep = {job.key for path in args.recipes for job in engine.plan_jobs(load_recipe(path, domain), domain)}
-    garbage = engine.find_garbage(store, keep)
+    with store.collecting() as alone:
+        if not alone:
+            raise MatrixError(f"a run is running on the store {store.root}: gc would remove the jobs it has finished "
+                              "and still reads; run gc when it has ended")
+        garbage = engine.find_garbage(store, keep)
+        names = {key: _kind_and_name(store.spec(key) or {}) for key in garbage.keys}
+        removed = garbage.keys if args.dry_run else engine.collect_garbage(store, garbage)
     verb = "would remove" if args.dry_run else "removed"
-    for key in garbage.keys:
-        spec = store.spec(key) or {}
-        print(f"{verb} {key[:12]} {spec.get('kind', '')} {spec.get('name', '')}".rstrip())
-    if not args.dry_run:
-        engine.collect_garbage(store, garbage)
+    for key in removed:
+        print(f"{verb} {key[:12]} {names[key]}".rstrip())
     kept = sum(1 for key in store.keys() if key in keep)
-    print(f"{verb} {len(garbage.keys)} jobs and {len(garbage.temp)} leftovers of killed runs "
+    print(f"{verb} {len(removed)} jobs and {len(garbage.temp)} leftovers of killed runs "
           f"({garbage.bytes / 1e6:.1f} MB); {'keeping' if args.dry_run else 'kept'} the {kept} stored jobs "
           f"the recipes reach", file=sys.stdout)
     return 0
 
 
+def _kind_and_name(spec: dict) -> str:
+    kind, name = spec.get("kind", ""), spec.get("name", "")
+    return name if name.startswith(f"{kind} ") else f"{kind} {name}".strip()
+
+
 def main(argv: list[str] | None, domain: Domain, prog: str = "matrix") -> int:
     """A complete command line for a domain with only the engine commands (used by tests)."""
-    from matrix.errors import MatrixError
     parser = argparse.ArgumentParser(prog=prog)
     parser.add_argument("-v", "--verbose", action="store_true")
     add_engine_commands(parser.add_subparsers(dest="command", required=True), lambda: domain)

@@ -138,8 +138,14 @@ class Executor:
 
 def run_plan(plan: Plan, domain: Domain, store: Store, *, jobs: int = 1, keep_going: bool = False,
              display=None, executor: Executor | None = None) -> RunSummary:
-    """Record the recipe's jobs (for reasons and gc), then run the stale ones."""
-    executor = executor or Executor("local", jobs)
+    """Record the recipe's jobs (for reasons and gc), then run the stale ones; gc waits for the run to end
+    (`Store.running`): what the run has finished, its later jobs read."""
+    with store.running():
+        return _record_and_run(plan, domain, store, executor or Executor("local", jobs), keep_going, display)
+
+
+def _record_and_run(plan: Plan, domain: Domain, store: Store, executor: Executor, keep_going: bool,
+                    display) -> RunSummary:
     for leftover in leftovers(store):   # of killed runs; never a folder a running job holds
         shutil.rmtree(leftover, ignore_errors=True)
     write_json_atomic(store.recipe_path(slug(plan.recipe.name)),
@@ -192,14 +198,18 @@ def find_garbage(store: Store, keep: set[str]) -> Garbage:
     return Garbage(sorted(set(keys) | set(failed)), temp, size)
 
 
-def collect_garbage(store: Store, garbage: Garbage) -> None:
+def collect_garbage(store: Store, garbage: Garbage) -> list[str]:
+    """Remove the garbage; returns the keys removed (a job another process holds stays)."""
+    removed = []
     for key in garbage.keys:
         with store.lock(key) as held:
             if held:
                 store.remove(key)
                 (store.root / "locks" / f"{key}.lock").unlink(missing_ok=True)
+                removed.append(key)
     for path in garbage.temp:
         shutil.rmtree(path, ignore_errors=True)
+    return removed
 
 
 def leftovers(store: Store) -> list[Path]:

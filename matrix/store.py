@@ -3,6 +3,7 @@
     <root>/jobs/<key[:2]>/<key>/   spec.json, result.json, log.txt, artifacts/, verified.json
     <root>/failed/<key>.json       the last failure of a job (error, traceback, log tail)
     <root>/locks/<key>.lock        held (flock) by the process running the job
+    <root>/locks/runs.lock         held shared by every run while it runs, exclusively by gc
     <root>/tmp/                    jobs in flight; renamed into jobs/ when their result is written
     <root>/recipes/<name>.json     the job names and specs of a recipe's last run (reasons, gc)
     <root>/cache/                  scratch shared by jobs (for example decoded frames)
@@ -36,6 +37,8 @@ from matrix.errors import MatrixError
 
 RESULT, SPEC, LOG, ARTIFACTS = "result.json", "spec.json", "log.txt", "artifacts"
 VERIFIED = "verified.json"
+RUNS_LOCK = "runs.lock"
+_KEY, _SHARD = re.compile(r"[0-9a-f]{64}"), re.compile(r"[0-9a-f]{2}")
 INTACT, MISSING, CHANGED = "", "missing", "changed"
 
 
@@ -134,11 +137,14 @@ class Store:
         return INTACT
 
     def keys(self) -> Iterator[str]:
+        """The keys of the stored jobs: folders named by a key, in their key's shard (anything else
+        under jobs/, a file or folder put there by hand, is not a job)."""
         jobs = self.root / "jobs"
         if jobs.is_dir():
-            for shard in sorted(jobs.iterdir()):
+            for shard in sorted(p for p in jobs.iterdir() if p.is_dir() and _SHARD.fullmatch(p.name)):
                 for folder in sorted(shard.iterdir()):
-                    yield folder.name
+                    if folder.name.startswith(shard.name) and _KEY.fullmatch(folder.name) and folder.is_dir():
+                        yield folder.name
 
     def find(self, prefix: str) -> str:
         """The one stored key starting with `prefix` (as git does for commits): hex digits only, so a
@@ -224,6 +230,36 @@ class Store:
     def is_locked(self, key: str) -> bool:
         with self.lock(key) as held:
             return not held
+
+    @contextmanager
+    def running(self) -> Iterator[None]:
+        """Held by a run while it runs (shared: runs go on side by side), so that gc, which needs the
+        store to itself (`collecting`), never removes what a run has just finished and still reads."""
+        with self._runs_lock(fcntl.LOCK_SH):
+            yield
+
+    @contextmanager
+    def collecting(self) -> Iterator[bool]:
+        """The store to itself, for gc; yields False (without it) while a run is running on it."""
+        with self._runs_lock(fcntl.LOCK_EX | fcntl.LOCK_NB) as held:
+            yield held
+
+    @contextmanager
+    def _runs_lock(self, mode: int) -> Iterator[bool]:
+        locks = self.root / "locks"
+        locks.mkdir(parents=True, exist_ok=True)
+        with open(locks / RUNS_LOCK, "a") as handle:
+            try:
+                fcntl.flock(handle, mode)
+            except OSError as error:
+                if error.errno in (errno.EAGAIN, errno.EACCES):
+                    yield False
+                    return
+                raise
+            try:
+                yield True
+            finally:
+                fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def _manifest(folder: Path) -> dict[str, dict]:

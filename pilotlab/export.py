@@ -180,6 +180,9 @@ def camera_section(meta: ArtifactMeta) -> list[str]:
 def export_job(store: Store, key_prefix: str, out_dir: Path) -> Path:
     """Export the optimize job `key_prefix` (a unique prefix is enough) from the engine's store."""
     key = store.find(key_prefix)
+    if Path(out_dir).resolve().is_relative_to(store.root.resolve()):
+        raise PilotlabError(f"--out {out_dir} is inside the job store {store.root}, which pilotlab keeps for itself "
+                            "(gc would take the files for jobs); export to a folder outside it")
     spec, stored = store.spec(key) or {}, store.result(key)
     if stored is None:
         raise PilotlabError(f"job {key[:12]} has no result (it failed or has not run; "

@@ -125,3 +125,25 @@ def test_engine_commands_are_the_ones_named_for_command_lines_that_load_commands
     subparsers = argparse.ArgumentParser().add_subparsers()
     add_engine_commands(subparsers, lambda: TOY)
     assert tuple(subparsers.choices) == ENGINE_COMMANDS
+
+
+def test_gc_waits_for_the_runs_on_its_store_and_removes_only_jobs(recipe, tmp_path, capsys):
+    """Outside test: gc of another recipe, while a run was running on the store, removed the jobs that
+    run had just finished, and the run failed reading them. Now gc is refused while a run holds the
+    store (`Store.running`), and after it the jobs are there; a folder or file put under jobs/ by hand
+    is not a job: gc neither lists it as removed nor touches it."""
+    from matrix.store import Store
+    store = Store(tmp_path / "s")
+    assert cli(capsys, "run", str(recipe), "--store", str(store.root))[0] == 0
+    other = tmp_path / "other.yaml"
+    other.write_text(RECIPE.replace("name: toy", "name: other") % 7)
+    with store.running():                                # a run of the recipe is going on
+        code, out, err = cli(capsys, "gc", str(other), "--store", str(store.root))
+        assert code == 2 and "a run is running on the store" in err and "when it has ended" in err
+    assert len(list(store.keys())) == 5
+    foreign = store.root / "jobs" / "zz" / "notakey"
+    foreign.mkdir(parents=True)
+    (store.root / "jobs" / "README.md").write_text("mine\n")
+    code, out, _ = cli(capsys, "gc", str(other), "--store", str(store.root))
+    assert code == 0 and "removed 3 jobs" in out and "notakey" not in out and "README" not in out
+    assert foreign.is_dir() and len(list(store.keys())) == 2          # source a: both recipes have it

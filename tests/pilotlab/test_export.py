@@ -81,6 +81,15 @@ def test_export_to_an_existing_file_is_one_line(store, tmp_path, capsys):
     assert (tmp_path / "file").read_text() == "mine"
 
 
+def test_export_into_the_store_is_refused(store, capsys):
+    """Outside test: `export KEY --out STORE/jobs/inside` wrote there; status then counted corrupt jobs
+    and gc reported removing files it never removed."""
+    assert main(["export", "ab12", "--out", str(store / "jobs" / "inside"), "--store", str(store)]) == 2
+    err = capsys.readouterr().err
+    assert "is inside the job store" in err and "outside it" in err and len(err.strip().splitlines()) == 1
+    assert not (store / "jobs" / "inside").exists()
+
+
 @pytest.mark.parametrize("kind, encoding", [("ros1", "rgb8"), ("ros1", "bgr8"), ("sqlite3", "rgb8"),
                                             ("sqlite3", "png")])
 def test_the_readme_reads_camera_images_from_a_bag(store, tmp_path, kind, encoding):
