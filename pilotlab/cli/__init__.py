@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+import signal
 import sys
 import traceback
 
@@ -46,6 +47,8 @@ def os_problem(error: OSError) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    if argv is None:   # the program itself (not a caller's main([...])): `pilotlab plan R | head` ends quietly,
+        signal.signal(signal.SIGPIPE, signal.SIG_DFL)   # as Unix tools do, when head stops reading
     argv = sys.argv[1:] if argv is None else argv
     args = build_parser(argv).parse_args(argv)
     try:

@@ -87,3 +87,22 @@ def test_circuit_list_shows_the_good_circuits_beside_a_bad_csv(tmp_path, monkeyp
     assert main(["circuit", "list"]) == 1
     out = capsys.readouterr().out
     assert "simple_circuit" in out and "bad" in out and "cannot be driven:" in out and "bad.csv" in out
+
+
+def test_a_reader_that_stops_early_ends_the_command_quietly(tmp_path):
+    """Outside test: `pilotlab plan R | head -1` printed "code of yours called exit(1)" (rich's own exit
+    on a broken pipe, taken for a user's). As Unix tools do, the program now ends quietly when the
+    reader of its output has gone."""
+    import fcntl
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[3]
+    for args in (["plan", str(root / "recipes" / "study2022.yaml"), "--all", "--store", str(tmp_path / "s")],
+                 ["plan", str(root / "recipes" / "study2022.yaml"), "--json", "--store", str(tmp_path / "s")]):
+        child = subprocess.Popen([sys.executable, "-m", "pilotlab", *args], cwd=tmp_path, stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE)
+        fcntl.fcntl(child.stdout.fileno(), 1031, 4096)   # F_SETPIPE_SZ: the plan (~25 KB) overflows the pipe
+        child.stdout.readline()
+        child.stdout.close()                       # as `head -1` does after its line
+        assert child.wait(timeout=60) != 2 and child.stderr.read() == b""
