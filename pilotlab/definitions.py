@@ -24,7 +24,8 @@ def check_definitions(planner) -> None:
         except MatrixError as error:
             raise planner.recipe.error(str(error).removeprefix(f"hardware.{name}").lstrip(".: "),
                                        ["hardware", name]) from None
-        planner.latency_file(name)
+        if planner.latency_file(name) is not None:
+            planner.check_latency_file(name)
     for name, circuit in config.circuits.items():
         planner.path(circuit.csv, ["circuits", name, "csv"], "file")
 

@@ -32,13 +32,16 @@ from pilotlab.errors import PilotlabError
 
 SAMPLES_FILE = "latency_ms.npy"
 RESULT_KEY = "latency_samples"
+MAX_MS = 60_000.0   # as the lap settings' extra_latency_ms and fixed_inference_ms: a brain iteration a
+                    # minute long is no lap (a sample of 1e9 ms ran one for hours)
 
 
 def check_samples(samples: np.ndarray, where: str) -> np.ndarray:
     samples = np.asarray(samples, dtype=np.float64).ravel()
-    if not len(samples) or not np.all(np.isfinite(samples)) or np.any(samples < 0):
-        raise PilotlabError(f"{where}: latency samples must be finite milliseconds >= 0, at least one; "
-                            f"got {len(samples)} sample(s)")
+    if not len(samples) or not np.all(np.isfinite(samples)) or np.any(samples < 0) or np.any(samples > MAX_MS):
+        largest = f", the largest {samples.max():g}" if len(samples) and np.all(np.isfinite(samples)) else ""
+        raise PilotlabError(f"{where}: latency samples must be finite milliseconds from 0 to {MAX_MS:g}, at least "
+                            f"one; got {len(samples)} sample(s){largest}")
     return samples
 
 
@@ -55,18 +58,35 @@ def offline_samples(artifacts: Path, result: Mapping[str, Any]) -> np.ndarray:
     return check_samples(np.load(path), str(path))
 
 
+FORMAT = ("a latency file is a CSV (UTF-8 text) with a header and a latency_ms column (optionally model and "
+          "strategy); see docs/simulator.md")
+
+
 def read_latency_file(path: Path) -> list[dict[str, str]]:
-    lines = [line for line in Path(path).read_text().splitlines() if line.strip() and not line.lstrip().startswith("#")]
-    rows = list(csv.DictReader(lines))
+    """The rows of a latency file, each latency_ms checked (a number of milliseconds in range)."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+        lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
+        rows = list(csv.DictReader(lines))
+    except (UnicodeDecodeError, csv.Error) as error:
+        raise PilotlabError(f"{path}: cannot be read ({error}); {FORMAT}") from None
     if not rows or "latency_ms" not in rows[0]:
-        raise PilotlabError(f"{path}: a latency file is a CSV with a header and a latency_ms column "
-                            "(optionally model and strategy); see pilotlab/online/latency.py")
+        raise PilotlabError(f"{path}: {FORMAT}")
+    for number, row in enumerate(rows, 1):
+        try:
+            float(row["latency_ms"])
+        except (TypeError, ValueError):
+            raise PilotlabError(f"{path}: row {number} of the data ({row}): latency_ms must be a number of "
+                                "milliseconds in every row") from None
+    check_samples(np.array([float(row["latency_ms"]) for row in rows]), str(path))
     return rows
 
 
-def latency_file_samples(path: Path, model: str | None, strategy: str | None) -> np.ndarray:
-    """The samples of `model`/`strategy` in a user's latency file (the most specific rows that match)."""
-    rows = read_latency_file(path)
+def latency_file_samples(path: Path, model: str | None, strategy: str | None,
+                         rows: list[dict[str, str]] | None = None) -> np.ndarray:
+    """The samples of `model`/`strategy` in a user's latency file (the most specific rows that match);
+    `rows`: the file's, read already."""
+    rows = read_latency_file(path) if rows is None else rows
     wild = lambda value: (value or "").strip() in ("", "*")
     matches = {rank: [] for rank in range(4)}
     for row in rows:
@@ -78,10 +98,7 @@ def latency_file_samples(path: Path, model: str | None, strategy: str | None) ->
     if best is None:
         raise PilotlabError(f"{path}: no latency_ms rows for model {model!r}, strategy {strategy!r}; add rows for "
                             "them (or rows with an empty strategy for every strategy)")
-    try:
-        return check_samples(np.array([float(value) for value in best]), str(path))
-    except ValueError:
-        raise PilotlabError(f"{path}: latency_ms must be numbers (milliseconds)") from None
+    return check_samples(np.array([float(value) for value in best]), str(path))
 
 
 class LatencyDraws:

@@ -37,6 +37,9 @@ def replay_inputs(planner, combination: dict, hardware: str, timing: Job) -> tup
         return params, {}, {}
     latency_file = planner.latency_file(hardware)
     if latency_file is not None:
+        planner.check_latency_file(hardware, model, str(combination["strategy"]))
+        if online.latency_scale_to_ms is not None:   # the baseline's rows set the scale
+            planner.check_latency_file(hardware, model, "baseline")
         params["latency_for"] = {"model": model, "strategy": str(combination["strategy"])}
         return params, {}, {"latency_file": input_file(str(latency_file))}
     deps: dict[str, Job] = {"timing": timing}

@@ -18,6 +18,7 @@ from typing import Any
 from matrix.errors import MatrixError, did_you_mean
 from matrix.jobs import InputFile, Job, Params, input_file
 from matrix.recipe import Recipe
+from pilotlab.errors import PilotlabError
 from pilotlab.planning.laps import online_jobs, reference_jobs
 from pilotlab.planning.worlds import world_param
 from pilotlab.recipe import DatasetSpec, ModelSpec, RecordingsSpec
@@ -235,6 +236,20 @@ class Planner:
             return None
         return self.remembered(("latency_file", hardware), lambda: self.path(
             options.latency_file, ["hardware", hardware, "latency_file"], "file"))
+
+    def check_latency_file(self, hardware: str, model: str | None = None, strategy: str | None = None) -> None:
+        """The hardware profile's latency file reads as one (every latency_ms a number of milliseconds in
+        range), with rows a lap of `model`/`strategy` can replay: told here, with the recipe's file, line
+        and key, rather than by the lap after the offline jobs ran."""
+        from pilotlab.online.latency import latency_file_samples, read_latency_file
+        where = ["hardware", hardware, "latency_file"]
+        path = self.latency_file(hardware)
+        try:
+            rows = self.remembered(("latency_rows", hardware), lambda: read_latency_file(path))
+            if strategy is not None:
+                latency_file_samples(path, model, strategy, rows)
+        except PilotlabError as error:
+            raise self.recipe.error(str(error), where) from None
 
     # evaluations ----------------------------------------------------------------------------------
     def offline(self, optimize: Job, combination: dict, hardware: str) -> Job:

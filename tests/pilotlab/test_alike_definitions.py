@@ -43,7 +43,7 @@ def test_a_grid_of_identical_entries_makes_the_jobs_of_one(tmp_path):
 
 def test_names_a_latency_file_tells_apart_are_planned_each(tmp_path):
     # a device's latency file is looked up by model and strategy name: each name is its own lap
-    (tmp_path / "board.csv").write_text("model,strategy,latency_ms\n")
+    (tmp_path / "board.csv").write_text("model,strategy,latency_ms\n,,25\n")
     recipe, jobs = plan(tmp_path, recipe_text(["m0", "m1"], ["s0", "s1"], latency_file="board.csv"))
     assert len(recipe.combinations) == recipe.grid.count() == 2 * 3 * 2 * 2
     laps = [job for job in jobs if job.kind == "online" and job.labels["hardware"] == "board"

@@ -243,6 +243,30 @@ def test_a_hardware_latency_file_is_replayed_instead_of_this_hosts_timings(tmp_p
         engine.plan_jobs(recipe_at(tmp_path, missing), DOMAIN)
 
 
+@pytest.mark.parametrize("content, message", [
+    (b"\xff\xfe\x00garbage", "cannot be read ("),
+    (b"strategy,ms\nbaseline,5\n", "a header and a latency_ms column"),
+    (b"", "a header and a latency_ms column"),
+    (b"latency_ms\n1e9\n", "finite milliseconds from 0 to 60000, at least one; got 1 sample(s), the largest 1e+09"),
+    (b"latency_ms\nfast\n", "latency_ms must be a number of milliseconds in every row"),
+    (b"model,strategy,latency_ms\nnot_this_one,,25\n", "no latency_ms rows for model"),
+])
+def test_a_latency_file_is_checked_when_the_recipe_is_planned(tmp_path, content, message):
+    """Outside test: a latency file that is not UTF-8, empty, without rows for the matrix's models or
+    with a sample of 1e9 ms planned; the run then spent the offline jobs' time before the lap failed
+    with a traceback (UnicodeDecodeError) or ran for hours. Now plan says it, with the file's line."""
+    (tmp_path / "timings").mkdir()
+    (tmp_path / "timings" / "jetson.csv").write_bytes(content)
+    text = RECIPE.replace("hardware: [cpu, cpu1]", "hardware: [jetson]").replace(
+        "matrix:", "hardware:\n  jetson: {threads: 1, latency_file: timings/jetson.csv}\nmatrix:")
+    for recipe in (text, RECIPE.replace("matrix:", "hardware:\n  spare: {latency_file: timings/jetson.csv}\nmatrix:")):
+        if "no latency_ms rows" in message and "spare" in recipe:
+            continue                       # a profile the matrix does not use: no lap's rows to look for
+        with pytest.raises(RecipeError) as caught:
+            engine.plan_jobs(recipe_at(tmp_path, recipe), DOMAIN)
+        assert message in str(caught.value) and "latency_file" in str(caught.value) and "\n" not in str(caught.value)
+
+
 def test_use_naming_a_variant_of_the_recipe_says_to_name_a_built_in_strategy(tmp_path):
     text = RECIPE.replace("prune_more: {use: local_prune, conv: 0.5}", "prune_more: {use: chained}\n  chained: {use: local_prune}")
     with pytest.raises(RecipeError, match="`use` names a built-in strategy, and 'chained' is a variant of this recipe"):

@@ -1,6 +1,8 @@
 """`pilotlab drive`, through the real command line."""
 import json
 
+import pytest
+
 from pilotlab.cli import main
 
 
@@ -41,10 +43,23 @@ def test_drive_refuses_a_used_out_path_and_meaningless_numbers_before_starting(t
 
 def test_drive_replays_a_latency_file(tmp_path):
     timings = tmp_path / "device.csv"
-    timings.write_text("strategy,latency_ms\nexpert,120\n,,3\n")
+    timings.write_text("strategy,latency_ms\nexpert,120\n,3\n")
     out = tmp_path / "run"
     assert main(["drive", "--brain", "expert", "--circuit", "simple_circuit", "--timeout", "2", "--hardware", "cpu1",
                  "--latency-file", str(timings), "--out", str(out)]) == 0
     result = json.loads((out / "result.json").read_text())
     assert result["timing"] == "replay" and result["mean_inference_ms"] == 120.0
     assert result["brain_frequency_sim_hz"] < 9.0
+
+
+@pytest.mark.parametrize("content, message", [(b"\xff\xfe\x00garbage", "cannot be read"),
+                                              (b"latency_ms\n1e9\n", "from 0 to 60000")])
+def test_drive_refuses_a_latency_file_it_cannot_replay_in_one_line(tmp_path, capsys, content, message):
+    """Outside test: a latency file that is not text ended `drive` in a UnicodeDecodeError traceback; one
+    with a sample of 1e9 ms drove a lap for hours (the lap's timeout cannot cut one iteration)."""
+    timings = tmp_path / "device.csv"
+    timings.write_bytes(content)
+    assert main(["drive", "--brain", "expert", "--circuit", "simple_circuit", "--latency-file", str(timings),
+                 "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "device.csv" in err and len(err.strip().splitlines()) == 1
