@@ -4,9 +4,10 @@ Its settings are the recipe's `models.<name>` entries (which add `data`, the dat
 """
 from __future__ import annotations
 
+import math
 from typing import Any, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from matrix.fingerprint import module_closure
 from matrix.kinds import register_kind
@@ -74,6 +75,20 @@ class TrainSpec(Spec):
         "auto", description='normalisation ranges {"v": [lo, hi], "w": [lo, hi]}, or "auto"')
     seed: int = Field(0, ge=0, lt=2**32)
     augment: AugmentConfig = AugmentConfig()
+
+    @field_validator("labels")
+    @classmethod
+    def _ranges(cls, labels):
+        """{"v": [lo, hi], "w": [lo, hi]}, lo < hi: told when the recipe is planned, not by the training."""
+        if labels == "auto":
+            return labels
+        if sorted(labels) != ["v", "w"]:
+            raise ValueError(f"give the ranges of v and w, {{v: [lo, hi], w: [lo, hi]}}, or auto; got {sorted(labels)}")
+        for name in ("v", "w"):
+            lo_hi = labels[name]
+            if len(lo_hi) != 2 or not all(math.isfinite(x) for x in lo_hi) or not lo_hi[0] < lo_hi[1]:
+                raise ValueError(f"{name}: {lo_hi} is not a range [lo, hi] of finite numbers with lo < hi")
+        return labels
 
     @model_validator(mode="before")
     @classmethod

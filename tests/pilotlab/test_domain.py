@@ -140,6 +140,11 @@ def test_recipe_errors_name_the_line_and_key(tmp_path, edit, message):
     ("matrix:", "circuits:\n  spare: {csv: missing.csv}\nmatrix:", ":12: circuits.spare.csv: missing.csv does not exist"),
     ("matrix:", "hardware:\n  spare: {latency_file: missing.json}\nmatrix:",
      ":12: hardware.spare.latency_file: missing.json does not exist"),
+    # outside test: label ranges were checked only by the training ("each range needs lo < hi", no key)
+    ("  other: {epochs: 2}\n", "  other: {epochs: 2}\n  spare: {labels: {v: [13, 5], w: [-1.6, 1.6]}}\n",
+     ":8: models.spare.labels: v: [13.0, 5.0] is not a range [lo, hi] of finite numbers with lo < hi"),
+    ("  other: {epochs: 2}\n", "  other: {epochs: 2}\n  spare: {labels: {v: [5, 13]}}\n",
+     ":8: models.spare.labels: give the ranges of v and w"),
     # outside test: these were taken and did nothing (every job the same); a circuit is a loop, 6 m wide
     ("matrix:", "circuits:\n  spare: {csv: x.csv, road_width: -3}\nmatrix:", ":12: circuits.spare.road_width: unknown key 'road_width'; expected one of: csv"),
     ("matrix:", "circuits:\n  spare: {csv: x.csv, closed: false}\nmatrix:", ":12: circuits.spare.closed: unknown key 'closed'"),
