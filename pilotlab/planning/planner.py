@@ -205,6 +205,10 @@ class Planner:
         if not isinstance(base, str):
             kind = {list: "a list", dict: "a mapping", type(None): "nothing"}.get(type(base), type(base).__name__)
             raise self.recipe.error(f"`use` names one strategy (got {kind}); e.g. use: local_prune", where + ["use"])
+        if "use" not in self.config.strategies.get(name, {}) and name not in STRATEGIES:
+            raise self.recipe.error(f"{name!r} is not a built-in strategy{did_you_mean(name, STRATEGIES.names())}; a "
+                                    f"strategy of your own names the one it varies: {name}: {{use: local_prune, ...}}",
+                                    where)
         if base not in STRATEGIES and base in self.config.strategies:
             raise self.recipe.error(f"`use` names a built-in strategy, and {base!r} is a variant of this recipe; "
                                     f"name the strategy {base!r} uses, with the options you want", where + ["use"])

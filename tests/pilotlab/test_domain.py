@@ -140,6 +140,9 @@ def test_recipe_errors_name_the_line_and_key(tmp_path, edit, message):
     ("matrix:", "circuits:\n  spare: {csv: missing.csv}\nmatrix:", ":12: circuits.spare.csv: missing.csv does not exist"),
     ("matrix:", "hardware:\n  spare: {latency_file: missing.json}\nmatrix:",
      ":12: hardware.spare.latency_file: missing.json does not exist"),
+    # outside test: a typo of a built-in name, without `use`, was said of a `use` key the recipe did not have
+    ("  local_prune: {finetune_epochs: 1}\n", "  local_prune: {finetune_epochs: 1}\n  global_prun: {amount: 0.3}\n",
+     ":10: strategies.global_prun: 'global_prun' is not a built-in strategy (did you mean 'global_prune'?)"),
     # outside test: label ranges were checked only by the training ("each range needs lo < hi", no key)
     ("  other: {epochs: 2}\n", "  other: {epochs: 2}\n  spare: {labels: {v: [13, 5], w: [-1.6, 1.6]}}\n",
      ":8: models.spare.labels: v: [13.0, 5.0] is not a range [lo, hi] of finite numbers with lo < hi"),
