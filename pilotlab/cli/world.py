@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 from pathlib import Path
 
 from pilotlab.errors import PilotlabError
@@ -27,6 +28,9 @@ def register(subparsers) -> None:
     show.add_argument("--assets", type=Path, default=None, help=ASSETS_HELP)
     show.add_argument("--pose", type=parse_pose, default=None,
                       help="X,Y,YAW: metres and radians in the world frame (default: the world's spawn pose)")
+    # A pose starting with a minus (`--pose -200.8,-90.72,-2.83`, as `world list` prints spawn poses) is a
+    # value, not an option: argparse tells a negative value from an option by this pattern (one number).
+    show._negative_number_matcher = re.compile(r"^-\d*\.?\d+(e-?\d+)?(,-?\d*\.?\d+(e-?\d+)?)*$")
     show.add_argument("-o", "--out", type=Path, default=None, help="PNG to write (default: WORLD.png)")
     show.add_argument("--view", action="store_true", help="the network's input (lower half, 200×66) instead")
     show.add_argument("--renderer", choices=("ground", "pybullet"), default="ground",

@@ -33,6 +33,14 @@ def test_show_without_a_pose_uses_the_spawn_pose(oval_assets, tmp_path):
     assert main(["world", "show", "oval", "--assets", str(oval_assets), "-o", str(tmp_path / "f.png")]) == 0
 
 
+def test_a_pose_starting_with_a_minus_is_a_value(oval_assets, tmp_path):
+    """Outside test: `--pose -200.8,-90.72,-2.83` (a spawn pose as `world list` prints it) was taken for an
+    option: "argument --pose: expected one argument"."""
+    assert main(["world", "show", "oval", "--assets", str(oval_assets), "--pose", "-0.5,-8,-1e-3",
+                 "-o", str(tmp_path / "f.png")]) == 0
+    assert (tmp_path / "f.png").is_file()
+
+
 @pytest.mark.parametrize("args, message", [
     (["world", "show", "ovl"], "did you mean 'oval'"),
     (["world", "show", "oval", "-o", "/proc/nope/f.png"], "cannot write"),
