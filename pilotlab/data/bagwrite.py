@@ -16,6 +16,7 @@ stamp and bag time alike.
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -62,6 +63,22 @@ def check_new_bag(path: Path) -> None:
         raise BagError(f"{folder} is a file, so {path} cannot be written below it")
 
 
+TOPIC_NAME = re.compile(r"/?[A-Za-z_~][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")   # a ROS graph resource name
+
+
+def check_topics(path: Path, topics: dict[str, str]) -> None:
+    """Each topic a ROS name, no two the same: one topic for two message types made a bag no reader
+    could use (`--image-topic /same --command-topic /same`), and an empty name was taken for the default."""
+    for role, topic in topics.items():
+        if not isinstance(topic, str) or not TOPIC_NAME.fullmatch(topic):
+            raise BagError(f"{path}: the {role} topic {topic!r} is not a ROS topic name (e.g. /camera/image_raw: "
+                           "letters, digits, _ and /)")
+    named = list(topics.values())
+    if same := sorted({t for t in named if named.count(t) > 1}):
+        roles = [role for role, topic in topics.items() if topic == same[0]]
+        raise BagError(f"{path}: the {' and '.join(roles)} topics are both {same[0]!r}; give each its own topic")
+
+
 class BagWriter:
     def __init__(self, path: Path | str, *, storage: str = "auto", image_topic: str | None = None,
                  command_topic: str = COMMAND_TOPIC, odometry_topic: str = ODOMETRY_TOPIC,
@@ -72,9 +89,10 @@ class BagWriter:
             raise BagError(f"{path}: image compression {compression!r} is not one of {', '.join(COMPRESSIONS)}")
         check_new_bag(self.path)
         self.compression, self.frame_id = compression, frame_id
-        self.image_topic = image_topic or (COMPRESSED_IMAGE_TOPIC if compression else IMAGE_TOPIC)
+        self.image_topic = (COMPRESSED_IMAGE_TOPIC if compression else IMAGE_TOPIC) if image_topic is None else image_topic
         self.topics = {"image": self.image_topic, "command": command_topic, "odometry": odometry_topic,
                        "metadata": METADATA_TOPIC}
+        check_topics(self.path, self.topics)
         self.ros1 = self.storage == "ros1"
         self.typestore = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
         self.types = self.typestore.types

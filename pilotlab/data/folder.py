@@ -163,7 +163,7 @@ def folder_to_bag(folder: Path | str, out: Path | str, *, storage: str = "auto",
                   command_topic: str | None = None) -> int:
     """Write a dataset folder as a bag; returns the number of frames written."""
     rows = read_rows(folder)
-    options = {"command_topic": command_topic} if command_topic else {}
+    options = {"command_topic": command_topic} if command_topic is not None else {}
     writer = BagWriter(out, storage=storage, compression=compression, image_topic=image_topic, **options)
     try:
         with writer as bag:

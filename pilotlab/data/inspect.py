@@ -26,7 +26,8 @@ def inspect_bag(path: Path, command_topic: str = COMMAND_TOPIC) -> dict[str, Any
     with open_bag(path) as reader:
         seconds = reader.duration / 1e9
         topics = [{"name": name, "type": info.msgtype, "count": info.msgcount,
-                   "rate_hz": round(info.msgcount / seconds, 2) if seconds > 0 else None}
+                   # N messages over the bag's span make N - 1 intervals (3 frames at 20 Hz read 30 Hz)
+                   "rate_hz": round((info.msgcount - 1) / seconds, 2) if seconds > 0 and info.msgcount > 1 else None}
                   for name, info in sorted(reader.topics.items())]
         images = {t["name"]: _first_image(reader, path, t["name"]) for t in topics if t["type"] in IMAGE_TYPES}
         commands = None

@@ -20,6 +20,8 @@ def test_inspect_json_lists_topics_sizes_and_ranges(tmp_path, capsys):
                                                          "size": [60, 80]}}
     assert info["commands"]["v"] == [1.0, 1.399999976158142] and info["commands"]["w"][0] == -0.30000001192092896
     assert info["duration_s"] == 0.401
+    # 5 frames at 10 Hz: 4 intervals (the outside test's 3 frames at 20 Hz read 30 Hz, count over duration)
+    assert [round(t["rate_hz"]) for t in info["topics"]] == [10, 10]
 
 
 def test_inspect_table_for_people(tmp_path, capsys):
@@ -76,3 +78,17 @@ def test_convert_to_ros2_mcap_with_compressed_images(tmp_path, capsys):
     info = json.loads(capsys.readouterr().out)
     assert info["format"] == "ros2-mcap"
     assert info["images"]["/F1ROS/cameraL/image_raw/compressed"]["encoding"] == "rgb8; png compressed bgr8"
+
+
+@pytest.mark.parametrize("topics, message", [
+    (["--image-topic", "/same", "--command-topic", "/same"], "the image and command topics are both '/same'"),
+    (["--image-topic", ""], "the image topic '' is not a ROS topic name"),
+    (["--command-topic", "not a topic"], "the command topic 'not a topic' is not a ROS topic name"),
+])
+def test_convert_refuses_topics_no_reader_could_use(tmp_path, capsys, topics, message):
+    """Outside test: one topic for images and commands wrote a bag no reader could use, and an empty
+    --image-topic silently meant the default; both exited 0."""
+    folder = make_folder(tmp_path / "dls", images(2))
+    assert main(["dataset", "convert", str(folder), "--out", str(tmp_path / "out"), *topics]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "out").exists()
