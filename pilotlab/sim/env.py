@@ -103,6 +103,24 @@ INFO_KEYS = {
 }
 
 
+_ABOVE_ZERO, _ANY = ("laps", "timeout_s", "control_period"), ("start", "lateral", "heading", "speed")
+
+
+def check_episode(settings: dict[str, Any]) -> dict[str, Any]:
+    """An episode's numbers, as the command line checks them: laps, timeout and control period finite and
+    above 0, start ("random" aside), lateral offset, heading and speed finite (laps=0 ended the episode at
+    once as a completed lap, laps=inf never ended, start=nan raised numpy's ValueError)."""
+    for name, value in settings.items():
+        if name not in _ABOVE_ZERO + _ANY or value is None or (name == "start" and value == "random"):
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            other = " (or 'random')" if name == "start" else ""
+            raise PilotlabError(f"{name} must be a finite number{other}, got {value!r}")
+        if name in _ABOVE_ZERO and value <= 0:
+            raise PilotlabError(f"{name} must be above 0, got {value!r}")
+    return settings
+
+
 def describe_end(termination: str | None, laps: float) -> str:
     """How a drive ended, in words for a person ("lap_completed" after 0.1 lap reads wrong)."""
     if termination == "lap_completed":
@@ -134,8 +152,8 @@ class DrivingEnv(gymnasium.Env):
         self.view = view if camera is not None else None
         self.physics_hz, self.walls, self.car_spec = physics_hz, walls, car
         self.stop_off_road, self.trapped_s = stop_off_road, trapped_s
-        self._defaults = {"circuit": circuit, "direction": check_direction(direction), "laps": laps,
-                          "timeout_s": timeout_s, "control_period": control_period, "start": start}
+        self._defaults = check_episode({"circuit": circuit, "direction": check_direction(direction), "laps": laps,
+                                        "timeout_s": timeout_s, "control_period": control_period, "start": start})
         self.control_period = control_period
         self.observation = check_observation(observation or ("image" if camera else "state"), camera)
         self.observation_space = observation_space(self.observation, camera if self.view is None else
@@ -160,6 +178,7 @@ class DrivingEnv(gymnasium.Env):
         unknown = set(options) - set(RESET_OPTIONS)
         if unknown:
             raise PilotlabError(f"unknown reset option(s) {sorted(unknown)}; see DrivingEnv's docstring")
+        check_episode(options)
         settings = {**self._defaults, **{k: v for k, v in options.items() if k in self._defaults}}
         self.circuit = self._load_circuit(settings["circuit"], settings["direction"])
         self.control_period = float(settings["control_period"])

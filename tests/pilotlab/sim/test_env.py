@@ -118,3 +118,18 @@ def test_reset_can_change_circuit_and_direction(stadium_csv):
         assert env.world is world  # the same road: the world is kept, only the car is new
         _, info = env.reset()
         assert info["circuit"] == "stadium"
+
+
+@pytest.mark.parametrize("settings, message", [
+    ({"laps": 0}, "laps must be above 0"), ({"laps": -1}, "laps must be above 0"),
+    ({"laps": float("inf")}, "laps must be a finite number"), ({"start": float("nan")}, "start must be a finite number"),
+    ({"timeout_s": 0}, "timeout_s must be above 0"), ({"start": "middle"}, "(or 'random')"),
+])
+def test_episode_settings_the_command_line_refuses_are_refused_here_too(stadium_csv, settings, message):
+    """Outside test: laps=0 ended the first step as a completed lap, laps=inf never ended, start=nan
+    raised numpy's ValueError; as constructor arguments and as reset options."""
+    with pytest.raises(PilotlabError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        DrivingEnv(stadium_csv, camera=None, observation="state", **settings)
+    with DrivingEnv(stadium_csv, camera=None, observation="state") as env:
+        with pytest.raises(PilotlabError, match=message.replace("(", r"\(").replace(")", r"\)")):
+            env.reset(options=settings)
