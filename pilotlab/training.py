@@ -73,6 +73,9 @@ class _Epochs:
     """One model's training state: runs an epoch over a given order of frames."""
 
     def __init__(self, model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfig):
+        if not any(p.requires_grad for p in model.parameters()):
+            raise PilotlabError(f"the network ({type(model).__name__}) has no trainable parameters, so there is "
+                                "nothing to train; give it layers with weights, or use it as it is (train: false)")
         self.model, self.train, self.config = model, train, config
         self.optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
         self.generator = torch.Generator().manual_seed(config.seed)
@@ -87,6 +90,10 @@ class _Epochs:
         batches = max(1, -(-len(order) // size))
         for b, start in enumerate(range(0, len(order), size)):
             losses.append(self._step(order[start:start + size]))
+            if not math.isfinite(losses[-1]) and epoch == 1 and b == 0:   # before any step: not the training's doing
+                raise PilotlabError(f"the network's output gives a loss of {losses[-1]} on the first batch, before "
+                                    "any training step: check its forward pass and initialisation (a NaN or "
+                                    "infinity in its output)")
             if not math.isfinite(losses[-1]):
                 raise PilotlabError(f"training diverged: the loss is {losses[-1]} at epoch {epoch}, batch {b + 1} "
                                     f"of {batches}; lower the learning rate (lr {self.config.lr:g}) and run again")

@@ -98,3 +98,30 @@ def test_non_finite_labels_are_refused_before_training():
     data.labels[5, 1] = np.inf
     with pytest.raises(PilotlabError, match=r"training data: 1 of 32 labels are not finite numbers \(first: frame 5 of recording 0"):
         fit(build_model("pilotnet"), data, LabelRanges((0, 1), (-1, 1)), FitConfig(epochs=1, batch_size=8, lr=1e-3))
+
+
+class _NanNet(torch.nn.Module):
+    def __init__(self):
+        super().__init__()
+        self.scale = torch.nn.Parameter(torch.ones(1))
+
+    def forward(self, images):                      # [N, 3, H, W] -> [N, 2], NaN from the start
+        return images.mean((1, 2, 3))[:, None].expand(-1, 2) * self.scale * float("nan")
+
+
+class _NoWeights(torch.nn.Module):
+    def forward(self, images):
+        return images.mean((1, 2, 3))[:, None].expand(-1, 2)
+
+
+@pytest.mark.parametrize("network, message", [
+    (_NanNet, "output gives a loss of nan on the first batch, before any training step: check its forward pass"),
+    (_NoWeights, "(_NoWeights) has no trainable parameters"),
+])
+def test_a_network_that_cannot_train_says_why_not_to_lower_the_learning_rate(network, message):
+    """Outside test: a user's network NaN from the start was told to lower its learning rate, and one
+    without parameters ended in torch's "optimizer got an empty parameter list"."""
+    from pilotlab.errors import PilotlabError
+    data = stripe_frameset(recordings=2, per_recording=16)
+    with pytest.raises(PilotlabError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        fit(network(), data, LabelRanges((0, 1), (-1, 1)), FitConfig(epochs=1, batch_size=8, lr=1e-3))
