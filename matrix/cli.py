@@ -101,6 +101,11 @@ def cmd_run(args, domain: Domain) -> int:
 
 def cmd_status(args, domain: Domain) -> int:
     store = engine.open_store(domain, args.store)
+    if not store.root.is_dir():
+        if args.store:   # a folder named that is not there: a typo more likely than a store to come
+            raise MatrixError(f"--store {args.store}: no such folder; give the folder a run wrote its jobs to")
+        print(f"no job store at {store.root} yet: `run RECIPE` makes it")
+        return 0
     from matrix import display
     if args.times or args.recipe:
         return display.print_times(display.console(), store, args.recipe)

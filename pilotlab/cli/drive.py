@@ -63,7 +63,9 @@ def replayed_samples(args: argparse.Namespace, spec: OnlineSpec, brain):
 def check_arguments(args: argparse.Namespace) -> None:
     """What can be told wrong before the simulator starts (the lap settings: by the spec)."""
     if args.artifact is not None and not args.artifact.is_dir():
-        raise PilotlabError(f"--artifact {args.artifact}: no such folder")
+        what = (f"a file; give the artifact's folder ({args.artifact.parent}, which holds artifact.json)"
+                if args.artifact.is_file() else "no such folder")
+        raise PilotlabError(f"--artifact {args.artifact}: {what}")
     if args.latency_file is not None and not args.latency_file.is_file():
         raise PilotlabError(f"--latency-file {args.latency_file}: no such file")
     if args.out.exists() and (not args.out.is_dir() or any(args.out.iterdir())):

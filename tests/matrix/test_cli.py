@@ -147,3 +147,12 @@ def test_gc_waits_for_the_runs_on_its_store_and_removes_only_jobs(recipe, tmp_pa
     code, out, _ = cli(capsys, "gc", str(other), "--store", str(store.root))
     assert code == 0 and "removed 3 jobs" in out and "notakey" not in out and "README" not in out
     assert foreign.is_dir() and len(list(store.keys())) == 2          # source a: both recipes have it
+
+
+def test_status_of_a_store_that_is_not_there_says_so(tmp_path, capsys, monkeypatch):
+    """Outside test: `status --store /nonexistent` said "no finished jobs yet", as of an empty store."""
+    code, out, err = cli(capsys, "status", "--store", str(tmp_path / "nosuch"))
+    assert code == 2 and "no such folder" in err and not (tmp_path / "nosuch").exists()
+    monkeypatch.chdir(tmp_path)
+    code, out, err = cli(capsys, "status")
+    assert code == 0 and "yet: `run RECIPE` makes it" in out

@@ -63,3 +63,13 @@ def test_drive_refuses_a_latency_file_it_cannot_replay_in_one_line(tmp_path, cap
                  "--out", str(tmp_path / "run")]) == 2
     err = capsys.readouterr().err
     assert message in err and "device.csv" in err and len(err.strip().splitlines()) == 1
+
+
+def test_drive_an_artifact_s_file_names_its_folder(tmp_path, capsys):
+    """Outside test: `--artifact exp/model.onnx` said "no such folder" of a file that is there."""
+    (tmp_path / "exp").mkdir()
+    (tmp_path / "exp" / "model.onnx").write_bytes(b"onnx")
+    assert main(["drive", "--artifact", str(tmp_path / "exp" / "model.onnx"), "--circuit", "simple_circuit",
+                 "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert f"a file; give the artifact's folder ({tmp_path / 'exp'}" in err and len(err.strip().splitlines()) == 1
