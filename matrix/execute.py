@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import heapq
 import multiprocessing
+import os
+import signal
 import time
 from collections.abc import Iterable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -220,6 +222,21 @@ class _Pool:
             self.executor = self._new_executor()
             return self.executor.submit(*arguments)
 
+    def _interrupt_workers(self) -> None:
+        """An interrupt the driver alone got (`kill -INT PID`; a terminal's Ctrl-C reaches the workers too)
+        is passed on to the workers still running after a moment, so their jobs stop as at Ctrl-C instead
+        of running to their end while the run says nothing."""
+        processes = list((getattr(self.executor, "_processes", None) or {}).values())   # the pool's own table
+        deadline = time.monotonic() + INTERRUPT_GRACE_S
+        while time.monotonic() < deadline and any(p.is_alive() for p in processes):
+            time.sleep(0.05)
+        for process in processes:
+            if process.is_alive():
+                try:
+                    os.kill(process.pid, signal.SIGINT)
+                except OSError:          # gone meanwhile
+                    pass
+
     def drain_progress(self) -> None:
         while not self.progress.empty():
             try:
@@ -231,10 +248,15 @@ class _Pool:
     def __enter__(self) -> _Pool:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, exc_type, *_) -> None:
+        if exc_type is not None and issubclass(exc_type, KeyboardInterrupt):
+            self._interrupt_workers()
         self.executor.shutdown(wait=True, cancel_futures=True)
         self.drain_progress()
         self.progress.close()
+
+
+INTERRUPT_GRACE_S = 1.0   # a terminal's Ctrl-C stops the workers by itself within it
 
 
 __all__ = ["run_local", "RunSummary", "Outcome", "DONE_ELSEWHERE"]

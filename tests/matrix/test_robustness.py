@@ -116,3 +116,25 @@ def alive(pid: int) -> bool:
     except OSError:
         return False
     return state != "Z"
+
+
+def test_an_interrupt_the_driver_alone_gets_stops_the_running_jobs(tmp_path):
+    """Outside test: `kill -INT PID` (the driver only; a terminal's Ctrl-C reaches every process of the
+    group) was ignored until the running job had ended, 20 s later, with no word. The driver now passes
+    the interrupt on to its workers."""
+    recipe, store = tmp_path / "r.yaml", tmp_path / "store"
+    recipe.write_text(SLOW_RECIPE.replace("sleep: 0.4", "sleep: 30"))
+    process = toy("run", str(recipe), "--store", str(store), "-j", "2")
+    workers = []
+    deadline = time.time() + 60
+    while time.time() < deadline and len(workers) < 2:
+        workers = children(process.pid)
+        time.sleep(0.1)
+    time.sleep(1.0)                        # the jobs have started their 30 s
+    started = time.time()
+    os.kill(process.pid, signal.SIGINT)
+    process.communicate(timeout=25)
+    assert time.time() - started < 10 and process.returncode != 0
+    assert not any(alive(pid) for pid in workers)
+    stored = list(Store(store).keys())             # the sources (no sleep) done; no 30 s job stored half done
+    assert len(stored) < 13 and all(Store(store).result(key)["status"] == "ok" for key in stored)
