@@ -47,6 +47,8 @@ def job_status(job: Job, store: Store, previous: Mapping[str, dict],
         return JobStatus(job, STALE, ("output changed",))
     if result is not None:
         return JobStatus(job, STALE, ("output missing or corrupt",))
+    if stored and store.job_dir(job.key).is_dir():
+        return JobStatus(job, STALE, ("stored result missing or corrupt (result.json)",))   # not "new": it ran
     before = previous.get(job.name)
     failure = store.failure(job.key) if listing is None or job.key in listing.failed else None
     if failure is not None:

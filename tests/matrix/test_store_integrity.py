@@ -86,3 +86,15 @@ def test_an_entry_whose_spec_was_deleted_is_not_fresh_and_the_run_rebuilds_it(tm
     _, summary = plan_and_run(path, store)
     assert [o.name for o in summary.outcomes] == ["source a"] and summary.counts() == {"ok": 1}
     assert store.spec(key)["key"] == key and status_of(path, store, "source a").state == "fresh"
+
+
+def test_a_stored_job_whose_result_json_is_damaged_is_stale_not_new(tmp_path):
+    """Outside test: a job whose result.json was damaged was planned as "new", as if it had never run."""
+    recipe = tmp_path / "r.yaml"
+    recipe.write_text("name: toy\nsources:\n  a: {value: 2}\nmatrix:\n  source: [a]\n  power: [2]\n")
+    store = Store(tmp_path / "s")
+    engine.run_plan(engine.make_plan(load_recipe(recipe, TOY), TOY, store), TOY, store)
+    key = engine.make_plan(load_recipe(recipe, TOY), TOY, store).statuses[0].job.key
+    (store.job_dir(key) / "result.json").write_text("{not json")
+    status = engine.make_plan(load_recipe(recipe, TOY), TOY, store).statuses[0]
+    assert (status.state, status.reason) == ("stale", "stored result missing or corrupt (result.json)")
