@@ -102,7 +102,7 @@ def static_quant_smaller(data: ReportData) -> ClaimCheck:
     claim = "Static quantization makes PilotNet about 4× smaller (PyTorch: 6.12 MB -> 1.61 MB, 3.8×)."
     ratio = _ratio(_offline(data), "static_quant", "size_mb")
     if ratio is None:
-        return _untestable(claim, "no static_quant and baseline offline rows")
+        return _untestable(claim, _no_rows(_offline(data), "static_quant"))
     return ClaimCheck(claim, _verdict(ratio >= 3.5), f"static_quant is {ratio:.2f}× smaller than the baseline")
 
 
@@ -113,7 +113,7 @@ def int8_keeps_mse(data: ReportData) -> ClaimCheck:
     base = rows.get("baseline")
     measured = [(s, rows[s].get("mse")) for s in POST_TRAINING_INT8 if s in rows and rows[s].get("mse") is not None]
     if base is None or base.get("mse") is None or not measured:
-        return _untestable(claim, "no int8 and baseline offline rows")
+        return _untestable(claim, _no_rows(rows, "/".join(POST_TRAINING_INT8)))
     changes = {s: (mse - base.get("mse")) / base.get("mse") for s, mse in measured}
     worst = max(changes, key=lambda s: abs(changes[s]))
     found = ", ".join(f"{s} {100 * c:+.1f}%" for s, c in changes.items())
@@ -151,7 +151,7 @@ def dynamic_quant_slower_in_pytorch(data: ReportData) -> ClaimCheck:
     rows = _offline(data)
     speedup = _ratio(rows, "dynamic_quant", "latency_ms")
     if speedup is None:
-        return _untestable(claim, "no dynamic_quant and baseline offline rows")
+        return _untestable(claim, _no_rows(rows, "dynamic_quant"))
     if untrusted := _untrusted_timing(claim, [rows["baseline"], rows["dynamic_quant"]]):
         return untrusted
     return ClaimCheck(claim, _verdict(speedup < 1.0),
@@ -269,7 +269,14 @@ def tensorrt_fastest(data: ReportData) -> ClaimCheck:
 def _missing_reason(data: ReportData, strategy: str) -> str:
     """Why a strategy has no measured offline row: its own reason (not installed...) where given."""
     return next((r.reason for r in data.rows if r.strategy == strategy and r.reason),
-                f"no {strategy} and baseline offline rows")
+                _no_rows(_offline(data), strategy))
+
+
+def _no_rows(rows: dict, strategies: str) -> str:
+    """Which of the rows a claim needs are missing: `strategies` ("a/b": any of them) and the baseline's
+    (the outside test read "no static_quant and baseline offline rows" of a report with the baseline)."""
+    missing = [name for name in (strategies, "baseline") if not any(s in rows for s in name.split("/"))]
+    return f"no measured offline row of {' nor '.join(missing) or strategies}"
 
 
 def dynamic_range_smaller_at_equal_mse(data: ReportData) -> ClaimCheck:
