@@ -10,6 +10,7 @@ import argparse
 import json
 import shutil
 from pathlib import Path
+from typing import Any
 
 from pilotlab.cli._options import add_spec_options, spec_from_args
 from pilotlab.cli._world import add_world_options, place_of
@@ -47,17 +48,23 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def replayed_samples(args: argparse.Namespace, spec: OnlineSpec, brain):
-    """The latencies the replay mode draws from: the --latency-file's rows for this brain, else the
-    network's predict call timed here once before the lap; nothing for a reference brain."""
+def replayed_samples(args: argparse.Namespace, spec: OnlineSpec, brain) -> tuple[Any, dict]:
+    """The latencies the replay mode draws from, and what the result says of them: the --latency-file's
+    rows for this brain (model: an artifact's arch, strategy: its strategy or the reference brain's
+    name), else the network's predict call timed here once before the lap; nothing for a reference brain."""
     import numpy as np
 
-    from pilotlab.online.latency import latency_file_samples, measure_samples
+    from pilotlab.online.latency import describe, latency_file_samples, measure_samples
     if spec.timing != "replay" or spec.fixed_inference_ms is not None:
-        return None
+        return None, {}
     if args.latency_file is not None:
-        return latency_file_samples(args.latency_file, None, brain.name)
-    return measure_samples(brain) if args.artifact is not None else np.zeros(1)
+        predictor = getattr(brain, "predictor", None)
+        samples = latency_file_samples(args.latency_file, predictor.meta.arch if predictor else None, brain.name)
+        return samples, describe(samples, f"latency file {args.latency_file.name}")
+    if args.artifact is not None:
+        samples = measure_samples(brain)
+        return samples, describe(samples, "predict timed here before the lap")
+    return np.zeros(1), {}
 
 
 def check_arguments(args: argparse.Namespace) -> None:
@@ -125,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
     check_available(profile)
     brain = (NetworkBrain(load_predictor(args.artifact, profile)) if args.artifact is not None
              else make_brain(spec))
-    samples = replayed_samples(args, spec, brain)
+    samples, replayed = replayed_samples(args, spec, brain)
     columns = (TextColumn("[bold]{task.description}"), BarColumn(),
                TextColumn("{task.completed:.0f}/{task.total:.0f} m"), TimeElapsedColumn())
     created = not args.out.exists()
@@ -139,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
         if created:   # a failed or interrupted drive leaves no half-written --out behind
             shutil.rmtree(args.out, ignore_errors=True)
         raise
-    result = {**result, "hardware": profile.as_dict()}
+    result = {**result, **replayed, "hardware": profile.as_dict()}
     (args.out / "result.json").write_text(json.dumps(result, indent=1))
     console = Console()
     for name, value in pick_metrics(result).items():

@@ -49,6 +49,7 @@ def test_drive_replays_a_latency_file(tmp_path):
                  "--latency-file", str(timings), "--out", str(out)]) == 0
     result = json.loads((out / "result.json").read_text())
     assert result["timing"] == "replay" and result["mean_inference_ms"] == 120.0
+    assert result["latency_source"] == "latency file device.csv" and result["replayed_latency_ms"] == 120.0
     assert result["brain_frequency_sim_hz"] < 9.0
 
 

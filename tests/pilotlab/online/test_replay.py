@@ -93,3 +93,18 @@ def test_a_timing_source_takes_the_file_over_the_offline_job_and_scales(tmp_path
     assert list(samples) == [10.0] and said["latency_source"] == "latency file device.csv"
     with pytest.raises(PilotlabError, match="needs the offline timing job"):
         TimingSource().samples()
+
+
+def test_drive_takes_an_artifact_s_rows_of_a_latency_file_by_its_arch(pilotnet_artifact, tmp_path):
+    """Outside test: `drive --latency-file` looked rows up with no model, so the docs' own example rows
+    (`pilotnet,baseline,31.2`) never matched, and its result.json lacked latency_source."""
+    import json
+
+    from pilotlab.cli import main
+    timings = tmp_path / "device.csv"
+    timings.write_text("model,strategy,latency_ms\npilotnet,baseline,31.2\nother,baseline,500\n,,900\n")
+    out = tmp_path / "run"
+    assert main(["drive", "--artifact", str(pilotnet_artifact), "--circuit", "simple_circuit", "--timeout", "2",
+                 "--latency-file", str(timings), "--out", str(out)]) == 0
+    result = json.loads((out / "result.json").read_text())
+    assert result["replayed_latency_ms"] == 31.2 and result["latency_source"] == "latency file device.csv"
