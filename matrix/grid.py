@@ -82,10 +82,18 @@ def describe_alike(grid: Grid, shown: int = 3) -> str | None:
         return None
     parts = []
     for axis, pairs in alike.items():
-        said = [f"{_names(others, shown)} as {first}" for first, others in pairs[:shown]]
+        said = [_said(first, others, shown) for first, others in pairs[:shown]]
         more = f" (and {len(pairs) - shown} more groups)" if len(pairs) > shown else ""
         parts.append(f"{axis} " + "; ".join(said) + more)
-    return f"{grid.count():,} cells plan as {len(grid.combinations):,} combinations: " + "; ".join(parts)
+    count = len(grid.combinations)
+    return f"{grid.count():,} cells plan as {count:,} combination{'s' * (count != 1)}: " + "; ".join(parts)
+
+
+def _said(first: Any, others: list, shown: int) -> str:
+    """"m1, m2 as m0", or for a value listed again "baseline listed 2 times" (not "baseline as baseline")."""
+    distinct, repeats = [o for o in others if o != first], sum(1 for o in others if o == first)
+    said = [f"{_names(distinct, shown)} as {first}"] if distinct else []
+    return ", ".join(said + ([f"{first} listed {repeats + 1} times"] if repeats else []))
 
 
 def _names(values: list, shown: int) -> str:

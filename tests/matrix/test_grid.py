@@ -151,6 +151,15 @@ def test_alike_values_are_planned_once_and_named():
     assert describe_alike(grid) == "10 cells plan as 4 combinations: a 2, 4 as 0; 3 as 1"
 
 
+def test_a_value_listed_twice_is_said_so():
+    """Outside test: `strategy: [baseline, baseline]` read "2 cells plan as 1 combinations: strategy
+    baseline as baseline"."""
+    grid = expand_classes({"a": [0, 0]}, lambda axis, value: value)
+    assert describe_alike(grid) == "2 cells plan as 1 combination: a 0 listed 2 times"
+    grid = expand_classes({"a": [0, 2, 0]}, parity)
+    assert describe_alike(grid) == "3 cells plan as 1 combination: a 2 as 0, 0 listed 2 times"
+
+
 def test_a_value_an_entry_names_keeps_its_own_combinations():
     grid = expand_classes({"a": [0, 2, 4], "b": [1], "exclude": [{"a": 2}], "include": [{"a": 4, "z": 1}]}, parity)
     assert grid.combinations == [{"a": 0, "b": 1}, {"a": 4, "b": 1, "z": 1}]
