@@ -30,6 +30,10 @@ def remove_channels(model: nn.Module, amount: float, input_shape: tuple, multipl
 
 
 def check_chain(model: nn.Module, layers: list[tuple[str, nn.Module]]) -> None:
+    if hasattr(model, "load_program"):   # pilotlab.models.user's TorchScript / ONNX program: no layers to cut
+        raise NotApplicable(f"structured_prune removes channels from a PyTorch network's layers; a "
+                            f"{type(model).__name__.removesuffix('Model')} model is run as it is (give `network:`, "
+                            "the PyTorch class, to prune it)")
     if len(layers) < 2:
         raise NotApplicable("structured_prune needs at least two conv/linear layers")
     first = next(name for name, _ in layers)

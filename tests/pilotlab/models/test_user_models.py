@@ -137,6 +137,9 @@ def test_strategies_run_on_user_models_or_say_why_not(tmp_path, dls, frames):
     with pytest.raises(NotApplicable, match="local_prune cannot work on the TorchScript model pilotnet.pt .it rewrites "
                                             "nn.Module layers"):
         optimize(scripted, "local_prune")
+    with pytest.raises(NotApplicable, match="structured_prune removes channels from a PyTorch network's layers; a "
+                                            "TorchScript model is run as it is"):   # read "needs two layers" (it has 5)
+        optimize(scripted, "structured_prune")
 
 
 # --- bad input: one line naming the recipe key ------------------------------------------------------
