@@ -212,20 +212,8 @@ class Store:
     @contextmanager
     def lock(self, key: str, wait: bool = False) -> Iterator[bool]:
         """Hold the job's lock; yields False (without holding it) when another process has it."""
-        locks = self.root / "locks"
-        locks.mkdir(parents=True, exist_ok=True)
-        with open(locks / f"{key}.lock", "a") as handle:
-            try:
-                fcntl.flock(handle, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
-            except OSError as error:
-                if error.errno in (errno.EAGAIN, errno.EACCES):
-                    yield False
-                    return
-                raise
-            try:
-                yield True
-            finally:
-                fcntl.flock(handle, fcntl.LOCK_UN)
+        with self._flock(f"{key}.lock", fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB)) as held:
+            yield held
 
     def is_locked(self, key: str) -> bool:
         with self.lock(key) as held:
@@ -235,20 +223,21 @@ class Store:
     def running(self) -> Iterator[None]:
         """Held by a run while it runs (shared: runs go on side by side), so that gc, which needs the
         store to itself (`collecting`), never removes what a run has just finished and still reads."""
-        with self._runs_lock(fcntl.LOCK_SH):
+        with self._flock(RUNS_LOCK, fcntl.LOCK_SH):
             yield
 
     @contextmanager
     def collecting(self) -> Iterator[bool]:
         """The store to itself, for gc; yields False (without it) while a run is running on it."""
-        with self._runs_lock(fcntl.LOCK_EX | fcntl.LOCK_NB) as held:
+        with self._flock(RUNS_LOCK, fcntl.LOCK_EX | fcntl.LOCK_NB) as held:
             yield held
 
     @contextmanager
-    def _runs_lock(self, mode: int) -> Iterator[bool]:
+    def _flock(self, name: str, mode: int) -> Iterator[bool]:
+        """Hold locks/`name` in `mode`; yields False (without it) when a non-blocking mode finds it taken."""
         locks = self.root / "locks"
         locks.mkdir(parents=True, exist_ok=True)
-        with open(locks / RUNS_LOCK, "a") as handle:
+        with open(locks / name, "a") as handle:
             try:
                 fcntl.flock(handle, mode)
             except OSError as error:

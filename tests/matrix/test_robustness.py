@@ -79,6 +79,18 @@ def test_cli_errors_are_one_line_without_traceback(tmp_path):
 
 def test_workers_die_with_a_killed_run(tmp_path):
     """The run killed alone (not its process group): its workers stop instead of running on as orphans."""
+    process, workers, store = run_with_two_workers(tmp_path)
+    assert len(workers) >= 2
+    process.kill()                      # SIGKILL to the driver only
+    process.wait()
+    deadline = time.time() + 20
+    while time.time() < deadline and any(alive(pid) for pid in workers):
+        time.sleep(0.1)
+    assert not any(alive(pid) for pid in workers)
+
+
+def run_with_two_workers(tmp_path):
+    """A run of 30 s jobs on two workers, once both are up: (process, worker pids, store folder)."""
     recipe, store = tmp_path / "r.yaml", tmp_path / "store"
     recipe.write_text(SLOW_RECIPE.replace("sleep: 0.4", "sleep: 30"))
     process = toy("run", str(recipe), "--store", str(store), "-j", "2")
@@ -87,13 +99,7 @@ def test_workers_die_with_a_killed_run(tmp_path):
     while time.time() < deadline and len(workers) < 2:
         workers = children(process.pid)
         time.sleep(0.1)
-    assert len(workers) >= 2
-    process.kill()                      # SIGKILL to the driver only
-    process.wait()
-    deadline = time.time() + 20
-    while time.time() < deadline and any(alive(pid) for pid in workers):
-        time.sleep(0.1)
-    assert not any(alive(pid) for pid in workers)
+    return process, workers, store
 
 
 def children(pid: int) -> list[int]:
@@ -122,14 +128,7 @@ def test_an_interrupt_the_driver_alone_gets_stops_the_running_jobs(tmp_path):
     """Outside test: `kill -INT PID` (the driver only; a terminal's Ctrl-C reaches every process of the
     group) was ignored until the running job had ended, 20 s later, with no word. The driver now passes
     the interrupt on to its workers."""
-    recipe, store = tmp_path / "r.yaml", tmp_path / "store"
-    recipe.write_text(SLOW_RECIPE.replace("sleep: 0.4", "sleep: 30"))
-    process = toy("run", str(recipe), "--store", str(store), "-j", "2")
-    workers = []
-    deadline = time.time() + 60
-    while time.time() < deadline and len(workers) < 2:
-        workers = children(process.pid)
-        time.sleep(0.1)
+    process, workers, store = run_with_two_workers(tmp_path)
     time.sleep(1.0)                        # the jobs have started their 30 s
     started = time.time()
     os.kill(process.pid, signal.SIGINT)
