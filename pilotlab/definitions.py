@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from matrix.errors import MatrixError, did_you_mean
+from matrix.errors import MatrixError, UnknownNameError
 
 
 def check_definitions(planner) -> None:
@@ -55,12 +55,10 @@ def check_arch(recipe, name: str, spec) -> None:
     if spec.arch in IMPORTED_ARCHS:
         raise recipe.error(f"arch {spec.arch!r} names checkpoints of models you bring; write `{spec.arch}: ...` "
                            f"(e.g. network: nets/mine.py:MyNet) instead of `arch`", ["models", name, "arch"])
-    from pilotlab.models import MODELS
-    if spec.arch not in MODELS:     # said of the arch key (the model's whole entry was named)
-        raise recipe.error(f"unknown model {spec.arch!r}{did_you_mean(spec.arch, MODELS.names())}; known: "
-                           f"{', '.join(sorted(MODELS.names()))}", ["models", name, "arch"])
     try:
         make_config(spec.arch, spec.options)
+    except UnknownNameError as error:   # the registry's words, said of the arch key
+        raise recipe.error(str(error), ["models", name, "arch"]) from None
     except MatrixError as error:
         raise recipe.error(str(error), ["models", name]) from None
 

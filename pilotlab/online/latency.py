@@ -72,13 +72,14 @@ def read_latency_file(path: Path) -> list[dict[str, str]]:
         raise PilotlabError(f"{path}: cannot be read ({error}); {FORMAT}") from None
     if not rows or "latency_ms" not in rows[0]:
         raise PilotlabError(f"{path}: {FORMAT}")
+    values = []
     for number, row in enumerate(rows, 1):
         try:
-            float(row["latency_ms"])
+            values.append(float(row["latency_ms"]))
         except (TypeError, ValueError):
             raise PilotlabError(f"{path}: row {number} of the data ({row}): latency_ms must be a number of "
                                 "milliseconds in every row") from None
-    check_samples(np.array([float(row["latency_ms"]) for row in rows]), str(path))
+    check_samples(np.array(values), str(path))
     return rows
 
 
