@@ -11,6 +11,7 @@ import argparse
 import json
 import sys
 from collections.abc import Callable
+from pathlib import Path
 
 from matrix import engine
 from matrix.errors import MatrixError
@@ -52,7 +53,8 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
     status = add("status", cmd_status, "summarise the job store")
     status.add_argument("--times", action="store_true",
                         help="how long the stored jobs took, per kind (where a recipe's minutes go)")
-    status.add_argument("--recipe", metavar="NAME", help="with --times: only the jobs of this recipe's last run")
+    status.add_argument("--recipe", metavar="NAME|FILE",
+                        help="with --times: only the jobs of this recipe's last run (its name, or its file)")
     show = add("show", cmd_show, "show one stored job: spec, result, log and artifacts")
     show.add_argument("key", help="a job key or its first characters")
     gc = add("gc", cmd_gc, "remove stored jobs that none of the given recipes reaches")
@@ -108,8 +110,13 @@ def cmd_status(args, domain: Domain) -> int:
         return 0
     from matrix import display
     if args.times or args.recipe:
-        return display.print_times(display.console(), store, args.recipe)
+        return display.print_times(display.console(), store, _recipe_name(args.recipe, domain))
     return display.print_status(display.console(), store)
+
+
+def _recipe_name(given: str | None, domain: Domain) -> str | None:
+    """A recipe named by its file (what `run` was given) is the name inside it."""
+    return load_recipe(given, domain).name if given and Path(given).is_file() else given
 
 
 def cmd_show(args, domain: Domain) -> int:

@@ -383,7 +383,7 @@ def print_times(out: Console, store: Store, recipe: str | None) -> int:
     """`status --times`: how long the stored jobs took, per kind."""
     keys = None if recipe is None else recipe_keys(store, recipe)
     if recipe is not None and keys is None:
-        raise MatrixError(f"recipe {recipe!r} never ran on the store {store.root}; give the `name:` of a recipe "
+        raise MatrixError(f"recipe {recipe!r} never ran on the store {store.root}; give the file or `name:` of a recipe "
                           "that ran here, or leave --recipe out for every stored job")
     rows = kind_times(store, keys)
     total = sum(row.total_s for row in rows)

@@ -116,6 +116,7 @@ def test_status_times_sums_job_durations_per_kind(recipe, tmp_path, capsys):
     assert code == 0 and lines[1].split()[:2] == ["source", "2"]   # the slowest kind first
     assert float(lines[1].split()[2]) >= 0.5 and "source b" in lines[1]
     assert "recipe toy: 5 jobs" in out
+    assert cli(capsys, "status", "--store", store, "--times", "--recipe", str(tmp_path / "slow.yaml"))[1] == out
     assert cli(capsys, "status", "--store", store, "--times", "--recipe", "nope")[0] == 2
 
 
