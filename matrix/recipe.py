@@ -18,7 +18,7 @@ from matrix.errors import RecipeError, did_you_mean, shown
 from matrix.grid import RESERVED, Grid, expand_classes
 from matrix.yamlfile import Lines, read_yaml
 
-AxisValues = Callable[[Any], Collection[Any] | None]
+AxisValues = Callable[["Recipe"], Collection[Any] | None]   # a recipe (its config, its file) -> its values
 SameValue = Callable[[Any, str, Any], Hashable | None]   # (config, axis, value) -> matrix.grid.Same
 
 
@@ -180,7 +180,7 @@ def _is_model(annotation: Any) -> bool:
 def _check_combinations(recipe: Recipe, domain: Domain) -> None:
     """Every key of every combination is an axis the domain knows, with a value it accepts."""
     matrix = recipe.config.matrix
-    valid = {axis: values(recipe.config) for axis, values in domain.axes.items()}
+    valid = {axis: values(recipe) for axis, values in domain.axes.items()}
     for path, key, value in _declared_values(matrix):
         if key not in domain.axes:
             key_path = path if path[1] in RESERVED else path[:2]

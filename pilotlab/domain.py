@@ -3,6 +3,7 @@ and what follows a run (the report)."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 from matrix.recipe import Domain, Recipe
 from pilotlab.planning import plan
@@ -14,23 +15,23 @@ AXES = ("model", "strategy", "hardware", "circuit", "world")
 
 # --- axes: which names a combination may carry -------------------------------------------------
 
-def _models(config) -> list[str]:
-    return list(config.models)
+def _models(recipe: Recipe) -> list[str]:
+    return list(recipe.config.models)
 
 
-def _strategies(config) -> list[str]:
+def _strategies(recipe: Recipe) -> list[str]:
     from pilotlab.strategies import STRATEGIES
-    return sorted(set(STRATEGIES.names()) | set(config.strategies))
+    return sorted(set(STRATEGIES.names()) | set(recipe.config.strategies))
 
 
-def _hardware(config) -> list[str]:
+def _hardware(recipe: Recipe) -> list[str]:
     from pilotlab.hardware import BUILTIN
-    return sorted(set(BUILTIN) | set(config.hardware))
+    return sorted(set(BUILTIN) | set(recipe.config.hardware))
 
 
-def _circuits(config) -> list[str]:
+def _circuits(recipe: Recipe) -> list[str]:
     from pilotlab.circuits import all_circuit_names
-    return sorted(set(all_circuit_names()) | set(config.circuits))
+    return sorted(set(all_circuit_names(Path(recipe.file).resolve().parent)) | set(recipe.config.circuits))
 
 
 def same_definition(config, axis: str, value) -> tuple | None:
@@ -63,7 +64,7 @@ DOMAIN = Domain(
     sections=SECTIONS,
     # worlds are checked when planned: their names depend on the assets folder, relative to the recipe
     axes={"model": _models, "strategy": _strategies, "hardware": _hardware, "circuit": _circuits,
-          "world": lambda config: None},
+          "world": lambda recipe: None},
     plan=plan,
     kind_modules=KIND_MODULES,
     store_env="PILOTLAB_STORE",

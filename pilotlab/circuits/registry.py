@@ -3,8 +3,11 @@
 A circuit name is resolved in this order:
 1. a built-in circuit (`pilotlab circuit list` shows them),
 2. `NAME.csv` in a user circuit folder: each folder of `$PILOTLAB_CIRCUITS` (separated by `:`),
-   then `./circuits/` in the working directory (where `pilotlab circuit import` saves by default),
-3. a path to a CSV file of x, y points (`my_track.csv`, `data/laps/run3.csv`).
+   then, for a recipe, `circuits/` beside the recipe file, then `./circuits/` in the working
+   directory (where `pilotlab circuit import` saves by default),
+3. a path to a CSV file of x, y points (`my_track.csv`, `data/laps/run3.csv`); in a recipe it is
+   relative to the recipe's folder, as every path in a recipe.
+A user CSV named like a built-in circuit is refused, not silently passed over (import refuses those names).
 
 A CSV has one point per line, `x,y` in metres (comma or white space separated), in driving order;
 an optional header line and `#` comment lines are skipped. It need not be closed exactly: a lap
@@ -48,16 +51,17 @@ for _name, _timeout, _smoothing in (("simple_circuit", 82.5, None), ("many_curve
     CIRCUITS.add(_name, CircuitConfig(_name, f"{_name}.csv", _timeout, smoothing_m=_smoothing))
 
 
-def user_dirs() -> list[Path]:
-    """Folders searched for `NAME.csv` user circuits, in order."""
+def user_dirs(recipe_folder: Path | None = None) -> list[Path]:
+    """Folders searched for `NAME.csv` user circuits, in order (`recipe_folder`: the recipe's, if any)."""
     listed = [Path(p) for p in os.environ.get(USER_DIR_ENV, "").split(os.pathsep) if p]
-    return listed + [DEFAULT_USER_DIR]
+    beside_recipe = [recipe_folder / DEFAULT_USER_DIR] if recipe_folder is not None else []
+    return listed + beside_recipe + [DEFAULT_USER_DIR]
 
 
-def user_circuits() -> dict[str, Path]:
+def user_circuits(recipe_folder: Path | None = None) -> dict[str, Path]:
     """name -> CSV path of every user circuit found in the user folders (first folder wins)."""
     found: dict[str, Path] = {}
-    for folder in user_dirs():
+    for folder in user_dirs(recipe_folder):
         for csv in sorted(folder.glob("*.csv")) if folder.is_dir() else ():
             found.setdefault(csv.stem, csv)
     return found
@@ -67,20 +71,35 @@ def builtin_csv(config: CircuitConfig):
     return resources.files("pilotlab.circuits") / "data" / config.csv
 
 
-def csv_path_of(name: str) -> Path | None:
-    """The CSV a user circuit name or path refers to (None for a built-in circuit)."""
+def csv_path_of(name: str, recipe_folder: Path | None = None) -> Path | None:
+    """The CSV a user circuit name or path refers to (None for a built-in circuit); a recipe's
+    (`recipe_folder`) also finds circuits beside it, and its relative paths start there."""
+    found = user_circuits(recipe_folder)
     if name in CIRCUITS:
+        if name in found:
+            raise PilotlabError(f"{found[name]} has the name of a built-in circuit, which it does not replace; "
+                                f"rename the file (e.g. my_{name}.csv) and use that name")
         return None
-    if name in (found := user_circuits()):
+    if name in found:
         return found[name]
-    if name.endswith(".csv") and Path(name).is_file():
-        return Path(name)
+    if name.endswith(".csv") and (path := _csv_file(name, recipe_folder)) is not None:
+        return path
     known = CIRCUITS.names() + sorted(found)
+    relative = " (relative to the recipe's folder)" if recipe_folder is not None else ""
     raise PilotlabError(f"unknown circuit {name!r}{did_you_mean(name, known)}; known: {', '.join(known)}; "
-                        f"or give the path of a CSV of x,y points, or put NAME.csv in one of: "
-                        f"{', '.join(str(d) for d in user_dirs())}")
+                        f"or give the path of a CSV of x,y points{relative}, or put NAME.csv in one of: "
+                        f"{', '.join(str(d) for d in user_dirs(recipe_folder))}")
 
 
-def all_circuit_names() -> list[str]:
+def _csv_file(name: str, recipe_folder: Path | None) -> Path | None:
+    try:
+        path = Path(name).expanduser()
+        path = path if path.is_absolute() or recipe_folder is None else recipe_folder / path
+        return path if path.is_file() else None
+    except (OSError, RuntimeError):   # too long a name, an unknown ~user
+        return None
+
+
+def all_circuit_names(recipe_folder: Path | None = None) -> list[str]:
     """Built-in circuits, then the user circuits found in the user folders."""
-    return CIRCUITS.names() + [n for n in sorted(user_circuits()) if n not in CIRCUITS]
+    return CIRCUITS.names() + [n for n in sorted(user_circuits(recipe_folder)) if n not in CIRCUITS]

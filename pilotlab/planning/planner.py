@@ -139,10 +139,13 @@ class Planner:
             return {"circuit": str(csv)}, {"circuit_csv": input_file(str(csv))}
         from pilotlab.circuits import csv_path_of
         try:
-            csv = csv_path_of(circuit)
+            csv = csv_path_of(circuit, self.folder)
         except MatrixError as error:
             raise self.recipe.error(str(error), where) from None
-        return {"circuit": circuit}, ({"circuit_csv": input_file(str(csv))} if csv else {})
+        if csv is None:   # built in
+            return {"circuit": circuit}, {}
+        csv = self.path(str(csv.resolve()), where, "file")   # the job finds it wherever it runs from
+        return {"circuit": str(csv)}, {"circuit_csv": input_file(str(csv))}
 
     def path(self, value: str, where: list, expect: str = "any") -> Path:
         """The path a recipe value names (relative to the recipe's folder); it must exist, and be what

@@ -125,7 +125,7 @@ TOY = Domain(
     name="toy",
     sections={"sources": (dict[str, SourceConfig], ...), "sleep": (float, 0.0), "total_sleep": (float, 0.0),
               "measures": (bool, False)},
-    axes={"source": lambda config: list(config.sources), "power": lambda config: None},
+    axes={"source": lambda recipe: list(recipe.config.sources), "power": lambda recipe: None},
     plan=plan,
     kind_modules=("tests.matrix.toydomain",),
     store_env="TOY_STORE",

@@ -9,6 +9,7 @@ from matrix import RecipeError, engine
 from matrix.errors import MatrixError
 from matrix.recipe import load_recipe
 from pilotlab.domain import DOMAIN
+from tests.pilotlab.tracks import stadium
 
 RECIPE = """\
 name: plan-test
@@ -279,3 +280,28 @@ def test_use_naming_a_variant_of_the_recipe_says_to_name_a_built_in_strategy(tmp
     text = RECIPE.replace("prune_more: {use: local_prune, conv: 0.5}", "prune_more: {use: chained}\n  chained: {use: local_prune}")
     with pytest.raises(RecipeError, match="`use` names a built-in strategy, and 'chained' is a variant of this recipe"):
         engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
+
+
+def test_user_circuits_and_csv_paths_are_found_beside_the_recipe_wherever_it_is_planned_from(tmp_path, monkeypatch):
+    project, elsewhere = tmp_path / "project", tmp_path / "elsewhere"
+    (project / "circuits").mkdir(parents=True)
+    elsewhere.mkdir()
+    for path in (project / "circuits" / "oval.csv", project / "ring.csv"):
+        path.write_text("\n".join(f"{x},{y}" for x, y in stadium()))
+    (project / "recipe.yaml").write_text(RECIPE.replace("train: {record: {circuits: [simple_circuit]",
+                                                        "train: {record: {circuits: [oval, ring.csv]")
+                                         .replace("circuit: [simple_circuit]", "circuit: [oval]"))
+    monkeypatch.chdir(elsewhere)
+    jobs = engine.plan_jobs(load_recipe(Path("../project/recipe.yaml"), DOMAIN), DOMAIN)
+    circuits = {job.params["circuit"] for job in jobs if job.kind == "record"}
+    # the jobs carry the resolved files, so a worker finds them whatever its folder
+    assert circuits == {"simple_circuit", str(project / "circuits" / "oval.csv"), str(project / "ring.csv")}
+    assert any(job.kind == "online" and job.params["circuit"] == str(project / "circuits" / "oval.csv") for job in jobs)
+
+
+def test_a_user_circuit_named_like_a_built_in_one_is_refused_not_passed_over(tmp_path, monkeypatch):
+    (tmp_path / "circuits").mkdir()
+    (tmp_path / "circuits" / "simple_circuit.csv").write_text("\n".join(f"{x},{y}" for x, y in stadium()))
+    with pytest.raises(RecipeError, match="simple_circuit.csv has the name of a built-in circuit, which it does not "
+                                          r"replace; rename the file \(e.g. my_simple_circuit.csv\)"):
+        engine.plan_jobs(recipe_at(tmp_path), DOMAIN)
