@@ -319,18 +319,30 @@ def hash_path(path: Path | str) -> str:
     path = Path(path)
     mode = _input_stat(path).st_mode
     if stat.S_ISDIR(mode):
-        files = _folder_files(path)
-        _check_size(path, sum(size for _, size in files), len(files))
-        with _HashProgress(path, sum(size for _, size in files)) as progress:
-            digest = hashlib.sha256()
-            for file, _ in files:
-                digest.update(f"{file.relative_to(path).as_posix()}:{_hash_file(file, progress)}\n".encode())
-        return digest.hexdigest()
+        return _hash_folder_files(path, _folder_files(path))
     if not stat.S_ISREG(mode):
         raise MatrixError(f"input {shown_path(path)} is not a regular file or folder ({_file_type(mode)})")
     _check_size(path, path.stat().st_size, 1)
     with _HashProgress(path, path.stat().st_size) as progress:
         return _hash_file(path, progress)
+
+
+def hash_files(folder: Path | str, files: Iterable[Path | str]) -> str:
+    """sha256 of some files of a folder (names relative to it, and contents), as `hash_path` hashes a
+    whole folder: for an input that reads only those (a dataset folder's index and the images it
+    names), so that other files in the folder change nothing."""
+    folder = Path(folder)
+    listed = sorted({Path(file) for file in files}, key=lambda file: file.relative_to(folder).parts)
+    return _hash_folder_files(folder, [(file, _input_stat(file).st_size) for file in listed])
+
+
+def _hash_folder_files(folder: Path, files: list[tuple[Path, int]]) -> str:
+    _check_size(folder, sum(size for _, size in files), len(files))
+    with _HashProgress(folder, sum(size for _, size in files)) as progress:
+        digest = hashlib.sha256()
+        for file, _ in files:
+            digest.update(f"{file.relative_to(folder).as_posix()}:{_hash_file(file, progress)}\n".encode())
+    return digest.hexdigest()
 
 
 _PSEUDO_ROOTS = ("/proc", "/sys", "/dev")

@@ -20,7 +20,8 @@ from rosbags.typesys import Stores, get_typestore
 
 from pilotlab.data import sqlite_images
 from pilotlab.data.damage import Damage, command_problem
-from pilotlab.data.folder import check_not_system, is_dataset_folder, read_folder
+from pilotlab.data.folder import read_folder
+from pilotlab.data.folder_rows import check_not_system, is_dataset_folder
 from pilotlab.data.frames import FrameSet
 from pilotlab.data.images import IMAGE_TYPES, encoding_of, frame_from_message, image_size
 from pilotlab.data.preprocess import PreprocessConfig

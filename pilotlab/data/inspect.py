@@ -7,7 +7,8 @@ from typing import Any
 import numpy as np
 
 from pilotlab.data.bags import COMMAND_TYPES, bag_format, find_topic, messages, open_bag, read_commands
-from pilotlab.data.folder import is_dataset_folder, load_image, read_rows
+from pilotlab.data.folder import load_image
+from pilotlab.data.folder_rows import is_dataset_folder, read_rows
 from pilotlab.data.images import IMAGE_TYPES, encoding_of, image_size
 from pilotlab.data.topics import COMMAND_TOPIC
 from pilotlab.errors import BagError

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from matrix.errors import MatrixError, did_you_mean
+from matrix.fingerprint import hash_files
 from matrix.jobs import InputFile, Job, Params, input_file
 from matrix.recipe import Recipe
 from pilotlab.errors import PilotlabError
@@ -107,11 +108,23 @@ class Planner:
                 jobs.append(job("frames", f"frames {label}{shown}", FramesSpec(**topics, label=label),
                                 deps={"bag": record}))
         for i, path in enumerate(spec.bags + spec.folders):
-            source = self.path(path, ["datasets", name, "bags" if i < len(spec.bags) else "folders"], "recording")
+            where = ["datasets", name, "bags" if i < len(spec.bags) else "folders"]
+            source = self.path(path, where, "recording")
             label = f"{name}/{Path(path).name}"
             jobs.append(job("frames", f"frames {label}{shown}", FramesSpec(**topics, label=label),
-                            inputs={"bag": input_file(str(source))}))
+                            inputs={"bag": self._recording_input(source, where)}))
         return jobs
+
+    def _recording_input(self, source: Path, where: list) -> InputFile:
+        """A bag is hashed whole; a DeepLearningStudio folder by what reading it reads (data.csv and the
+        images its rows name), so a file added beside them reruns nothing."""
+        from pilotlab.data.folder_rows import is_dataset_folder, read_files
+        if not is_dataset_folder(source):
+            return input_file(str(source))
+        try:
+            return InputFile(str(source), hash_files(source, read_files(source)))
+        except MatrixError as error:
+            raise self.recipe.error(str(error), where) from None
 
     def _recordings(self, name: str, spec: DatasetSpec) -> list[tuple[str, Job]]:
         """(label, record job) for every circuit and direction of the dataset."""

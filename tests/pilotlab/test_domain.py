@@ -305,3 +305,24 @@ def test_a_user_circuit_named_like_a_built_in_one_is_refused_not_passed_over(tmp
     with pytest.raises(RecipeError, match="simple_circuit.csv has the name of a built-in circuit, which it does not "
                                           r"replace; rename the file \(e.g. my_simple_circuit.csv\)"):
         engine.plan_jobs(recipe_at(tmp_path), DOMAIN)
+
+
+def test_a_dls_folder_is_keyed_by_data_csv_and_the_images_it_names_only(tmp_path):
+    from tests.pilotlab.data.bagfiles import images
+    from tests.pilotlab.data.test_folder import make_folder
+    folder = make_folder(tmp_path / "dls", images(3))
+    text = RECIPE.replace("test: {record: {circuits: [simple_circuit], laps: 0.1, seed: 3}}", "test: {folders: [dls]}")
+
+    def frames_key() -> str:
+        return next(job.key for job in engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN) if job.name == "frames test/dls")
+
+    before = frames_key()
+    (folder / "notes.txt").write_text("an operator's notes")
+    (folder / "unused.png").write_bytes((folder / "0.png").read_bytes())
+    assert frames_key() == before                       # nothing a reader reads changed
+    (folder / "2.png").write_bytes((folder / "0.png").read_bytes())
+    assert frames_key() != before                       # an image a row names did
+    (folder / "data.csv").write_text((folder / "data.csv").read_text() + "missing.png,1,0,1650000001\n")
+    with pytest.raises(RecipeError, match=r"datasets.test.folders: .*data.csv: row 4 names image 'missing.png', "
+                                          r"which is not in"):
+        frames_key()
