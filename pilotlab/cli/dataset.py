@@ -31,12 +31,13 @@ def run_inspect(args: argparse.Namespace) -> int:
     from pilotlab.data.inspect import inspect_recording
     from pilotlab.data.topics import COMMAND_TOPIC
 
-    info = inspect_recording(args.bag, args.command_topic or COMMAND_TOPIC)
+    with _ImageProgress() as progress:
+        info = inspect_recording(args.bag, args.command_topic or COMMAND_TOPIC, progress=progress.update)
     if args.json:
         print(json.dumps(info, indent=1))
     else:
         print_inspection(info)
-    return 0
+    return 1 if any(image.get("unreadable") for image in info["images"].values()) else 0   # frames would fail
 
 
 def print_inspection(info: dict) -> None:
@@ -52,16 +53,64 @@ def print_inspection(info: dict) -> None:
             table.add_row(topic["name"], topic["type"], str(topic["count"]), f"{topic['rate_hz'] or 0:.1f}")
         console.print(table)
     for name, image in info["images"].items():
-        height, width = image["size"]
-        console.print(f"images on {name}: {width}×{height} {image['encoding']}")
+        console.print(_images_line(name, image), highlight=False)
+        if image.get("unreadable"):
+            console.print(f"[bold red]{image['unreadable']} image(s) named in {name} cannot be read[/] (first: "
+                          f"{', '.join(image['unreadable_first'])}): the frames job stops at the first; replace "
+                          "or remove them and their rows", highlight=False)
     commands = info["commands"]
     if commands:
         console.print(f"commands on {commands['topic']}: {commands['count']}, "
                       f"v {commands['v'][0]:.3f} .. {commands['v'][1]:.3f} m/s, "
                       f"w {commands['w'][0]:.3f} .. {commands['w'][1]:.3f} rad/s")
+        if damaged := commands.get("damaged"):
+            console.print(f"[bold yellow]{damaged['count']} damaged command(s)[/] ({damaged['reason']}), "
+                          "dropped with their frames when read", highlight=False)
     else:
         console.print(f"no commands: the bag has no {info['command_topic']} of type geometry_msgs/Twist or "
                       "TwistStamped (name the command topic with --command-topic)")
+
+
+def _images_line(name: str, image: dict) -> str:
+    """`images on TOPIC: 200×66 png`; a folder's images all opened: each size with its count when mixed."""
+    if image["size"] is None:
+        return f"images in {name}: none readable"
+    height, width = image["size"]
+    sizes = image.get("sizes") or {}
+    if len(sizes) > 1:   # preprocessing resizes each, but a mix often means images from two cameras
+        mix = ", ".join(f"{size.replace('x', '×')} ({count})" for size, count in sizes.items())
+        return f"images in {name}: {image['encoding']} of {len(sizes)} sizes: {mix}"
+    where = "in" if "sizes" in image else "on"
+    return f"images {where} {name}: {width}×{height} {image['encoding']}"
+
+
+class _ImageProgress:
+    """A transient bar on a terminal while a dataset folder's images are opened (thousands take a while)."""
+
+    def __enter__(self) -> _ImageProgress:
+        self.bar, self.task = None, None
+        return self
+
+    def update(self, done: int, total: int) -> None:
+        if self.bar is None:
+            self.bar = self._start(total)
+        if self.bar:
+            self.bar.update(self.task, completed=done)
+
+    def _start(self, total: int):
+        from rich.console import Console
+        from rich.progress import Progress
+        console = Console(stderr=True)
+        if not console.is_terminal:   # a pipe or a log gets no bar (rich would leave an empty line)
+            return False
+        bar = Progress(console=console, transient=True)
+        bar.start()
+        self.task = bar.add_task("opening images", total=total)
+        return bar
+
+    def __exit__(self, *exc) -> None:
+        if self.bar:
+            self.bar.stop()
 
 
 def run_convert(args: argparse.Namespace) -> int:

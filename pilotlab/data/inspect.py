@@ -1,13 +1,15 @@
 """What a bag (or dataset folder) holds: topics, types, counts, duration, image size, v/w ranges."""
 from __future__ import annotations
 
+from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from pilotlab.data.bags import COMMAND_TYPES, bag_format, find_topic, messages, open_bag, read_commands
-from pilotlab.data.folder import load_image
 from pilotlab.data.folder_rows import is_dataset_folder, read_rows
 from pilotlab.data.images import IMAGE_TYPES, encoding_of, image_size
 from pilotlab.data.topics import COMMAND_TOPIC
@@ -18,9 +20,10 @@ def _range(values: np.ndarray) -> list[float] | None:
     return [float(values.min()), float(values.max())] if len(values) else None
 
 
-def inspect_recording(path: Path | str, command_topic: str = COMMAND_TOPIC) -> dict[str, Any]:
+def inspect_recording(path: Path | str, command_topic: str = COMMAND_TOPIC,
+                      progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
     path = Path(path)
-    return inspect_folder(path) if is_dataset_folder(path) else inspect_bag(path, command_topic)
+    return inspect_folder(path, progress) if is_dataset_folder(path) else inspect_bag(path, command_topic)
 
 
 def inspect_bag(path: Path, command_topic: str = COMMAND_TOPIC) -> dict[str, Any]:
@@ -55,13 +58,35 @@ def _first_image(reader, path: Path, topic: str) -> dict[str, Any]:
     return {"type": msgtype, "encoding": encoding_of(msg, msgtype), "size": list(image_size(msg, msgtype, where))}
 
 
-def inspect_folder(path: Path) -> dict[str, Any]:
+SHOWN_UNREADABLE = 5
+
+
+def inspect_folder(path: Path, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+    """A dataset folder: its rows, and every image it names opened (what `frames` will read), so an
+    unreadable image or a mix of sizes shows here, not an hour into a run."""
     rows = read_rows(path)
     labels = np.array([(r.v, r.w) for r in rows], np.float64)
     seconds = (rows[-1].stamp_ns - rows[0].stamp_ns) / 1e9
     return {"path": str(path), "format": "folder", "messages": len(rows), "start_ns": rows[0].stamp_ns,
             "end_ns": rows[-1].stamp_ns, "duration_s": round(seconds, 3),
-            "topics": [], "images": {"data.csv": {"type": "png", "encoding": "png",
-                                                  "size": list(load_image(rows[0].image).shape[:2])}},
+            "topics": [], "images": {"data.csv": _folder_images(path, rows, progress)},
             "command_topic": "data.csv", "commands": {"topic": "data.csv", "count": len(rows), "v": _range(labels[:, 0]),
                          "w": _range(labels[:, 1])}}
+
+
+def _folder_images(folder: Path, rows: list, progress: Callable[[int, int], None] | None) -> dict[str, Any]:
+    sizes, encodings, unreadable = Counter(), Counter(), []
+    for i, row in enumerate(rows):
+        image = cv2.imread(str(row.image), cv2.IMREAD_COLOR)
+        if image is None:
+            unreadable.append(row.image.relative_to(folder).as_posix())
+        else:
+            sizes[image.shape[:2]] += 1
+            encodings[row.image.suffix.lstrip(".").lower() or "?"] += 1
+        if progress and (i % 64 == 0 or i == len(rows) - 1):
+            progress(i + 1, len(rows))
+    common = sizes.most_common(1)[0][0] if sizes else None
+    return {"type": "file", "encoding": ", ".join(name for name, _ in encodings.most_common()) or "none",
+            "size": list(common) if common else None,
+            "sizes": {f"{w}x{h}": count for (h, w), count in sizes.most_common()},
+            "unreadable": len(unreadable), "unreadable_first": unreadable[:SHOWN_UNREADABLE]}

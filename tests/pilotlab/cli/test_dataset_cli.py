@@ -69,6 +69,21 @@ def test_convert_a_folder_then_inspect_it(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["format"] == "folder"
 
 
+def test_inspect_a_folder_opens_every_image_it_names(tmp_path, capsys):
+    import cv2
+    import numpy as np
+    folder = make_folder(tmp_path / "dls", images(5))
+    cv2.imwrite(str(folder / "3.png"), np.zeros((30, 40, 3), np.uint8))   # another camera's size
+    (folder / "4.png").write_bytes(b"not an image")
+    assert main(["dataset", "inspect", str(folder)]) == 1   # the frames job would stop at 4.png
+    out = capsys.readouterr().out
+    assert "png of 2 sizes: 80×60 (3), 40×30 (1)" in out
+    assert "1 image(s) named in data.csv cannot be read (first: 4.png)" in " ".join(out.split())
+    assert main(["dataset", "inspect", str(folder), "--json"]) == 1
+    image = json.loads(capsys.readouterr().out)["images"]["data.csv"]
+    assert image["sizes"] == {"80x60": 3, "40x30": 1} and image["unreadable_first"] == ["4.png"]
+
+
 def test_convert_to_ros2_mcap_with_compressed_images(tmp_path, capsys):
     folder = make_folder(tmp_path / "dls", images(2))
     assert main(["dataset", "convert", str(folder), "--out", str(tmp_path / "ros2"), "--storage", "mcap",
