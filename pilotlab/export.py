@@ -98,8 +98,9 @@ s, z = out["quantization"]
 vw = (vw.astype(np.float32) - z) * s                  # read raw, the int8 output is meaningless"""
 
 
-def export_artifact(artifact_dir: Path, result: dict[str, Any], out_dir: Path) -> Path:
-    """Copy the artifact folder into `out_dir` and write README.md; returns out_dir."""
+def export_artifact(artifact_dir: Path, result: dict[str, Any], out_dir: Path, name: str | None = None) -> Path:
+    """Copy the artifact folder into `out_dir` and write README.md (titled `name`, the recipe's
+    MODEL/STRATEGY, where known); returns out_dir."""
     artifact_dir, out_dir = Path(artifact_dir), Path(out_dir)
     meta = read_meta(artifact_dir)
     if out_dir.exists() and not out_dir.is_dir():
@@ -107,16 +108,16 @@ def export_artifact(artifact_dir: Path, result: dict[str, Any], out_dir: Path) -
     if out_dir.exists() and any(out_dir.iterdir()):
         raise PilotlabError(f"{out_dir} exists and is not empty; give --out a new folder")
     shutil.copytree(artifact_dir, out_dir, dirs_exist_ok=True)
-    (out_dir / "README.md").write_text(readme(meta, result))
+    (out_dir / "README.md").write_text(readme(meta, result, name))
     return out_dir
 
 
-def readme(meta: ArtifactMeta, result: dict[str, Any]) -> str:
+def readme(meta: ArtifactMeta, result: dict[str, Any], name: str | None = None) -> str:
     shape = "[N, " + ", ".join(str(d) for d in meta.input_shape[1:]) + "]"
     cast = {"bfloat16": ".bfloat16()", "float16": ".half()"}.get(meta.dtype, "")
     labels = meta.labels
     lines = [
-        f"# {meta.arch} — {meta.strategy}", "",
+        f"# {name} ({meta.arch})" if name else f"# {meta.arch} — {meta.strategy}", "",
         f"Exported from pilotlab: strategy `{meta.strategy}` (version {meta.strategy_version}), "
         f"{meta.dtype} weights, {FRAMEWORKS.get(meta.format, meta.format)}, for {meta.device}.", "",
         f"- File: `{meta.file}` ({result.get('size_mb', 0):.2f} MB); metadata: `{META_FILE}`.",
@@ -195,4 +196,5 @@ def export_job(store: Store, key_prefix: str, out_dir: Path) -> Path:
     if stored.get("status") != "ok":
         raise PilotlabError(f"job {key[:12]} ({spec.get('name', '')}) produced no artifact: "
                             f"{stored.get('status')}: {stored.get('reason', '')}")
-    return export_artifact(store.artifacts(key), stored.get("value") or {}, out_dir)
+    name = str(spec.get("name", "")).removeprefix("optimize ") or None   # the recipe's MODEL/STRATEGY
+    return export_artifact(store.artifacts(key), stored.get("value") or {}, out_dir, name)

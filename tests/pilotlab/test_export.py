@@ -31,6 +31,7 @@ def test_export_cli_copies_the_artifact_with_a_readme(store, tmp_path, capsys):
     out = tmp_path / "deploy"
     assert main(["export", "ab12", "--out", str(out), "--store", str(store)]) == 0
     readme = (out / "README.md").read_text()
+    assert readme.startswith("# pilotnet/onnxruntime (pilotnet)\n")   # the recipe's model and strategy
     assert "onnxruntime.InferenceSession" in readme or "ort.InferenceSession" in readme
     assert "[N, 3, 66, 200]" in readme and "RGB in [0, 1]" in readme and "rad/s" in readme
     batch = np.random.default_rng(0).random((2, 3, 66, 200), dtype=np.float32)
