@@ -73,14 +73,9 @@ def evaluate_offline(artifact_dir: Path, hardware: HardwareProfile | dict | str,
     the clean calls, or every call when unstable; in measurement order) are saved there as
     `latency_ms.npy`, named by the result's `latency_samples`, so a closed-loop lap can replay the
     latency this job measured."""
-    test.check_finite("test data")
-    profile = resolve_profile(hardware)
     memory = PeakMemory()
-    predictor = load_predictor(artifact_dir, profile)
+    predictor, result = _accuracy(artifact_dir, hardware, test, settings)
     frames = max(1, predictor.meta.input_shape[1] // 3)
-    result = {"size_mb": artifact_size_mb(artifact_dir), "size_gz_mb": artifact_size_gz_mb(artifact_dir),
-              "threads": predictor.threads,
-              "test_frames": len(test), **mse_metrics(predictor, test, frames, settings.mse_batch)}
     throughput = measure_throughput(predictor, sample_batch(test, settings.throughput_batch, frames), settings)
     result["peak_mem_mb"] = memory.peak_mb()
     latency = measure_latency(predictor.predict, sample_batch(test, 1, frames), settings, predictor.hardware)
@@ -97,6 +92,22 @@ def evaluate_offline(artifact_dir: Path, hardware: HardwareProfile | dict | str,
         np.save(Path(out) / LATENCY_SAMPLES, samples)
         result["latency_samples"] = LATENCY_SAMPLES
     return result
+
+
+def evaluate_accuracy(artifact_dir: Path, hardware: HardwareProfile | dict | str, test: FrameSet,
+                      settings: TimingSettings = TimingSettings()) -> dict:
+    """The offline metrics that do not time: size, MSE on `test` (for a network timed by another job)."""
+    return _accuracy(artifact_dir, hardware, test, settings)[1]
+
+
+def _accuracy(artifact_dir: Path, hardware: HardwareProfile | dict | str, test: FrameSet,
+              settings: TimingSettings) -> tuple[Predictor, dict]:
+    test.check_finite("test data")
+    predictor = load_predictor(artifact_dir, resolve_profile(hardware))
+    frames = max(1, predictor.meta.input_shape[1] // 3)
+    return predictor, {"size_mb": artifact_size_mb(artifact_dir), "size_gz_mb": artifact_size_gz_mb(artifact_dir),
+                       "threads": predictor.threads, "test_frames": len(test),
+                       **mse_metrics(predictor, test, frames, settings.mse_batch)}
 
 
 def sample_batch(test: FrameSet, size: int, frames: int) -> np.ndarray:

@@ -9,6 +9,8 @@ absent when none is); latency_samples ("latency_ms.npy" in the artifacts: the ba
 is made of, float64 ms, in measurement order: the clean calls, or every call's thread CPU time or wall
 time); plus strategy, hardware (the
 profile), host (the fingerprint of the host that timed it) and hostname (its name, matrix.hostlock).
+Untimed (`timed: false`): the MSE and size figures of its own test set, every other figure its `timing`
+dependency's, and timed_by (that job's name).
 """
 from __future__ import annotations
 
@@ -38,8 +40,19 @@ def run_offline(ctx: JobContext) -> dict:
     sets = [FrameSet.load(dep.artifacts) for dep in ctx.dep_group("test")]
     test = sets[0] if len(sets) == 1 else FrameSet.concat(sets)
     settings = timing_settings(ctx.name, spec)
+    if not spec.timed:
+        return accuracy_beside_timing(ctx, test, settings)
     ctx.progress(0, 1, f"timing {ctx.dep('artifact').result.get('strategy', '?')} on {profile.name}")
     result = offline.evaluate_offline(ctx.dep("artifact").artifacts, profile, test, settings, ctx.out)
     ctx.progress(1, 1)
     return {**result, "strategy": ctx.dep("artifact").result.get("strategy"),
             "hardware": profile.as_dict(), "host": host, "hostname": host_name()}
+
+
+def accuracy_beside_timing(ctx: JobContext, test: FrameSet, settings: offline.TimingSettings) -> dict:
+    """MSE on this job's test set; every timing figure is the `timing` job's (the same network and
+    hardware), with the name of the job that measured it."""
+    timing = ctx.dep("timing")
+    measured = {key: value for key, value in timing.result.items() if key != "latency_samples"}
+    accuracy = offline.evaluate_accuracy(ctx.dep("artifact").artifacts, ctx.spec.hardware, test, settings)
+    return {**measured, **accuracy, "timed_by": timing.name}

@@ -45,7 +45,7 @@ def replay_inputs(planner, combination: dict, hardware: str, timing: Job) -> tup
     deps: dict[str, Job] = {"timing": timing}
     if online.latency_scale_to_ms is not None:
         base = {**combination, "strategy": "baseline"}
-        deps["scale_reference"] = planner.offline(planner.optimize(model, "baseline", hardware), base, hardware)
+        deps["scale_reference"] = planner.timing(planner.optimize(model, "baseline", hardware), base, hardware)
     return params, deps, {}
 
 

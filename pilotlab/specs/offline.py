@@ -1,7 +1,8 @@
 """The `offline` job: MSE, size, latency, throughput and memory of one optimized artifact on one
 hardware profile and one test set. Exclusive: a timing job has the host to itself.
 
-deps: `artifact` (the optimize job) and `test` (a group of frames jobs, concatenated).
+deps: `artifact` (the optimize job) and `test` (a group of frames jobs, concatenated); with `timed: false`,
+`timing` (the offline job that timed the same artifact on the same hardware, whose figures it takes).
 """
 from __future__ import annotations
 
@@ -24,6 +25,9 @@ class OfflineSpec(OfflineSettings):
                                                           "(None: whichever host the profile's worker resource is on)")
     timing: dict[str, int | float] = Field({}, description="overrides of how long and how often to measure "
                                                      "(pilotlab.offline.TimingSettings), e.g. for quick tests")
+    timed: bool = Field(True, description="False: the job measures MSE only and its timing figures are its `timing` "
+                                          "dependency's (the same network on the same hardware, tested in another "
+                                          "world): a network is timed once, whatever the worlds it is tested in")
 
 
 def gpu_resources(params) -> dict[str, float]:
@@ -37,5 +41,9 @@ def timing_resources(params) -> dict[str, float]:
     return gpu_resources(params) | ({machine: 1} if machine else {})
 
 
-register_kind("offline", "pilotlab.jobs.offline:run_offline", params=OfflineSpec, exclusive=True,
-              resources_for=timing_resources)
+def timed(params) -> bool:
+    return bool(params.get("timed", True))
+
+
+register_kind("offline", "pilotlab.jobs.offline:run_offline", params=OfflineSpec, exclusive_for=timed,
+              resources_for=lambda params: timing_resources(params) if timed(params) else gpu_resources(params))

@@ -44,6 +44,18 @@ def test_the_world_axis_records_tests_and_drives_in_each_world(tmp_path, oval_as
     assert {"online explicit on cpu at oval cw", "online expert on cpu at oval_no_sun cw"} <= set(jobs)
 
 
+def test_a_network_tested_in_several_worlds_is_timed_once_and_every_lap_replays_that_timing(tmp_path, oval_assets):
+    jobs = plan(tmp_path, oval_assets)
+    timed, shifted = jobs["offline small/dynamic_quant on cpu in oval"], jobs["offline small/dynamic_quant on cpu in oval_no_sun"]
+    assert timed.params["timed"] and "timing" not in timed.deps
+    assert not shifted.params["timed"] and shifted.deps["timing"] is timed   # its own test set, oval's timing
+    from matrix.kinds import KINDS
+    assert KINDS.get("offline").runs_alone(timed.params) and not KINDS.get("offline").runs_alone(shifted.params)
+    for world in ("oval", "oval_no_sun"):
+        assert jobs[f"online small/dynamic_quant on cpu at {world} cw"].deps["timing"] is timed
+    assert sum(job.kind == "offline" and job.params["timed"] for job in jobs.values()) == 2   # one per strategy
+
+
 def test_an_edit_of_a_world_reruns_only_what_drove_there(tmp_path, oval_assets):
     assets = shutil.copytree(oval_assets, tmp_path / "assets")
     before = {name: job.key for name, job in plan(tmp_path, assets).items()}

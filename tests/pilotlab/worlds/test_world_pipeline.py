@@ -46,6 +46,8 @@ def test_a_recipe_over_worlds_runs_reports_and_stays_fresh(tmp_path, oval_assets
     assert (report / "plots" / "world_shift.png").is_file()
     rows = json.loads((report / "results.json").read_text())["rows"]
     assert {row["world"] for row in rows} == {"oval", "oval_no_sun"}
+    offline = {row["world"]: row for row in rows if row["kind"] == "offline"}
+    assert offline["oval"]["latency_ms"] == offline["oval_no_sun"]["latency_ms"]   # timed once, in oval
     plan = pilotlab("plan", "worlds.yaml", "--store", "store", "--json", cwd=tmp_path)
     assert plan.returncode == 0, plan.stderr
     statuses = {job["status"] for job in json.loads(plan.stdout)}
