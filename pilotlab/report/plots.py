@@ -7,6 +7,7 @@ shape means model everywhere, so a strategy looks the same in every plot.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -28,7 +29,9 @@ def save_plots(data: ReportData, folder: Path) -> dict[str, tuple[Path, Path]]:
     """Draw every plot that has data; write `<name>.png` and `<name>.svg`; return name -> (png, svg)."""
     folder.mkdir(parents=True, exist_ok=True)
     written = {}
-    with matplotlib.rc_context(STYLE):
+    with matplotlib.rc_context(STYLE), warnings.catch_warnings():
+        # a name in a script the font lacks (モデル) is drawn as boxes; the tables beside each plot spell it
+        warnings.filterwarnings("ignore", message=r"Glyph \d+ .*missing from", category=UserWarning)
         for name, draw in PLOTS.items():
             figure = draw(data)
             if figure is None:

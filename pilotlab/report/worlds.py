@@ -99,9 +99,12 @@ def _table_row(cells: list[WorldCell], cell: WorldCell) -> TableRow:
     mse = ratio(cell.metric("mse"), base.metric("mse") if base else None)
     deviation = ratio(cell.metric("bm_position_deviation_mae"), base.metric("bm_position_deviation_mae") if base else None)
     row = cell.lap or cell.offline
+    lost = [c for c in (cell, base) if c is not None and c.metric("lap_completed") is False]
+    deviation_cell = _ratio_cell(deviation, cell.training) if not lost or cell.training else \
+        Cell("lap lost", None, "BM's deviation of a lost lap grows without bound (1000^d per point off the road): "
+             "a ratio to it says nothing", missing=True)
     return TableRow(cell.strategy, row, (Cell(cell.world), lap, _metric(cell, "bm_position_deviation_mae"), tolerance,
-                                         _metric(cell, "mse"), _ratio_cell(mse, cell.training),
-                                         _ratio_cell(deviation, cell.training)))
+                                         _metric(cell, "mse"), _ratio_cell(mse, cell.training), deviation_cell))
 
 
 def shift_summary(data: ReportData) -> list[str]:
@@ -135,6 +138,10 @@ def _lines(model: str, figures: dict, baseline: str) -> list[str]:
                    None: "no lap in the training world"}[home]
         lines.append(f"{model}/{strategy}: {at_home}; {done}/{runs} laps completed in the shifted worlds, {mse}")
     if base is None:
+        return lines
+    if base[3] is not True:   # a network failing at home says nothing about what a shifted world costs
+        lines.append(f"{model}: no conclusion on the world shift: the baseline "
+                     f"{'lost its lap' if base[3] is False else 'drove no lap'} in its training world already")
         return lines
     worse = [s for s, (done, runs, ratio, home) in figures.items() if s != baseline and
              (done < base[0] or (home is False and base[3] is True) or

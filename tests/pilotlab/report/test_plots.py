@@ -1,5 +1,5 @@
 from pilotlab.report import ReportData
-from pilotlab.report.plots import draw_closed_loop, draw_pareto, draw_ratios, draw_training, pareto_front
+from pilotlab.report.plots import draw_closed_loop, draw_pareto, draw_ratios, draw_training, pareto_front, save_plots
 from tests.pilotlab.report.toy import offline_row, small_dict
 
 
@@ -39,3 +39,14 @@ def test_no_speed_up_bar_is_drawn_from_an_unstable_timing():
     assert [t.get_text() for t in speed.texts] == ["⚠ unstable timing", "⚠ unstable timing"] and not speed.patches
     legend = [t.get_text() for t in draw_pareto(data).legends[0].get_texts()]
     assert "⚠ unstable timing" in legend
+
+
+def test_a_name_the_font_cannot_draw_warns_nothing(tmp_path):
+    import warnings
+    rows = [{"model": "モデル", "strategy": strategy, "hardware": "cpu", "kind": "offline", "test_set": "t",
+             "mse": mse, "latency_ms": ms, "size_mb": 1.0} for strategy, mse, ms in (("baseline", 0.1, 1.0),
+                                                                                    ("int8", 0.2, 0.5))]
+    data = ReportData.from_dict({"recipe_name": "w", "date": "2026-11-25T10:00:00", "rows": rows})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")      # the glyph warnings were printed without --verbose
+        assert set(save_plots(data, tmp_path)) == {"pareto", "ratios"}

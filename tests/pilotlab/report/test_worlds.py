@@ -41,6 +41,18 @@ def test_summary_says_who_lost_more_than_the_baseline():
     assert lost[0].startswith("pilotnet/baseline: lap completed in the training world;")
 
 
+def test_no_verdict_when_the_baseline_loses_its_lap_in_its_own_world_and_no_ratio_to_a_lost_lap():
+    table = (rows("baseline", "simple_circuit", 0.02, 900.0, False) + rows("baseline", "white_line", 0.05, 3.0, True)
+             + rows("int8", "simple_circuit", 0.02, 2.0, True) + rows("int8", "white_line", 0.02, 850.0, False))
+    lost = ReportData.from_dict({"recipe_name": "w", "date": "2026-11-25T10:00:00", "rows": table,
+                                 "training_worlds": {"pilotnet": ["simple_circuit"]}})
+    assert shift_summary(lost)[-1] == ("pilotnet: no conclusion on the world shift: the baseline lost its lap in "
+                                       "its training world already")
+    (tables,) = world_tables(lost)
+    cells = {(row.method, row.cells[0].text): row.cells[6].text for row in tables.rows}
+    assert cells["baseline", "white_line"] == cells["int8", "white_line"] == "lap lost"   # at home, or here
+
+
 def test_the_plot_is_drawn(tmp_path):
     plots = save_plots(data(int8_completes=False), tmp_path)
     assert "world_shift" in plots and plots["world_shift"][0].stat().st_size > 5000
