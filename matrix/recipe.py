@@ -181,7 +181,7 @@ def _check_combinations(recipe: Recipe, domain: Domain) -> None:
     """Every key of every combination is an axis the domain knows, with a value it accepts."""
     matrix = recipe.config.matrix
     valid = {axis: values(recipe) for axis, values in domain.axes.items()}
-    for path, key, value in _declared_values(matrix):
+    for path, key, value in declared_values(matrix):
         if key not in domain.axes:
             key_path = path if path[1] in RESERVED else path[:2]
             raise recipe.error(f"unknown axis {key!r}{did_you_mean(key, domain.axes)}; "
@@ -194,8 +194,8 @@ def _check_combinations(recipe: Recipe, domain: Domain) -> None:
                                f"known: {', '.join(map(str, known)) or '(none)'}", path)
 
 
-def _declared_values(matrix: Mapping[str, Any]):
-    """(key path, axis, value) for every value written in the matrix section."""
+def declared_values(matrix: Mapping[str, Any]):
+    """(key path, axis, value) for every value written in the matrix section (axes, include, exclude)."""
     for key, values in matrix.items():
         if key in RESERVED:
             for i, entry in enumerate(matrix[key] or []):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from matrix.recipe import Domain, Recipe
+from matrix.recipe import Domain, Recipe, declared_values
 from pilotlab.planning import plan
 from pilotlab.recipe import SECTIONS
 from pilotlab.specs import KIND_MODULES
@@ -30,8 +30,13 @@ def _hardware(recipe: Recipe) -> list[str]:
 
 
 def _circuits(recipe: Recipe) -> list[str]:
+    """Circuit names, and the CSV paths the matrix writes that name a file (relative to the recipe)."""
     from pilotlab.circuits import all_circuit_names
-    return sorted(set(all_circuit_names(Path(recipe.file).resolve().parent)) | set(recipe.config.circuits))
+    from pilotlab.circuits.registry import csv_file
+    folder = Path(recipe.file).resolve().parent
+    paths = {value for _, axis, value in declared_values(recipe.config.matrix) if axis == "circuit" and
+             isinstance(value, str) and value.endswith(".csv") and csv_file(value, folder) is not None}
+    return sorted(set(all_circuit_names(folder)) | set(recipe.config.circuits) | paths)
 
 
 def same_definition(config, axis: str, value) -> tuple | None:

@@ -82,7 +82,7 @@ def csv_path_of(name: str, recipe_folder: Path | None = None) -> Path | None:
         return None
     if name in found:
         return found[name]
-    if name.endswith(".csv") and (path := _csv_file(name, recipe_folder)) is not None:
+    if name.endswith(".csv") and (path := csv_file(name, recipe_folder)) is not None:
         return path
     known = CIRCUITS.names() + sorted(found)
     relative = " (relative to the recipe's folder)" if recipe_folder is not None else ""
@@ -91,7 +91,8 @@ def csv_path_of(name: str, recipe_folder: Path | None = None) -> Path | None:
                         f"{', '.join(str(d) for d in user_dirs(recipe_folder))}")
 
 
-def _csv_file(name: str, recipe_folder: Path | None) -> Path | None:
+def csv_file(name: str, recipe_folder: Path | None) -> Path | None:
+    """The CSV file a path names (relative to `recipe_folder` if given), or None if there is none."""
     try:
         path = Path(name).expanduser()
         path = path if path.is_absolute() or recipe_folder is None else recipe_folder / path

@@ -37,6 +37,7 @@ from pilotlab.online import brains, evaluate
 from pilotlab.online.latency import TimingSource, describe
 from pilotlab.online.perfect_lap import perfect_lap
 from pilotlab.specs.online import OnlineSpec, timed_live
+from pilotlab.specs.record import with_circuit_file
 from pilotlab.worlds.assets import world_assets
 
 
@@ -91,7 +92,7 @@ def replayed_latency(ctx: JobContext, spec: OnlineSpec, brain) -> tuple[np.ndarr
 
 
 def run_online(ctx: JobContext) -> dict[str, Any]:
-    spec: OnlineSpec = ctx.spec
+    spec: OnlineSpec = with_circuit_file(ctx.spec, ctx.inputs)
     profile = profile_from_dict(spec.hardware)
     check_available(profile)
     # a lap not timed on this host's clock runs beside another job: its brain keeps to its share of cores

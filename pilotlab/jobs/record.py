@@ -11,12 +11,12 @@ from matrix.kinds import JobContext
 from pilotlab.data import topics
 from pilotlab.errors import PilotlabError
 from pilotlab.sim import record
-from pilotlab.specs.record import RecordSpec
+from pilotlab.specs.record import RecordSpec, with_circuit_file
 from pilotlab.worlds.assets import world_assets
 
 
 def run_record(ctx: JobContext) -> dict:
-    spec: RecordSpec = ctx.spec
+    spec: RecordSpec = with_circuit_file(ctx.spec, ctx.inputs)
     name = "recording.bag" if spec.format == "ros1" else "recording"
     assets, _ = world_assets(ctx.inputs)
     label = f"recording {spec.world or spec.circuit} {spec.direction}"

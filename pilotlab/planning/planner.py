@@ -147,18 +147,20 @@ class Planner:
         return self.remembered(("circuit", circuit), lambda: self._circuit_param(circuit, where))
 
     def _circuit_param(self, circuit: str, where: list) -> tuple[dict, dict]:
+        """A built-in circuit by name; a CSV by its content (the input's hash) and its file's stem, so the
+        same file named two ways is one job and a moved project reruns nothing (the job reads the input's path)."""
         if circuit in self.config.circuits:
             csv = self.path(self.config.circuits[circuit].csv, ["circuits", circuit, "csv"], "file")
-            return {"circuit": str(csv)}, {"circuit_csv": input_file(str(csv))}
-        from pilotlab.circuits import csv_path_of
-        try:
-            csv = csv_path_of(circuit, self.folder)
-        except MatrixError as error:
-            raise self.recipe.error(str(error), where) from None
-        if csv is None:   # built in
-            return {"circuit": circuit}, {}
-        csv = self.path(str(csv.resolve()), where, "file")   # the job finds it wherever it runs from
-        return {"circuit": str(csv)}, {"circuit_csv": input_file(str(csv))}
+        else:
+            from pilotlab.circuits import csv_path_of
+            try:
+                found = csv_path_of(circuit, self.folder)
+            except MatrixError as error:
+                raise self.recipe.error(str(error), where) from None
+            if found is None:   # built in
+                return {"circuit": circuit}, {}
+            csv = self.path(str(found.resolve()), where, "file")
+        return {"circuit": csv.stem}, {"circuit_csv": input_file(str(csv))}
 
     def path(self, value: str, where: list, expect: str = "any") -> Path:
         """The path a recipe value names (relative to the recipe's folder); it must exist, and be what

@@ -41,7 +41,8 @@ class RecordSettings(Spec):
 class RecordSpec(RecordSettings, InWorld):
     """One recording: the settings, plus where and from where to drive (in a BM world, `circuit` is
     the world's own)."""
-    circuit: str = Field(min_length=1, description="circuit name (pilotlab circuit list) or CSV path")
+    circuit: str = Field(min_length=1, description="circuit name (pilotlab circuit list) or CSV path; a planned "
+                                                     "job's CSV is its `circuit_csv` input (see with_circuit_file)")
     direction: Direction = "cw"
     start: float | Literal["random"] = Field(0.0, description="start point, metres along the lap, or 'random'")
     max_seconds: float | None = Field(None, gt=0, description="stop after this much simulated time "
@@ -50,3 +51,11 @@ class RecordSpec(RecordSettings, InWorld):
 
 
 register_kind("record", "pilotlab.jobs.record:run_record", params=RecordSpec)
+
+
+def with_circuit_file(spec, inputs):
+    """A planned job's spec (record or online) driving its `circuit_csv` input where it has one: the
+    param names a user's CSV only by its stem, so the job's key follows the file's content, not its place."""
+    csv = inputs.get("circuit_csv")
+    return spec if csv is None else spec.model_copy(update={"circuit": str(csv)})
+

@@ -290,13 +290,21 @@ def test_user_circuits_and_csv_paths_are_found_beside_the_recipe_wherever_it_is_
         path.write_text("\n".join(f"{x},{y}" for x, y in stadium()))
     (project / "recipe.yaml").write_text(RECIPE.replace("train: {record: {circuits: [simple_circuit]",
                                                         "train: {record: {circuits: [oval, ring.csv]")
-                                         .replace("circuit: [simple_circuit]", "circuit: [oval]"))
+                                         .replace("circuit: [simple_circuit]", "circuit: [oval, ring.csv]"))
     monkeypatch.chdir(elsewhere)
     jobs = engine.plan_jobs(load_recipe(Path("../project/recipe.yaml"), DOMAIN), DOMAIN)
-    circuits = {job.params["circuit"] for job in jobs if job.kind == "record"}
-    # the jobs carry the resolved files, so a worker finds them whatever its folder
-    assert circuits == {"simple_circuit", str(project / "circuits" / "oval.csv"), str(project / "ring.csv")}
-    assert any(job.kind == "online" and job.params["circuit"] == str(project / "circuits" / "oval.csv") for job in jobs)
+    records = [job for job in jobs if job.kind == "record"]
+    assert {job.params["circuit"] for job in records} == {"simple_circuit", "oval", "ring"}
+    # the jobs read the files their inputs name (whatever the worker's folder); keys follow content, not place
+    assert {job.inputs["circuit_csv"].path for job in records if "circuit_csv" in job.inputs} == \
+        {str(project / "circuits" / "oval.csv"), str(project / "ring.csv")}
+    for name, csv in (("oval", project / "circuits" / "oval.csv"), ("ring.csv", project / "ring.csv")):  # any axis
+        lap = next(job for job in jobs if job.kind == "online" and job.labels["circuit"] == name)
+        assert lap.inputs["circuit_csv"].path == str(csv)
+    moved = tmp_path / "moved"
+    project.rename(moved)
+    assert {job.key for job in engine.plan_jobs(load_recipe(Path("../moved/recipe.yaml"), DOMAIN), DOMAIN)} == \
+        {job.key for job in jobs}
 
 
 def test_a_user_circuit_named_like_a_built_in_one_is_refused_not_passed_over(tmp_path, monkeypatch):
