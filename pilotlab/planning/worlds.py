@@ -20,8 +20,13 @@ def assets_folder(planner, where: list) -> Path:
     shipped recipe runs wherever BM's worlds are); with neither, an error naming both."""
     configured, from_env = planner.config.worlds.assets, os.environ.get(ASSETS_ENV)
     if configured is not None:
-        if from_env and not (planner.folder / Path(configured).expanduser()).exists():
-            return Path(from_env)
+        if not (planner.folder / Path(configured).expanduser()).exists():
+            if from_env:
+                return Path(from_env)
+            raise planner.recipe.error(f"{configured} does not exist (relative paths are relative to the recipe's "
+                                       f"folder, {planner.folder}); point it at BM's worlds (a folder like "
+                                       f"RoboticsInfrastructure/CustomRobots/f1), or set ${ASSETS_ENV}, which stands "
+                                       "in where this folder is missing", ["worlds", "assets"])
         return planner.path(configured, ["worlds", "assets"])
     if from_env:
         return Path(from_env)

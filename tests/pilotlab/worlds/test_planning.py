@@ -79,6 +79,8 @@ def test_no_world_no_change_to_the_keys_of_pilotlab_s_own_world():
     (("world: [oval, oval_no_sun]", "world: [oval]\n  circuit: [simple_circuit]"), "names a circuit and a world",
      "matrix"),
     (("worlds: {{assets: {assets}}}\n", ""), "has no `worlds: {assets: DIR}`", "matrix.world"),
+    (("worlds: {{assets: {assets}}}\n", "worlds: {{assets: ../missing}}\n"),
+     r"../missing does not exist .* or set \$PILOTLAB_BM_ASSETS", "worlds.assets"),   # a shipped recipe copied away
 ])
 def test_recipe_errors_name_the_key(tmp_path, oval_assets, monkeypatch, edit, message, where):
     monkeypatch.delenv("PILOTLAB_BM_ASSETS", raising=False)
