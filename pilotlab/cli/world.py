@@ -53,6 +53,7 @@ def parse_pose(text: str) -> tuple[float, float, float]:
 
 def list_worlds(args: argparse.Namespace) -> int:
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
     from pilotlab.worlds.assets import resolve_assets, world_names, world_path
     from pilotlab.worlds.sdf import read_world
@@ -60,17 +61,26 @@ def list_worlds(args: argparse.Namespace) -> int:
     assets = resolve_assets(args.assets)
     table = Table(title=f"BehaviorMetrics worlds in {assets}")
     for column in ("world", "circuit", "sun", "walls", "camera (up, fov, clip)", "spawn (x, y, yaw)"):
-        table.add_column(column, no_wrap=column in ("world", "circuit"))
+        table.add_column(column, no_wrap=column in ("world", "circuit", "spawn (x, y, yaw)"))   # a pose is copied whole
+    broken = []
     for name in world_names(assets):
-        world = read_world(world_path(assets, name), assets)
+        try:
+            world = read_world(world_path(assets, name), assets)
+        except PilotlabError as error:   # one broken world hides none of the others
+            broken.append(str(error))
+            table.add_row(name, "(broken: see below)", "", "", "", "")
+            continue
         camera = world.camera
         optics = "-" if camera is None else (f"{camera.pose[2]:.2f} m, {math.degrees(camera.hfov_rad):.0f}°, "
                                              f"{camera.far_m:g} m")
         spawn = "-" if world.spawn is None else f"{world.spawn[0]:g}, {world.spawn[1]:g}, {world.spawn[5]:g}"
         table.add_row(name, _circuit(circuit_of, name, world.path), "yes" if world.sun else "no",
                       "yes" if world.collisions else "no", optics, spawn)
-    Console().print(table)
-    return 0
+    console = Console()
+    console.print(table)
+    for problem in broken:
+        console.print(f"[bold red]broken[/]: {escape(problem)}", highlight=False)
+    return 1 if broken else 0
 
 
 def _circuit(circuit_of, name: str, path) -> str:

@@ -17,6 +17,18 @@ def test_list_shows_the_worlds_with_their_circuit_sun_and_camera(oval_assets, ca
     assert "oval_no_sun" in out and "oval.csv" in out and "0.10 m, 90°, 15 m" in out
 
 
+def test_one_broken_world_hides_none_of_the_others(oval_assets, tmp_path, capsys, monkeypatch):
+    import shutil
+    monkeypatch.setenv("COLUMNS", "160")
+    assets = shutil.copytree(oval_assets, tmp_path / "assets")
+    world = (assets / "worlds" / "oval.world").read_text()
+    (assets / "worlds" / "broken.world").write_text(world.replace("model://oval<", "model://nonexistent<"))
+    assert main(["world", "list", "--assets", str(assets)]) == 1
+    out = " ".join(capsys.readouterr().out.split())
+    assert "oval_no_sun" in out and "0.10 m, 90°, 15 m" in out and "(broken: see below)" in out
+    assert "broken: " in out and "nonexistent" in out
+
+
 def test_show_writes_the_frame_the_view_and_pilotlab_s_own_world(oval_assets, tmp_path, capsys):
     frame, view, own = tmp_path / "f.png", tmp_path / "v.png", tmp_path / "own.png"
     for extra, out in (([], frame), (["--view"], view), (["--own"], own)):
