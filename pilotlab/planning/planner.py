@@ -160,7 +160,13 @@ class Planner:
             if found is None:   # built in
                 return {"circuit": circuit}, {}
             csv = self.path(str(found.resolve()), where, "file")
-        return {"circuit": csv.stem}, {"circuit_csv": input_file(str(csv))}
+        inputs = {"circuit_csv": input_file(str(csv))}   # hashed first: hashing bounds what may be read
+        from pilotlab.circuits.load import get_circuit
+        try:
+            get_circuit(str(csv))   # a CSV that is no lap is this recipe's error now, not a failed record job later
+        except MatrixError as error:
+            raise self.recipe.error(str(error), where) from None
+        return {"circuit": csv.stem}, inputs
 
     def path(self, value: str, where: list, expect: str = "any") -> Path:
         """The path a recipe value names (relative to the recipe's folder); it must exist, and be what

@@ -334,3 +334,10 @@ def test_a_dls_folder_is_keyed_by_data_csv_and_the_images_it_names_only(tmp_path
     with pytest.raises(RecipeError, match=r"datasets.test.folders: .*data.csv: row 4 names image 'missing.png', "
                                           r"which is not in"):
         frames_key()
+
+
+def test_a_circuit_csv_that_is_no_lap_is_the_recipe_s_error_at_plan(tmp_path):
+    (tmp_path / "circuits").mkdir()
+    (tmp_path / "circuits" / "open.csv").write_text("0,0\n50,0\n100,0\n100,50\n100,100\n50,100\n")
+    with pytest.raises(RecipeError, match=r":15: matrix.circuit: circuit 'open' .* the centreline is not a lap"):
+        engine.plan_jobs(recipe_at(tmp_path, RECIPE.replace("circuit: [simple_circuit]", "circuit: [open]")), DOMAIN)
