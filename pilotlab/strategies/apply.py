@@ -146,7 +146,10 @@ def run_handler(entry: StrategyEntry, config, source: StrategySource) -> dict[st
         raise
     except Exception as error:  # noqa: BLE001 — the user's network is outside what the strategy handles
         first = str(error).strip().splitlines()[0][:300] if str(error).strip() else ""
-        hint = (" (it rewrites nn.Module layers, which a TorchScript program does not expose; give `network:`, "
-                "the class, to run it)" if source.imported == "torchscript" else "")
+        hint = ""
+        if source.imported == "torchscript":   # an ONNX strategy starts from the program's ONNX export
+            hint = (" (its ONNX export, which this strategy starts from, failed)" if entry.takes_onnx else
+                    " (it rewrites nn.Module layers, which a TorchScript program does not expose; give `network:`, "
+                    "the class, to run it)")
         raise NotApplicable(f"{entry.name} cannot work on {source.origin}{hint}: {type(error).__name__}"
                             + (f": {first}" if first else "")) from error

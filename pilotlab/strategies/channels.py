@@ -8,14 +8,14 @@ import torch
 from torch import nn
 
 from matrix.kinds import NotApplicable
-from pilotlab.strategies.common import weight_layers
+from pilotlab.strategies.common import conv_linear_layers, weight_layers
 from pilotlab.strategies.saving import example_batch
 
 
 def remove_channels(model: nn.Module, amount: float, input_shape: tuple, multiple_of: int = 1) -> dict[str, int]:
     """Shrink `model` in place; returns the channels/neurons kept per layer."""
+    check_chain(model)
     layers = weight_layers(model)
-    check_chain(model, layers)
     masked = copy.deepcopy(model)
     kept: dict[str, int] = {}
     for (name, _), (next_name, _) in zip(layers, layers[1:]):
@@ -29,11 +29,13 @@ def remove_channels(model: nn.Module, amount: float, input_shape: tuple, multipl
     return kept
 
 
-def check_chain(model: nn.Module, layers: list[tuple[str, nn.Module]]) -> None:
+def check_chain(model: nn.Module) -> None:
+    """NotApplicable unless the conv/linear layers form one chain (each feeding the next) channels can be cut from."""
     if hasattr(model, "load_program"):   # pilotlab.models.user's TorchScript / ONNX program: no layers to cut
         raise NotApplicable(f"structured_prune removes channels from a PyTorch network's layers; a "
                             f"{type(model).__name__.removesuffix('Model')} model is run as it is (give `network:`, "
                             "the PyTorch class, to prune it)")
+    layers = conv_linear_layers(model)
     if len(layers) < 2:
         raise NotApplicable("structured_prune needs at least two conv/linear layers")
     first = next(name for name, _ in layers)
@@ -135,7 +137,7 @@ def multiply_accumulates(model: nn.Module, input_shape: tuple) -> int:
 
     def count(module: nn.Module, _inputs, output) -> None:
         counts.append(output[0].numel() * module.weight[0].numel())   # weight[0]: one output's inputs
-    hooks = [m.register_forward_hook(count) for _, m in weight_layers(model)]
+    hooks = [m.register_forward_hook(count) for _, m in conv_linear_layers(model)]
     try:
         with torch.no_grad():
             model.eval()(torch.zeros(1, *input_shape[1:]))

@@ -87,9 +87,18 @@ def write_checkpoint(model: nn.Module, source: StrategySource) -> Path:
     return path
 
 
-def weight_layers(model: nn.Module) -> list[tuple[str, nn.Module]]:
-    """The layers pruning and clustering act on: every Conv2d and Linear, in registration order."""
+def conv_linear_layers(model: nn.Module) -> list[tuple[str, nn.Module]]:
+    """Every Conv2d and Linear of `model`, in registration order (none for a TorchScript program)."""
     return [(name, m) for name, m in model.named_modules() if isinstance(m, (nn.Conv2d, nn.Linear))]
+
+
+def weight_layers(model: nn.Module) -> list[tuple[str, nn.Module]]:
+    """The layers pruning and clustering act on: every Conv2d and Linear, in registration order; a model
+    with none is an error (nothing to rewrite; on a model the user brought, the strategy is not applicable)."""
+    layers = conv_linear_layers(model)
+    if not layers:
+        raise LookupError(f"the model ({type(model).__name__}) has no nn.Conv2d or nn.Linear layer to act on")
+    return layers
 
 
 def sparsity_report(model: nn.Module) -> dict:

@@ -140,6 +140,13 @@ def test_strategies_run_on_user_models_or_say_why_not(tmp_path, dls, frames):
     with pytest.raises(NotApplicable, match="structured_prune removes channels from a PyTorch network's layers; a "
                                             "TorchScript model is run as it is"):   # read "needs two layers" (it has 5)
         optimize(scripted, "structured_prune")
+    pooled = torch.nn.Sequential(torch.nn.Conv2d(3, 4, 5, stride=2), torch.nn.AdaptiveAvgPool2d((1, 8)),
+                                 torch.nn.Flatten(), torch.nn.Linear(32, 2)).eval()
+    torch.jit.trace(pooled, torch.rand(1, 3, 66, 200)).save(tmp_path / "pooled.pt")   # 98 is no multiple of 8
+    unexportable = train(tmp_path, frames, "pooled", {"torchscript": "pooled.pt"}, {"torchscript": tmp_path / "pooled.pt"})
+    with pytest.raises(NotApplicable, match=r"dynamic_quant cannot work on the TorchScript model pooled.pt \(its ONNX "
+                                            r"export, which this strategy starts from, failed\): .*adaptive_avg_pool2d"):
+        optimize(unexportable, "dynamic_quant")
 
 
 # --- bad input: one line naming the recipe key ------------------------------------------------------
