@@ -24,7 +24,10 @@ import importlib
 import importlib.util
 import os.path
 import sys
+import sysconfig
 import traceback
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,6 +36,7 @@ from pilotlab.errors import PilotlabError
 
 
 PILOTLAB = str(Path(__file__).resolve().parent) + os.sep   # frames of pilotlab itself are not the user's
+STDLIB = sysconfig.get_paths()["stdlib"] + os.sep            # nor Python's own (argparse, when a module exits)
 
 
 class UserCodeError(PilotlabError):
@@ -100,11 +104,23 @@ def _import_file(code: UserCode) -> object:
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     try:
-        spec.loader.exec_module(module)
+        with _own_argv(code.file):
+            spec.loader.exec_module(module)
     except BaseException as error:
         sys.modules.pop(name, None)
         raise _import_error(code, error) from None
     return module
+
+
+@contextmanager
+def _own_argv(file: Path) -> Iterator[None]:
+    """sys.argv as if `file` ran alone: a module that parses the command line when imported (argparse at
+    the top of a brain) sees no arguments, not pilotlab's, and cannot reject them in pilotlab's name."""
+    saved, sys.argv = sys.argv, [str(file)]
+    try:
+        yield
+    finally:
+        sys.argv = saved
 
 
 def _in_package(file: Path) -> tuple[Path, str] | None:
@@ -130,7 +146,8 @@ def _import_module(code: UserCode, base: Path) -> object:
     if str(base) not in sys.path:
         sys.path.insert(0, str(base))
     try:
-        return importlib.import_module(code.module)
+        with _own_argv(Path(code.module)):
+            return importlib.import_module(code.module)
     except ModuleNotFoundError as error:
         if error.name is not None and (code.module == error.name or code.module.startswith(error.name + ".")):
             raise UserCodeError(f"{code.spec}: no module {code.module!r} (looked on sys.path and in {base})") from None
@@ -142,6 +159,10 @@ def _import_module(code: UserCode, base: Path) -> object:
 def _import_error(code: UserCode, error: BaseException) -> UserCodeError:
     if isinstance(error, KeyboardInterrupt):
         raise error
+    if isinstance(error, SystemExit):
+        place = error_line(error, code.where).rsplit(": SystemExit", 1)[0]
+        return UserCodeError(f"{place}: the module called exit({error.code!r}) while being imported (importing "
+                             f"{code.spec}); put what runs it as a script under `if __name__ == \"__main__\":`")
     return UserCodeError(error_line(error, code.where) + f" (importing {code.spec})")
 
 
@@ -160,7 +181,7 @@ def error_line(error: BaseException, where: str) -> str:
 
 def _is_library(filename: str) -> bool:
     """Frames of Python's import machinery, installed packages and pilotlab: not the user's."""
-    return filename.startswith(("<frozen", PILOTLAB)) or "site-packages" in filename
+    return filename.startswith(("<frozen", PILOTLAB, STDLIB)) or "site-packages" in filename
 
 
 def check_syntax(file: Path) -> None:

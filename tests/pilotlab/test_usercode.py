@@ -73,6 +73,19 @@ def test_errors_name_the_file_and_line(brains):
     assert "name user code as file.py:Class" in error_of("brains/mine.py", brains)
 
 
+def test_a_module_that_parses_the_command_line_when_imported_sees_none_of_pilotlab_s(brains, monkeypatch, capsys):
+    monkeypatch.setattr(sys, "argv", ["pilotlab", "drive", "--brain", "brains/args.py:A"])
+    parse = "import argparse\nparser = argparse.ArgumentParser()\n{}\nARGS = parser.parse_args()\nclass A:\n    pass\n"
+    write(brains, "brains/args.py", parse.format("parser.add_argument('--speed', type=float, default=3.0)"))
+    assert load_object("brains/args.py:A", brains).__name__ == "A"    # its defaults: pilotlab's words are not its
+    assert sys.argv[0] == "pilotlab"
+    write(brains, "brains/needs.py", parse.format("parser.add_argument('model')"))
+    message = error_of("brains/needs.py:A", brains)
+    assert message == (f"{brains / 'brains/needs.py'}:4: the module called exit(2) while being imported (importing "
+                       'brains/needs.py:A); put what runs it as a script under `if __name__ == "__main__":`')
+    assert "needs.py: error: the following arguments are required: model" in capsys.readouterr().err
+
+
 def test_the_source_hash_follows_the_file_and_its_local_imports(brains):
     spec = "brains/mine.py:MyBrain"
     assert [f.name for f in source_files(spec, brains)] == ["mine.py", "helpers.py"]   # not numpy, not unrelated.py
