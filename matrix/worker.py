@@ -205,6 +205,30 @@ def _job_log(path: Path, spec: dict):
     finally:
         logger.removeHandler(handler)
         handler.close()
+        _cap_log(path)
+
+
+MAX_LOG_BYTES = 2_000_000   # a job's log.txt keeps its first and last million bytes
+
+
+def _cap_log(path: Path, limit: int = MAX_LOG_BYTES) -> None:
+    """A job that printed megabytes (a network printing on every call) keeps the start and the end
+    of its log, with a line saying how much was cut: the store does not grow with its chatter."""
+    try:
+        size = path.stat().st_size
+        if size <= limit:
+            return
+        with open(path, "r+b") as log:
+            head = log.read(limit // 2)
+            log.seek(size - limit // 2)
+            tail = log.read()
+            note = f"\n[... {size - len(head) - len(tail):,} bytes of output cut: the log keeps its first and last " \
+                   f"{limit // 2:,} bytes ...]\n".encode()
+            log.seek(0)
+            log.write(head + note + tail)
+            log.truncate()
+    except OSError:   # a log that cannot be cut is left whole
+        pass
 
 
 @contextlib.contextmanager

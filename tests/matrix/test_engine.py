@@ -302,3 +302,17 @@ def test_planning_pauses_the_collector_and_freezes_only_after_a_large_plan(tmp_p
         assert (gc.get_freeze_count() > 0) == frozen
     finally:
         gc.unfreeze()
+
+
+def test_a_chatty_job_s_log_keeps_its_start_and_end(tmp_path):
+    from matrix.worker import _cap_log
+    log = tmp_path / "log.txt"
+    log.write_bytes(b"first line\n" + b"x" * 5_000_000 + b"\nlast line\n")
+    _cap_log(log, limit=1000)
+    text = log.read_text()
+    assert text.startswith("first line\n") and text.endswith("\nlast line\n") and len(text) < 1200
+    assert "bytes of output cut: the log keeps its first and last 500 bytes" in text
+    small = tmp_path / "small.txt"
+    small.write_text("short\n")
+    _cap_log(small, limit=1000)
+    assert small.read_text() == "short\n"
