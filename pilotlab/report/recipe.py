@@ -33,7 +33,7 @@ NOT_RUN = "not run yet"
 
 
 def report_folder(recipe: Recipe) -> Path:
-    return Path(recipe.config.report.folder) / slug(recipe.name)
+    return Path(recipe.config.report.folder).expanduser() / slug(recipe.name)
 
 
 def write_recipe_report(recipe: Recipe, store: Store, jobs: list, force: bool = True) -> Path | None:
@@ -45,16 +45,39 @@ def write_recipe_report(recipe: Recipe, store: Store, jobs: list, force: bool = 
     folder = report_folder(recipe)
     _check_replaceable(folder, recipe.name)
     stamp = _stamp(recipe, jobs, store)
-    if not force and read_json(folder / STAMP) == stamp:
+    if not force and _shown(folder) == stamp:
         return None
     from pilotlab.report.writer import write_report  # matplotlib: only when the report is rewritten
     with _writing(folder) as staging:
-        if not force and read_json(folder / STAMP) == stamp:
+        if not force and _shown(folder) == stamp:
             return None                   # another run wrote this very report while we waited
         write_report(build_report_data(recipe, jobs, store), staging)
-        (staging / STAMP).write_text(json.dumps(stamp))
+        (staging / STAMP).write_text(json.dumps({**stamp, "files": _files(staging)}))
         _swap(staging, folder, recipe.name)
     return folder
+
+
+def _shown(folder: Path) -> dict | None:
+    """What the report in `folder` shows (its stamp without the list of the files it wrote)."""
+    stamp = read_json(folder / STAMP)
+    return {k: v for k, v in stamp.items() if k != "files"} if isinstance(stamp, dict) else None
+
+
+def _files(folder: Path) -> list[str]:
+    return sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if not p.is_dir())
+
+
+def _keep_users_files(old: Path, staging: Path) -> None:
+    """Files the old report did not write (a user's notes put in the folder) move into the new one."""
+    stamp = read_json(old / STAMP)
+    written = stamp.get("files") if isinstance(stamp, dict) else None
+    if not isinstance(written, list):   # a report from before the list was kept: all of it was the report's
+        return
+    for name in sorted(set(_files(old)) - set(written) - {STAMP}):
+        target = staging / name
+        if not target.exists():   # a name the new report writes is the report's
+            target.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(old / name, target)
 
 
 @contextmanager
@@ -106,6 +129,7 @@ def _swap(staging: Path, folder: Path, name: str) -> None:
     _check_replaceable(folder, name)   # again, under the writers' lock: a folder may have appeared since
     old = folder.parent / f".{folder.name}.old-{os.getpid()}"
     if folder.exists():
+        _keep_users_files(folder, staging)
         os.replace(folder, old)
     os.replace(staging, folder)
     os.chmod(folder, 0o755)          # mkdtemp makes it private; a report is for reading

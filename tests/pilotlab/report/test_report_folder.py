@@ -106,3 +106,27 @@ def test_a_report_never_replaces_the_report_of_another_recipe_named_alike(tmp_pa
     (folder / ".stamp").write_text('"0123abcd"')          # the stamp of an older pilotlab: no recipe name
     assert main(["report", str(recipe), "--store", str(store)]) == 0
     assert "my_recipe" in (folder / "README.md").read_text()
+
+
+def test_files_of_yours_in_a_report_folder_are_kept_when_the_report_is_rewritten(tmp_path, capsys):
+    """Outside test: notes put beside a report were deleted, silently, by the next `report` or `run`."""
+    recipe, store = recipe_with_a_result(tmp_path, tmp_path / "out")
+    assert main(["report", str(recipe), "--store", str(store)]) == 0
+    folder = tmp_path / "out" / "quickstart"
+    (folder / "notes.txt").write_text("mine\n")
+    (folder / "mine").mkdir()
+    (folder / "mine" / "draft.md").write_text("draft\n")
+    (folder / "README.md").write_text("edited")              # a file the report writes stays the report's
+    assert main(["report", str(recipe), "--store", str(store)]) == 0
+    assert (folder / "notes.txt").read_text() == "mine\n" and (folder / "mine" / "draft.md").read_text() == "draft\n"
+    assert (folder / "README.md").read_text() != "edited"
+    assert main(["report", str(recipe), "--store", str(store)]) == 0   # and again, from the new report's list
+    assert (folder / "notes.txt").is_file()
+
+
+def test_a_report_folder_under_home_is_expanded(tmp_path, monkeypatch):
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    recipe, store = recipe_with_a_result(tmp_path, "~/reports")
+    monkeypatch.chdir(tmp_path)
+    assert main(["report", str(recipe), "--store", str(store)]) == 0
+    assert (tmp_path / "home" / "reports" / "quickstart" / "README.md").is_file() and not (tmp_path / "~").exists()
