@@ -250,8 +250,11 @@ class UserBrain:
 
     def _check(self, command) -> tuple[float, float]:
         try:
-            v, w = (float(c) for c in np.asarray(command, dtype=np.float64).reshape(2))
-        except (TypeError, ValueError):
+            values = np.asarray(command)
+            if values.dtype.kind not in "biuf":   # text ("5", "0") or objects: not numbers, however they read
+                raise TypeError(values.dtype)
+            v, w = (float(c) for c in values.astype(np.float64).reshape(2))   # [2] or [1, 2]: a network's output
+        except (TypeError, ValueError, RuntimeError):   # RuntimeError: a tensor that requires grad
             v = w = float("nan")
         if not (np.isfinite(v) and np.isfinite(w)):
             raise PilotlabError(f"{self.spec}: act returned {command!r}; it must return (v, w), two finite numbers "

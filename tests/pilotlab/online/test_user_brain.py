@@ -41,10 +41,20 @@ BROKEN = {
                    ":3: ZeroDivisionError: division by zero (in brains/bad.py:B.act)"),
     "act returns one number": ("class B:\n    def act(self, image):\n        return 5.0\n",
                                "brains/bad.py:B: act returned 5.0; it must return (v, w)"),
+    "act returns text": ("class B:\n    def act(self, image):\n        return '5', '0'\n",
+                         "brains/bad.py:B: act returned ('5', '0'); it must return (v, w), two finite numbers"),
     "no act": ("class B:\n    def drive(self, image):\n        return 5.0, 0.0\n", "brains/bad.py:B: has no act(image)"),
     "constructor raises": ("class B:\n    def __init__(self):\n        raise ValueError('no weights')\n",
                            ":3: ValueError: no weights (making brains/bad.py:B)"),
 }
+
+
+@pytest.mark.parametrize("case", BROKEN)
+def test_a_network_s_output_row_is_a_command(tmp_path):
+    (tmp_path / "brains").mkdir()
+    (tmp_path / "brains" / "net.py").write_text("import numpy as np\nclass B:\n    def act(self, image):\n"
+                                                "        return np.array([[5.0, 0.25]], np.float32)\n")
+    assert UserBrain("brains/net.py:B", tmp_path).act(np.zeros((48, 64, 3), np.uint8), {}) == (5.0, 0.25)
 
 
 @pytest.mark.parametrize("case", BROKEN)
