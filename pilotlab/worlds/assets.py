@@ -39,6 +39,9 @@ def world_names(assets: Path) -> list[str]:
 def world_path(assets: Path, name: str) -> Path:
     """The .world file of `name`; an unknown name lists the known ones."""
     path = assets / "worlds" / f"{name}.world"
+    if name != Path(name).name or name in ("", ".", ".."):   # ../worlds/x would name a file outside worlds/
+        raise PilotlabError(f"world {name!r}: a world is named by its .world file's stem in {assets / 'worlds'} "
+                            f"(e.g. {Path(name).name or 'simple_circuit'}), not by a path")
     if not path.is_file():
         known = world_names(assets)
         raise PilotlabError(f"no world {name!r} in {assets / 'worlds'}{did_you_mean(name, known)}; "

@@ -55,6 +55,7 @@ def test_a_pose_starting_with_a_minus_is_a_value(oval_assets, tmp_path):
 
 @pytest.mark.parametrize("args, message", [
     (["world", "show", "ovl"], "did you mean 'oval'"),
+    (["world", "show", "../worlds/oval"], "a world is named by its .world file's stem"),
     (["world", "show", "oval", "-o", "/proc/nope/f.png"], "cannot write"),
     (["record", "--world", "ovl", "--out", "x"], "did you mean 'oval'"),
 ])
