@@ -58,4 +58,3 @@ def with_circuit_file(spec, inputs):
     param names a user's CSV only by its stem, so the job's key follows the file's content, not its place."""
     csv = inputs.get("circuit_csv")
     return spec if csv is None else spec.model_copy(update={"circuit": str(csv)})
-
