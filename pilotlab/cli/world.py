@@ -61,7 +61,8 @@ def list_worlds(args: argparse.Namespace) -> int:
     assets = resolve_assets(args.assets)
     table = Table(title=f"BehaviorMetrics worlds in {assets}")
     for column in ("world", "circuit", "sun", "walls", "camera (up, fov, clip)", "spawn (x, y, yaw)"):
-        table.add_column(column, no_wrap=column in ("world", "circuit", "spawn (x, y, yaw)"))   # a pose is copied whole
+        # a narrow terminal wraps the figures at their commas, a long one folds: never cut short with "…"
+        table.add_column(column, no_wrap=column in ("world", "circuit"), overflow="fold")
     broken = []
     for name in world_names(assets):
         try:
@@ -77,6 +78,8 @@ def list_worlds(args: argparse.Namespace) -> int:
         table.add_row(name, _circuit(circuit_of, name, world.path), "yes" if world.sun else "no",
                       "yes" if world.collisions else "no", optics, spawn)
     console = Console()
+    if not console.is_terminal:   # a pipe or a file has no width to fit: rich's 80 columns cut the poses short
+        console = Console(width=160)
     console.print(table)
     for problem in broken:
         console.print(f"[bold red]broken[/]: {escape(problem)}", highlight=False)

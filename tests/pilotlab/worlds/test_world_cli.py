@@ -17,6 +17,13 @@ def test_list_shows_the_worlds_with_their_circuit_sun_and_camera(oval_assets, ca
     assert "oval_no_sun" in out and "oval.csv" in out and "0.10 m, 90°, 15 m" in out
 
 
+def test_a_piped_list_has_a_line_per_world_with_nothing_cut(oval_assets, capsys, monkeypatch):
+    monkeypatch.delenv("COLUMNS", raising=False)      # a pipe: rich would squeeze the table into 80 columns
+    assert main(["world", "list", "--assets", str(oval_assets)]) == 0
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("│")]
+    assert len(rows) == 2 and not any("…" in row for row in rows)   # oval, oval_no_sun: one line each, whole
+
+
 def test_one_broken_world_hides_none_of_the_others(oval_assets, tmp_path, capsys, monkeypatch):
     import shutil
     monkeypatch.setenv("COLUMNS", "160")
