@@ -60,9 +60,10 @@ def did_you_mean(name: str, known: Iterable[str]) -> str:
     that begins as the given one does (4 characters or more: 'colour' for 'color_jitter') is closer
     than one that only shares letters ('blur')."""
     name, known = str(name), [str(k) for k in known]
-    prefixed = [k for k in known if len(name) >= 4 and k.lower()[:4] == name.lower()[:4]]
-    close = difflib.get_close_matches(name, prefixed, n=1, cutoff=0.0) if len(prefixed) else []
-    close = close or difflib.get_close_matches(name, known, n=1, cutoff=0.6)
+    start = name.lower()[:4] if len(name) >= 4 else None
+    prefixed = [k for k in known if k.lower()[:4] == start]
+    close = difflib.get_close_matches(name, prefixed, n=1, cutoff=0.0) or \
+        difflib.get_close_matches(name, known, n=1, cutoff=0.6)
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 

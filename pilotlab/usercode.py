@@ -160,8 +160,7 @@ def _import_error(code: UserCode, error: BaseException) -> UserCodeError:
     if isinstance(error, KeyboardInterrupt):
         raise error
     if isinstance(error, SystemExit):
-        place = error_line(error, code.where).rsplit(": SystemExit", 1)[0]
-        return UserCodeError(f"{place}: the module called exit({error.code!r}) while being imported (importing "
+        return UserCodeError(f"{_place(error, code.where)}: the module called exit({error.code!r}) while being imported (importing "
                              f"{code.spec}); put what runs it as a script under `if __name__ == \"__main__\":`")
     return UserCodeError(error_line(error, code.where) + f" (importing {code.spec})")
 
@@ -172,11 +171,15 @@ def error_line(error: BaseException, where: str) -> str:
     if isinstance(error, SyntaxError):
         text = (error.text or "").strip()
         return f"{error.filename}:{error.lineno}: syntax error: {error.msg}" + (f": {text}" if text else "")
-    frames = traceback.extract_tb(error.__traceback__)
-    mine = [f for f in frames if not _is_library(f.filename)]
-    place = f"{mine[-1].filename}:{mine[-1].lineno}" if mine else where
     message = str(error).splitlines()[0] if str(error) else ""
-    return f"{place}: {type(error).__name__}" + (f": {message}" if message else "")
+    return f"{_place(error, where)}: {type(error).__name__}" + (f": {message}" if message else "")
+
+
+def _place(error: BaseException, where: str) -> str:
+    """`file:line` of the user's frame an exception came from (the last outside Python's machinery and
+    installed packages), else `where`."""
+    mine = [f for f in traceback.extract_tb(error.__traceback__) if not _is_library(f.filename)]
+    return f"{mine[-1].filename}:{mine[-1].lineno}" if mine else where
 
 
 def _is_library(filename: str) -> bool:

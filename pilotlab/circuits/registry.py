@@ -74,21 +74,31 @@ def builtin_csv(config: CircuitConfig):
 def csv_path_of(name: str, recipe_folder: Path | None = None) -> Path | None:
     """The CSV a user circuit name or path refers to (None for a built-in circuit); a recipe's
     (`recipe_folder`) also finds circuits beside it, and its relative paths start there."""
-    found = user_circuits(recipe_folder)
+    named = _user_csv(name, recipe_folder)   # a stat per folder: get_circuit asks at every episode
     if name in CIRCUITS:
-        if name in found:
-            raise PilotlabError(f"{found[name]} has the name of a built-in circuit, which it does not replace; "
+        if named is not None:
+            raise PilotlabError(f"{named} has the name of a built-in circuit, which it does not replace; "
                                 f"rename the file (e.g. my_{name}.csv) and use that name")
         return None
-    if name in found:
-        return found[name]
+    if named is not None:
+        return named
     if name.endswith(".csv") and (path := csv_file(name, recipe_folder)) is not None:
         return path
-    known = CIRCUITS.names() + sorted(found)
+    known = CIRCUITS.names() + sorted(user_circuits(recipe_folder))
     relative = " (relative to the recipe's folder)" if recipe_folder is not None else ""
     raise PilotlabError(f"unknown circuit {name!r}{did_you_mean(name, known)}; known: {', '.join(known)}; "
                         f"or give the path of a CSV of x,y points{relative}, or put NAME.csv in one of: "
                         f"{', '.join(str(d) for d in user_dirs(recipe_folder))}")
+
+
+def _user_csv(name: str, recipe_folder: Path | None) -> Path | None:
+    """NAME.csv in the first user folder that has it (as user_circuits, first folder wins)."""
+    if not name or Path(name).name != name or name in (".", ".."):   # a path is not a user circuit's name
+        return None
+    try:
+        return next((csv for folder in user_dirs(recipe_folder) if (csv := folder / f"{name}.csv").is_file()), None)
+    except (OSError, ValueError):   # too long a name, a NUL byte: no such file
+        return None
 
 
 def csv_file(name: str, recipe_folder: Path | None) -> Path | None:
