@@ -12,8 +12,10 @@ import heapq
 import multiprocessing
 import os
 import signal
+import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 
@@ -141,16 +143,42 @@ def run_local(statuses: list[JobStatus], store: Store, *, jobs: int = 1, keep_go
     started = time.monotonic()
     if stale:
         replacing = results_to_replace(statuses)
-        with _Pool(store, max(1, jobs), tuple(kind_modules), display, replacing) as pool:
+        with _Pool(store, max(1, jobs), tuple(kind_modules), display, replacing) as pool, _interrupt_at_safe_points():
             _drive(Schedule(stale), pool, summary, keep_going, display)
     summary.wall_s = time.monotonic() - started
     return summary
+
+
+_interrupted = threading.Event()
+
+
+@contextmanager
+def _interrupt_at_safe_points() -> Iterator[None]:
+    """SIGINT sets a flag that the driving loop turns into KeyboardInterrupt between two waits: raised
+    anywhere (inside concurrent.futures' wait, holding its locks) it could leave the pool unable to shut
+    down, and the run hung. A second SIGINT interrupts at once, as Python's default does."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupted(signum, frame):
+        _interrupted.set()
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+    _interrupted.clear()
+    previous = signal.signal(signal.SIGINT, interrupted)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _drive(schedule: Schedule, pool: _Pool, summary: RunSummary, keep_going: bool, display: Display) -> None:
     running: dict[Future, Job] = {}
     stopping = False
     while running or (schedule.has_work() and not stopping):
+        if _interrupted.is_set():
+            raise KeyboardInterrupt
         exclusive = any(map(runs_alone, running.values()))
         while not stopping and (job := schedule.take(exclusive, len(running), pool.slots)):
             display.job_started(job)
