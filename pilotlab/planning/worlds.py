@@ -1,9 +1,10 @@
 """How a recipe names BehaviorMetrics' worlds, for the planner (pilotlab.planning): the `world` axis,
 `datasets.NAME.record.worlds`, and the `worlds: {assets: DIR}` section.
 
-A job in a world gets params `world` (the name) and `circuit` (the world's own circuit) and an input
+A job in a world gets params `world` (the name) and `circuit` (the world's own circuit: a built-in name,
+or the stem of the centreline CSV beside the .world file, which comes as input `circuit_csv`) and an input
 `world`: its .world file, keyed by the digest of every file the world reads (SDF, meshes, textures,
-centreline), so editing any of them reruns what drove there and nothing else.
+centreline), so editing any of them reruns what drove there and nothing else, and moving them nothing.
 """
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import os
 from pathlib import Path
 
 from matrix.errors import MatrixError
-from matrix.jobs import InputFile
+from matrix.jobs import InputFile, input_file
 from pilotlab.worlds.assets import ASSETS_ENV
 
 
@@ -46,5 +47,9 @@ def world_param(planner, name: str, where: list) -> tuple[dict, dict]:
             circuit = circuit_of(name, path)
         except MatrixError as error:
             raise planner.recipe.error(str(error), where) from None
-        cache[name] = ({"world": name, "circuit": circuit}, {"world": InputFile(str(path), digest)})
+        inputs = {"world": InputFile(str(path), digest)}
+        if circuit.endswith(".csv"):   # the world's own centreline: by its stem, read through an input (as
+            inputs["circuit_csv"] = input_file(circuit)   # a recipe's CSV), so moving BM's assets reruns nothing
+            circuit = Path(circuit).stem
+        cache[name] = ({"world": name, "circuit": circuit}, inputs)
     return cache[name]

@@ -34,8 +34,9 @@ def plan(tmp_path: Path, assets: Path, text: str = RECIPE) -> dict:
 def test_the_world_axis_records_tests_and_drives_in_each_world(tmp_path, oval_assets):
     jobs = plan(tmp_path, oval_assets)
     record = jobs["record train/oval cw"]
-    assert record.params["world"] == "oval" and record.params["circuit"].endswith("oval.csv")
-    assert set(record.inputs) == {"world"} and record.inputs["world"].path.endswith("oval.world")
+    assert record.params["world"] == "oval" and record.params["circuit"] == "oval"   # its CSV by stem, as an input
+    assert set(record.inputs) == {"world", "circuit_csv"} and record.inputs["world"].path.endswith("oval.world")
+    assert record.inputs["circuit_csv"].path.endswith("oval.csv")
     shifted = jobs["offline small/dynamic_quant on cpu in oval_no_sun"]
     assert shifted.labels["test_set"] == "test in oval_no_sun" and shifted.labels["world"] == "oval_no_sun"
     assert [dep.params["world"] for dep in shifted.deps["test"][0].dep_jobs()] == ["oval_no_sun"]
@@ -64,6 +65,14 @@ def test_an_edit_of_a_world_reruns_only_what_drove_there(tmp_path, oval_assets):
     after = {name: job.key for name, job in plan(tmp_path, assets).items()}
     changed = sorted(name for name in before if before[name] != after[name])
     assert changed and all("oval_no_sun" in name for name in changed)
+
+
+def test_moved_worlds_rerun_nothing(tmp_path, oval_assets):
+    """Outside test: a world's centreline CSV went into the params by its absolute path, so moving BM's
+    assets (another clone, another machine) reran every job that drove there."""
+    before = {name: job.key for name, job in plan(tmp_path, shutil.copytree(oval_assets, tmp_path / "a")).items()}
+    after = {name: job.key for name, job in plan(tmp_path, shutil.copytree(oval_assets, tmp_path / "b")).items()}
+    assert before == after
 
 
 def test_no_world_no_change_to_the_keys_of_pilotlab_s_own_world():
