@@ -9,7 +9,8 @@ where we differ, so our numbers can be read next to the 2022 study's:
   that zig-zags inflates; progress along the line does not.
 - percentage_completed: completed distance over the circuit's length, × 100 (more than 100 after a
   lap, as BehaviorMetrics' `+ laps * 100`).
-- lap_completed: the car got round at least once; lap_seconds: simulated seconds from the start to
+- lap_completed: the car got round at least once (or drove the whole of a shorter distance asked for,
+  `laps` < 1); lap_seconds: simulated seconds from the start to
   the moment progress reached one circuit length (interpolated between the two samples around it).
   BehaviorMetrics detects the car back within 1 m of its start point after 10 s.
 - average_speed: completed distance over the simulated duration of the run (BehaviorMetrics: its
@@ -66,7 +67,10 @@ def percentage_completed(trajectory: Trajectory) -> float:
 
 
 def lap_completed(trajectory: Trajectory) -> bool:
-    return bool(np.max(trajectory.progress) >= trajectory.circuit_length)
+    """Round at least once, or the whole of a shorter drive asked for (`laps` < 1: the run ends with
+    termination "lap_completed" there; counting it lost made every short lap's verdict "lost")."""
+    return bool(np.max(trajectory.progress) >= trajectory.circuit_length
+                or trajectory.termination == "lap_completed")
 
 
 def lap_seconds(trajectory: Trajectory) -> float | None:

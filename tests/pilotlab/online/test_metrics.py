@@ -57,6 +57,16 @@ def test_a_path_that_stops_half_way():
     assert metrics["brain_frequency_sim_hz"] == pytest.approx(20.0)
 
 
+def test_the_whole_of_a_shorter_drive_asked_for_is_a_completed_lap():
+    """Outside test: with `laps: 0.2` every brain that drove the 20 % asked for was reported "✗ lost"."""
+    t = np.arange(21) * 0.5
+    asked = synthetic(t, 5.0 * t, 0.0, 250.0)
+    asked.meta["termination"] = "lap_completed"   # the env stops at laps × length (here 0.2 × 250 m)
+    assert run_metrics(asked)["lap_completed"] is True and run_metrics(asked)["lap_seconds"] is None
+    asked.meta["termination"] = "off_road"        # the same distance, then off the road: lost
+    assert run_metrics(asked)["lap_completed"] is False
+
+
 def test_a_lap_done_twice():
     # 10 m/s round a 100 m circuit for 20 s, sampled every 0.3 s: the lap ends between two samples, at 10 s.
     t = np.arange(0, 20.0001, 0.3)
