@@ -9,12 +9,12 @@ weigh the start line more than the rest of the circuit.
 from __future__ import annotations
 
 import hashlib
-import importlib
 import os
 from pathlib import Path
 
 import numpy as np
 
+from matrix.fingerprint import closure_fingerprint, module_closure
 from pilotlab.errors import PilotlabError
 from pilotlab.online.brains import make_reference_brain
 from pilotlab.online.drive import drive
@@ -25,8 +25,6 @@ from pilotlab.specs.online import DriveSettings
 # whatever the evaluated lap's control rate, so the checkpoints (and the deviation total) do not move
 # with it.
 CONTROL_HZ = 20.0
-DRIVING_CODE = ("pilotlab.online.perfect_lap", "pilotlab.online.drive", "pilotlab.sim.expert", "pilotlab.sim.env",
-                "pilotlab.sim.car", "pilotlab.sim.world", "pilotlab.circuits.circuit")
 
 
 def perfect_lap(circuit: str, direction: str = "cw", cache: Path | None = None) -> np.ndarray:
@@ -46,9 +44,10 @@ def perfect_lap(circuit: str, direction: str = "cw", cache: Path | None = None) 
 
 
 def _key(points: np.ndarray, road_width: float) -> str:
+    """The circuit's points and road width, and the code that drives the lap: this module's import closure
+    within pilotlab, computed (a hand-kept list of modules missed the expert's brain and its smoothing)."""
     digest = hashlib.sha256(np.ascontiguousarray(points, np.float64).tobytes() + f"{road_width} {CONTROL_HZ}".encode())
-    for module in DRIVING_CODE:
-        digest.update(Path(importlib.import_module(module).__file__).read_bytes())
+    digest.update(closure_fingerprint(module_closure(__name__, "pilotlab")).encode())
     return digest.hexdigest()[:20]
 
 

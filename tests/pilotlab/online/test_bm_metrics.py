@@ -205,3 +205,17 @@ def test_a_lap_that_leaves_the_road_half_way(track):
     metrics = assert_match(trajectory, checkpoints)
     assert trajectory.termination == "off_road" and not metrics["bm_lap_completed"]
     assert 45 < metrics["bm_percentage_completed"] < 70
+
+
+def test_the_cached_perfect_lap_follows_every_module_that_drives_it(monkeypatch):
+    """Outside test: the cache key hashed a hand-kept list of modules that left out the expert's brain
+    (pilotlab.online.brains) and its smoothing (pilotlab.circuits.geometry): an edit there scored new
+    laps against the old expert's lap. The key now hashes the computed import closure."""
+    from matrix import fingerprint
+    from pilotlab.online import perfect_lap as module
+    points = stadium(30.0, 12.0)
+    before = module._key(points, 7.0)
+    closure = fingerprint.module_closure(module.__name__, "pilotlab")
+    assert {"pilotlab.online.brains", "pilotlab.circuits.geometry", "pilotlab.sim.expert"} <= set(closure)
+    monkeypatch.setitem(fingerprint._SOURCE_HASHES, "pilotlab.online.brains#own", "edited")
+    assert module._key(points, 7.0) != before
