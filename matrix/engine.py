@@ -21,7 +21,7 @@ from matrix.errors import MatrixError, did_you_mean
 from matrix.kinds import KINDS
 from matrix.recipe import Domain, Recipe
 from matrix.runs import RunSummary
-from matrix.stale import FRESH, JobStatus, StoreListing, job_status
+from matrix.stale import FRESH, JobStatus, StoreListing, plan_statuses
 from matrix.store import Store, read_json, write_json_atomic
 
 
@@ -81,7 +81,7 @@ def make_plan(recipe: Recipe, domain: Domain, store: Store, force: Iterable[str]
         forced = _check_forced(force)
         previous = (read_json(store.recipe_path(slug(recipe.name))) or {}).get("jobs", {})
         listing = StoreListing.of(store)
-        return Plan(recipe, [job_status(job, store, previous, forced, listing) for job in jobs])
+        return Plan(recipe, plan_statuses(jobs, store, previous, forced, listing))
 
 
 class _CollectorPaused:

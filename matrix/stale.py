@@ -4,18 +4,21 @@
 
 Each link answers with reasons; an empty answer means the job is fresh. A job whose key has a
 finished, intact result in the store is fresh whatever happened before (undoing an edit finds the
-old results again). Otherwise the job's last spec under the same name in this recipe's last run
-explains what changed.
+old results again), unless a dependency keeps its key but not its outputs: one forced to run again in
+this plan (and so what stands on it), or one that ran again since this job read it and wrote other
+outputs (each result records the outputs of the dependencies it was made from: a damaged output
+rebuilt the same leaves what stands on it fresh). Otherwise the job's last spec under the
+same name in this recipe's last run explains what changed.
 """
 from __future__ import annotations
 
 import os
 from collections.abc import Collection, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from matrix.jobs import Job, canonical_json
-from matrix.store import CHANGED, INTACT, Store, result_token
+from matrix.store import CHANGED, INTACT, Store, outputs_token, result_token
 
 FRESH, STALE, NEW = "fresh", "stale", "new"
 
@@ -32,16 +35,55 @@ class JobStatus:
         return "; ".join(self.reasons)
 
 
+def plan_statuses(jobs: list[Job], store: Store, previous: Mapping[str, dict],
+                  forced_kinds: Collection[str] = (), listing: StoreListing | None = None) -> list[JobStatus]:
+    """The status of each job of a plan (dependencies first)."""
+    seen = PlanSoFar()
+    return [seen.add(job_status(job, store, previous, forced_kinds, listing, seen)) for job in jobs]
+
+
+@dataclass
+class PlanSoFar:
+    """What the jobs before this one in a plan found: the outputs of each fresh job's stored result,
+    and the names of the jobs that replace a stored result of theirs in this run (forced, and what
+    stands on those), whose outputs will be new."""
+    tokens: dict[str, str] = field(default_factory=dict)
+    running: dict[str, str] = field(default_factory=dict)
+
+    def add(self, status: JobStatus) -> JobStatus:
+        if status.replaces is not None:
+            self.running[status.job.key] = status.job.name
+        return status
+
+    def dependency_reruns(self, job: Job, result: dict) -> list[str]:
+        """Why a stored result no longer stands on its dependencies' results (empty: it does)."""
+        used = result.get("deps_used")
+        again = [self.running[d.key] for d in job.dep_jobs() if d.key in self.running]
+        if again:
+            return [f"dependency runs again: {', '.join(dict.fromkeys(again))}"]
+        if not isinstance(used, dict):   # a result from before results recorded their dependencies
+            return []
+        since = [d.name for d in job.dep_jobs() if d.key in self.tokens and used.get(d.key) != self.tokens[d.key]]
+        return [f"dependency ran again since, with other outputs: {', '.join(dict.fromkeys(since))}"] if since else []
+
+
 def job_status(job: Job, store: Store, previous: Mapping[str, dict],
-               forced_kinds: Collection[str] = (), listing: StoreListing | None = None) -> JobStatus:
+               forced_kinds: Collection[str] = (), listing: StoreListing | None = None,
+               seen: PlanSoFar | None = None) -> JobStatus:
     """`listing` (the store's keys read once for a whole plan) spares a job that is not stored the
-    two files it would otherwise try to read."""
+    two files it would otherwise try to read; `seen` (the plan's statuses so far) checks that a fresh
+    job's result was made from its dependencies' results as they are."""
     stored = listing is None or job.key in listing.stored
     result = store.result(job.key) if stored else None
     if job.kind in forced_kinds:
         return JobStatus(job, STALE, (f"forced (--force {job.kind})",), result and result_token(result))
     outputs = store.outputs_state(job.key, result) if result is not None else None
     if outputs == INTACT:
+        reasons = seen.dependency_reruns(job, result) if seen is not None else []
+        if reasons:   # runs again under the same key: the stored result is the one it replaces
+            return JobStatus(job, STALE, tuple(reasons), result_token(result))
+        if seen is not None:
+            seen.tokens[job.key] = outputs_token(result)
         return JobStatus(job, FRESH, ())
     if outputs == CHANGED:
         return JobStatus(job, STALE, ("output changed",))

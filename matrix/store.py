@@ -60,6 +60,13 @@ def result_token(result: dict) -> str:
     return hashlib.sha256(json.dumps(result, sort_keys=True).encode()).hexdigest()
 
 
+def outputs_token(result: dict) -> str:
+    """Names what a stored result gives the jobs that stand on it (its value and its files), not when or
+    how long it ran: a job rebuilt with the same outputs leaves them fresh."""
+    outputs = {"status": result.get("status"), "value": result.get("value"), "manifest": result.get("manifest")}
+    return hashlib.sha256(json.dumps(outputs, sort_keys=True).encode()).hexdigest()
+
+
 def read_json(path: Path) -> Any | None:
     """The JSON in `path`, or None when it is missing or unreadable (a corrupt file is not a result)."""
     try:

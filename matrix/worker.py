@@ -24,7 +24,7 @@ from matrix.errors import MatrixError, exit_message
 from matrix.hostlock import host_slot
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
 from matrix.runs import BUSY, DONE_ELSEWHERE, FAILED, NOT_APPLICABLE, OK
-from matrix.store import INTACT, LOG, Store, result_token
+from matrix.store import INTACT, LOG, Store, outputs_token, result_token
 
 _progress_sink: Callable[[str, dict], None] | None = None
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
@@ -87,7 +87,8 @@ def _run_locked(store: Store, spec: dict) -> dict:
     key, started = spec["key"], time.time()
     workdir = store.new_workdir(key)
     try:
-        deps = _dep_results(store, spec)
+        used: dict[str, str] = {}
+        deps = _dep_results(store, spec, used)
         blocker = _not_applicable_dep(deps)
         if blocker:
             status, reason, value = NOT_APPLICABLE, blocker.reason, {}
@@ -96,7 +97,7 @@ def _run_locked(store: Store, spec: dict) -> dict:
     except Exception as error:  # a failing handler is reported, never crashes the run
         return _fail(store, spec, workdir, error, started)
     result = {"status": status, "reason": reason, "value": value, "duration_s": time.time() - started,
-              "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+              "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "deps_used": used}
     if blocker:   # the reason stays the dependency's own, so cells blocked for one cause group together
         result["blocked_by"] = blocker.name
     store.commit(key, workdir, spec, result)
@@ -138,11 +139,14 @@ def non_finite(value: Any, path: str = "") -> str | None:
     return None
 
 
-def _dep_results(store: Store, spec: dict) -> dict[str, DepResult | tuple[DepResult, ...]]:
+def _dep_results(store: Store, spec: dict, used: dict[str, str]) -> dict[str, DepResult | tuple[DepResult, ...]]:
+    """The dependencies' results as the handler sees them; `used` gets the outputs token of each (the
+    job's result records them: a dependency that runs again later with other outputs makes it stale)."""
     def one(key: str) -> DepResult:
         result, dep_spec = store.result(key), store.spec(key) or {}
         if result is None:
             raise RuntimeError(f"dependency {key[:12]} has no result in {store.root}")
+        used[key] = outputs_token(result)
         outputs = store.outputs_state(key, result, full=True)   # hashed before the handler reads them
         if outputs != INTACT:
             raise RuntimeError(f"dependency {dep_spec.get('name', key[:12])}: output {outputs} since its job "

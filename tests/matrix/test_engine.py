@@ -1,5 +1,6 @@
 """Incremental runs on the toy domain: exactly the jobs downstream of an edit rerun."""
 import gc
+import json
 import importlib
 import sys
 
@@ -132,6 +133,47 @@ def test_force_reruns_one_kind_and_nothing_else(tmp_path):
     assert summary.outcomes == []                                         # and fresh after it
     with pytest.raises(Exception, match="did you mean 'total'"):
         run(recipe_file(tmp_path), store, force=["totl"])
+
+
+def test_a_forced_job_reruns_what_was_made_from_it_in_the_same_run(tmp_path):
+    """Outside test: `--force offline` re-timed the networks and left the laps that replay those timings
+    "fresh", showing the old timings beside the new ones. Keys are unchanged, so what stands on a job
+    that runs again runs again too."""
+    store = Store(tmp_path / "store")
+    run(recipe_file(tmp_path), store)
+    plan, summary = run(recipe_file(tmp_path), store, force=["power"])
+    total = next(s for s in plan.statuses if s.job.name == "total")
+    assert total.state == "stale" and total.reason.startswith("dependency runs again: ")
+    assert len(ran(summary)) == 7 and "total" in ran(summary) and summary.counts() == {"ok": 7}
+    executions = (store.root / "cache" / "executions.log").read_text().splitlines()
+    assert executions.count("total") == 2 and not any(e.startswith("source") for e in executions[10:])
+    _, summary = run(recipe_file(tmp_path), store)
+    assert summary.outcomes == []
+
+
+def test_a_result_made_from_a_dependency_that_ran_again_since_is_stale(tmp_path):
+    """A dependency rerun under its key by a run that stopped before what stands on it (here: a run of
+    one source job alone): rebuilt with the same outputs, what stands on it stays fresh; with other
+    outputs (a job that is not deterministic: a timing), it is stale, by the outputs each result records."""
+    store = Store(tmp_path / "store")
+    path = recipe_file(tmp_path)
+    run(path, store)
+    forced = engine.make_plan(load_recipe(path, TOY), TOY, store, ["source"])
+    outcomes = run_local([s for s in forced.statuses if s.job.name == "source a"], store,
+                         kind_modules=TOY.kind_modules).outcomes
+    assert [o.status for o in outcomes] == ["ok"], outcomes
+    plan = engine.make_plan(load_recipe(path, TOY), TOY, store)
+    assert {s.state for s in plan.statuses} == {"fresh"}          # the same outputs: nothing to redo
+    source_a = next(s.job for s in plan.statuses if s.job.name == "source a")
+    result_file = store.job_dir(source_a.key) / "result.json"
+    rebuilt = json.loads(result_file.read_text())
+    rebuilt["value"]["value"] += 1                                 # as a rebuild with other outputs writes it
+    result_file.write_text(json.dumps(rebuilt))
+    plan = engine.make_plan(load_recipe(path, TOY), TOY, store)
+    stale = {s.job.name: s.reason for s in plan.statuses if s.state != "fresh"}
+    assert sorted(stale) == ["power a^2", "power a^3", "total"], stale
+    assert stale["power a^2"] == "dependency ran again since, with other outputs: source a"
+    assert stale["total"].startswith("dependency runs again: power a^")
 
 
 def test_corrupt_output_is_stale(tmp_path):
