@@ -363,9 +363,10 @@ def print_status(out: Console, store: Store) -> int:
     out.print(f"store: {store.root.resolve()}")
     kinds: dict[str, Counter] = {}
     for key in store.keys():
-        spec, result = store.spec(key) or {}, store.result(key) or {}
-        kinds.setdefault(spec.get("kind", "?"), Counter())[result.get("status", "corrupt")] += 1
-    table = Table("kind", "ok", "not applicable", "corrupt", box=None)
+        spec, result = store.spec(key) or {}, store.result(key)
+        intact = result is not None and store.outputs_intact(key, result)   # files as recorded (by stat, else sha256)
+        kinds.setdefault(spec.get("kind", "?"), Counter())[result["status"] if intact else "corrupt"] += 1
+    table = Table("kind", "ok", "not applicable", "corrupt (a run rebuilds it)", box=None)
     for kind, counts in sorted(kinds.items()):
         table.add_row(kind, str(counts["ok"]), str(counts["not_applicable"]), str(counts["corrupt"]))
     out.print(table if kinds else "no finished jobs yet")

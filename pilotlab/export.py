@@ -6,7 +6,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from matrix.store import Store
+from matrix.store import INTACT, MISSING, Store
 from pilotlab.errors import PilotlabError
 from pilotlab.strategies.artifact import META_FILE, ArtifactMeta, read_meta
 
@@ -196,5 +196,10 @@ def export_job(store: Store, key_prefix: str, out_dir: Path) -> Path:
     if stored.get("status") != "ok":
         raise PilotlabError(f"job {key[:12]} ({spec.get('name', '')}) produced no artifact: "
                             f"{stored.get('status')}: {stored.get('reason', '')}")
+    outputs = store.outputs_state(key, stored, full=True)   # every file against its recorded sha256
+    if outputs != INTACT:
+        what = "missing" if outputs == MISSING else "not the one the job wrote (its sha256 differs)"
+        raise PilotlabError(f"job {key[:12]} ({spec.get('name', '')}): a file of its artifacts is {what}, so "
+                            "nothing is exported; `pilotlab run RECIPE` rebuilds it")
     name = str(spec.get("name", "")).removeprefix("optimize ") or None   # the recipe's MODEL/STRATEGY
     return export_artifact(store.artifacts(key), stored.get("value") or {}, out_dir, name)

@@ -135,3 +135,21 @@ def test_the_readme_runs_an_edge_artifact_with_its_runtime_alone(artifacts, tmp_
     monkeypatch.chdir(out)              # the README names the model file relative to its folder
     exec(code, namespace)               # the README's own code, as a user would paste it
     np.testing.assert_allclose(namespace["vw"], load_predictor(out, "cpu1").predict(images), atol=1e-6)
+
+
+def test_an_artifact_changed_since_its_job_is_not_exported_and_status_counts_it(store, tmp_path, capsys):
+    """Outside test: one byte of a stored model.onnx overwritten, `export` shipped it (exit 0) and
+    `status` said corrupt 0, while `plan` had the job stale ("output changed")."""
+    import shutil
+    copy = Store(shutil.copytree(store, tmp_path / "store"))
+    model = next(p for p in copy.artifacts(KEY).iterdir() if p.suffix == ".onnx")
+    data = bytearray(model.read_bytes())
+    data[len(data) // 2] ^= 0xFF                       # the same size: only the sha256 tells
+    model.write_bytes(bytes(data))
+    assert main(["status", "--store", str(copy.root)]) == 0
+    row = next(line.split() for line in capsys.readouterr().out.splitlines() if line.split()[:1] == ["optimize"])
+    assert row == ["optimize", "0", "0", "1"]          # ok, not applicable, corrupt
+    assert main(["export", "ab12", "--out", str(tmp_path / "deploy"), "--store", str(copy.root)]) == 2
+    err = capsys.readouterr().err
+    assert "is not the one the job wrote" in err and "rebuilds it" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "deploy").exists()
