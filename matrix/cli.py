@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 
@@ -133,7 +134,7 @@ def cmd_gc(args, domain: Domain) -> int:
         if not alone:
             raise MatrixError(f"a run is running on the store {store.root}: gc would remove the jobs it has finished "
                               "and still reads; run gc when it has ended")
-        garbage = engine.find_garbage(store, keep)
+        garbage = engine.find_garbage(store, keep, domain.kept_elsewhere)
         names = {key: _kind_and_name(store.spec(key) or {}) for key in garbage.keys}
         removed = garbage.keys if args.dry_run else engine.collect_garbage(store, garbage)
     verb = "would remove" if args.dry_run else "removed"
@@ -143,6 +144,9 @@ def cmd_gc(args, domain: Domain) -> int:
     print(f"{verb} {len(removed)} jobs and {len(garbage.temp)} leftovers of killed runs "
           f"({garbage.bytes / 1e6:.1f} MB); {'keeping' if args.dry_run else 'kept'} the {kept} stored jobs "
           f"the recipes reach", file=sys.stdout)
+    for why, count in Counter(garbage.elsewhere.values()).most_common():
+        print(f"{'keeping' if args.dry_run else 'kept'} {count} stored jobs no recipe reaches here: {why} "
+              "(gc there collects them)")
     return 0
 
 

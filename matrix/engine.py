@@ -12,8 +12,8 @@ import re
 import shutil
 import time
 from collections import Counter
-from collections.abc import Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from matrix.dag import in_order
@@ -187,15 +187,20 @@ class Garbage:
     keys: list[str]
     temp: list[Path]
     bytes: int
+    elsewhere: dict[str, str] = field(default_factory=dict)   # unreached, kept: key -> why (Domain.kept_elsewhere)
 
 
-def find_garbage(store: Store, keep: set[str]) -> Garbage:
-    """Stored jobs no kept recipe reaches, failure records, and leftovers of killed runs."""
-    keys = [key for key in store.keys() if key not in keep]
+def find_garbage(store: Store, keep: set[str], kept_elsewhere: Callable[[dict], str | None] | None = None) -> Garbage:
+    """Stored jobs no kept recipe reaches (but those `kept_elsewhere` keeps), failure records, and leftovers
+    of killed runs."""
+    unreached = [key for key in store.keys() if key not in keep]
+    elsewhere = {key: why for key in unreached
+                 if kept_elsewhere and (why := kept_elsewhere(store.spec(key) or {}))}
+    keys = [key for key in unreached if key not in elsewhere]
     failed = [p.stem for p in (store.root / "failed").glob("*.json") if p.stem not in keep]
     temp = leftovers(store)
     size = sum(_size(store.job_dir(k)) for k in keys) + sum(_size(p) for p in temp)
-    return Garbage(sorted(set(keys) | set(failed)), temp, size)
+    return Garbage(sorted(set(keys) | set(failed)), temp, size, elsewhere)
 
 
 def collect_garbage(store: Store, garbage: Garbage) -> list[str]:

@@ -36,6 +36,9 @@ class Domain:
     # Values of an axis that plan the same jobs (two names of one definition): planned once (matrix.grid);
     # it is asked about every value written on an axis, known or not (None: unlike any other)
     same: SameValue | None = None
+    # gc: why a stored job no recipe reaches here is kept all the same (a spec -> a reason, or None): a job
+    # planned on another machine that shares the store (its timings), which this machine's plan cannot reach
+    kept_elsewhere: Callable[[dict], str | None] | None = None
 
 
 @dataclass(frozen=True)

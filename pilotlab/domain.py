@@ -2,6 +2,7 @@
 and what follows a run (the report)."""
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 
@@ -56,6 +57,22 @@ def same_definition(config, axis: str, value) -> tuple | None:
     return ("strategy", base, json.dumps(options, sort_keys=True, default=repr))
 
 
+def planned_on_another_host(spec: dict) -> str | None:
+    """gc: a timing or lap planned on another machine sharing the store (or this one with other cores: a
+    cpuset, a Slurm allocation) is not this plan's to remove; gc on that host decides."""
+    host = (spec.get("params") or {}).get("host")
+    if not isinstance(host, dict):
+        return None
+    from pilotlab.hardware import describe_host
+    return None if host == _this_host() else f"planned for another host ({describe_host(host)})"
+
+
+@functools.cache
+def _this_host() -> dict:
+    from pilotlab.hardware import host_fingerprint
+    return host_fingerprint()
+
+
 def after_run(recipe: Recipe, plan, summary, store) -> None:
     """After `run`: refresh the report from the plan that ran (it is not planned again)."""
     from pilotlab.report.recipe import report_folder, write_recipe_report
@@ -76,4 +93,5 @@ DOMAIN = Domain(
     default_store=".pilotlab",
     after_run=after_run,
     same=same_definition,
+    kept_elsewhere=planned_on_another_host,
 )

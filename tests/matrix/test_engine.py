@@ -234,6 +234,20 @@ def test_gc_removes_only_unreachable_jobs(tmp_path):
     assert set(store.keys()) == keep
 
 
+def test_gc_keeps_the_unreached_jobs_the_domain_says_are_kept_elsewhere(tmp_path):
+    """Outside test: gc in a cpuset (another host fingerprint) removed every timing and lap of the
+    recipe; a domain can keep what this machine's plan cannot reach (pilotlab: jobs of other hosts)."""
+    store = Store(tmp_path / "store")
+    run(recipe_file(tmp_path), store)
+    run(recipe_file(tmp_path, b=4), store)
+    keep = {j.key for j in engine.plan_jobs(load_recipe(recipe_file(tmp_path, b=4), TOY), TOY)}
+    elsewhere = lambda spec: "planned elsewhere" if spec.get("name") == "source b" else None
+    garbage = engine.find_garbage(store, keep, elsewhere)
+    assert len(garbage.keys) == 3 and list(garbage.elsewhere.values()) == ["planned elsewhere"]
+    engine.collect_garbage(store, garbage)
+    assert set(store.keys()) == keep | set(garbage.elsewhere)
+
+
 def test_what_a_job_prints_at_the_fd_level_goes_to_its_log(tmp_path, capfd):
     store = Store(tmp_path / "store")
     plan, summary = run(recipe_file(tmp_path, c_extra=", noise: true"), store)

@@ -341,3 +341,15 @@ def test_a_circuit_csv_that_is_no_lap_is_the_recipe_s_error_at_plan(tmp_path):
     (tmp_path / "circuits" / "open.csv").write_text("0,0\n50,0\n100,0\n100,50\n100,100\n50,100\n")
     with pytest.raises(RecipeError, match=r":15: matrix.circuit: circuit 'open' .* the centreline is not a lap"):
         engine.plan_jobs(recipe_at(tmp_path, RECIPE.replace("circuit: [simple_circuit]", "circuit: [open]")), DOMAIN)
+
+
+def test_gc_keeps_the_jobs_planned_for_another_host():
+    """Outside test: `taskset -c 0 pilotlab gc` (one core: another host fingerprint) would have removed
+    every timing and lap of the recipe; those are another host's to collect."""
+    from pilotlab.domain import planned_on_another_host
+    from pilotlab.hardware import host_fingerprint
+    here = host_fingerprint()
+    assert planned_on_another_host({"params": {"host": here}}) is None
+    assert planned_on_another_host({"params": {"circuit": "simple_circuit"}}) is None
+    other = planned_on_another_host({"params": {"host": {**here, "cores": here["cores"] + 1}}})
+    assert other.startswith("planned for another host (") and f"{here['cores'] + 1} cores" in other
