@@ -178,7 +178,19 @@ def _row(job, store: Store) -> dict[str, Any]:
         failure = store.failure(job.key)
         reason = failure["error"] if failure else _why_not_run(job, store)
         return {**row, "status": "not_run" if reason == NOT_RUN else "failed", "reason": reason}
-    return row | row_from_result(result, store.artifacts(job.key))
+    row |= row_from_result(result, store.artifacts(job.key))
+    if job.kind == "online" and row["status"] == "ok" and (why := _replayed_unstable(job, store)):
+        row["unstable"] = {"latency_ms": why}
+    return row
+
+
+def _replayed_unstable(job, store: Store) -> str | None:
+    """Why the offline timing a lap replays stayed disturbed (None: it did not, or nothing was replayed):
+    the lap's brain frequency and outcome rest on it, so the lap is marked as its timing is."""
+    timing = job.deps.get("timing")
+    result = store.result(timing.key) if timing is not None else None
+    reason = pick_unstable((result or {}).get("value") or {}).get("latency_ms")
+    return None if reason is None else f"it replays the offline timing of {timing.name}, which stayed disturbed ({reason})"
 
 
 def row_from_result(result: dict[str, Any], artifacts: Path) -> dict[str, Any]:

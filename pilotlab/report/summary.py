@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from pilotlab.columns import BY_NAME
 from pilotlab.report.data import ReportData, ReportRow, timing_issue
-from pilotlab.report.tables import format_value, method_label
+from pilotlab.report.tables import UNSTABLE, format_value, method_label
 
 # "keeps its accuracy": an offline MSE at most this multiple of the baseline's (the 2022 study's question
 # is speed without driving worse; a 20 % margin stays above the run-to-run spread of fine-tuned MSEs)
@@ -148,6 +148,7 @@ def _lap_parts(data: ReportData, rows: list[ReportRow]) -> list[str]:
     if lost:
         parts.append("lost the lap: " + ", ".join(
             f"{method_label(r, data)} ({format_value('percentage_completed', r.get('percentage_completed'))})"
+            + (f" {UNSTABLE} replaying an unstable timing" if r.unstable_reason("latency_ms") else "")
             for r in lost))
     elif completed:
         parts.append("every model completed the lap")

@@ -194,7 +194,13 @@ def offline_cells(row: ReportRow, baseline: ReportRow | None) -> tuple[Cell, ...
 
 
 def online_cells(row: ReportRow, _baseline: ReportRow | None) -> tuple[Cell, ...]:
-    return (lap_cell(row),) + tuple(metric_cell(row, name) for _, name in ONLINE_COLUMNS)
+    """A lap's cells; where the timing it replays stayed disturbed, ⚠ on its lap and inference time."""
+    cells = (lap_cell(row),) + tuple(metric_cell(row, name) for _, name in ONLINE_COLUMNS)
+    if not (reason := row.unstable_reason("latency_ms")):
+        return cells
+    return tuple(Cell(f"{c.text} {UNSTABLE}", c.sort, f"{c.title}; UNSTABLE: {reason}")
+                 if header in ("Lap", "Mean inference time (ms)") and not c.missing else c
+                 for header, c in zip(ONLINE_HEADERS, cells))
 
 
 TOLERANCE_HEADER = "Latency tolerance (ms)"
@@ -253,6 +259,8 @@ def _table(data: ReportData, kind: str, hardware: str, place: str, rows: list[Re
         _latency_notes(rows)
     table_rows = tuple(TableRow(method_label(r, data), r, cells_of(r, baselines.get(r.model)), _note(r)) for r in rows)
     if kind != "offline":
+        notes += tuple(f"{UNSTABLE} {method_label(r, data)}: no verdict from this lap: {reason}."
+                       for r in rows if (reason := r.unstable_reason("latency_ms")))
         return Table(title, kind, hardware, place, headers, table_rows, notes)
     notes += tuple(_timing_notes(data, rows, baselines))
     return Table(title, kind, hardware, place, headers, table_rows, notes, timing_method(rows))

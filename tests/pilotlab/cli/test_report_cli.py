@@ -46,3 +46,18 @@ def test_the_report_stamp_changes_when_a_job_is_rerun_with_the_same_key(tmp_path
     assert _stamp(recipe, jobs, store) == first
     commit(0.9)
     assert _stamp(recipe, jobs, store) != first
+
+
+def test_a_lap_is_marked_with_the_unstable_timing_it_replays(tmp_path):
+    recipe, store = load_recipe(QUICKSTART, DOMAIN), Store(tmp_path / "store")
+    jobs = [status.job for status in make_plan(recipe, DOMAIN, store).statuses]
+    lap = next(job for job in jobs if job.kind == "online" and "timing" in job.deps)
+    timing = lap.deps["timing"]
+
+    def commit(job, value: dict) -> None:
+        store.commit(job.key, store.new_workdir(job.key), job.spec(), {"status": "ok", "value": value})
+    commit(timing, {"latency_ms": 132.5, "unstable": {"latency_ms": "few calls ran undisturbed"}})
+    commit(lap, {"lap_completed": False, "percentage_completed": 12.0, "mean_inference_ms": 136.0})
+    row = next(r for r in build_report_data(recipe, jobs, store).rows if r.kind == "online" and r.status == "ok")
+    assert row.unstable_reason("latency_ms") == (f"it replays the offline timing of {timing.name}, which stayed "
+                                                 "disturbed (few calls ran undisturbed)")

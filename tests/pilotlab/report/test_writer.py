@@ -7,7 +7,7 @@ from PIL import Image
 
 from pilotlab.columns import BY_NAME
 from pilotlab.report import ReportData, write_report
-from tests.pilotlab.report.toy import draw_trajectory, offline_row, repeated_rows, small_dict
+from tests.pilotlab.report.toy import draw_trajectory, offline_row, online_row, repeated_rows, small_dict
 
 OFFLINE_HEADER = ("| Method | Model size (MB) | Compressed (MB, gzip) | MSE | Inference time (ms) | Throughput (images/s) "
                   "| Size × | Speed-up × | MSE Δ |")
@@ -215,6 +215,23 @@ def test_an_unstable_timing_is_marked_in_the_results_files_and_both_pages(tmp_pa
     page = paths.html.read_text()
     assert "2.30 (2.20–9.50) ⚠" in page
     assert "; rerun <code>pilotlab run --force offline</code> when the machine is quieter" in page and "`pilotlab" not in page
+
+
+def test_a_lap_replaying_an_unstable_timing_is_marked_and_draws_no_verdict(tmp_path):
+    """Outside test: a baseline timed at 132 ms under load (⚠ in the offline table) lost its replayed lap,
+    and the simulation table, the closed-loop summary and results.csv said nothing of it."""
+    reason = "it replays the offline timing of offline pilotnet/baseline on cpu1, which stayed disturbed (few calls)"
+    lost = online_row("baseline", lap_completed=False, percentage_completed=12.0, brain_frequency_sim_hz=7.2,
+                      mean_inference_ms=136.0)
+    rows = [{**lost, "unstable": {"latency_ms": reason}},
+            online_row("dynamic_quant", lap_completed=True, percentage_completed=100.0, lap_seconds=40.0,
+                       mean_inference_ms=1.1)]
+    paths = write_report(ReportData.from_dict(small_dict(rows)), tmp_path)
+    assert [r["latency_ms_unstable"] for r in read_csv(paths.csv)] == [reason, ""]
+    readme = paths.readme.read_text()
+    assert "| baseline | ✗ 12 % ⚠ |" in readme and "| 136 ⚠ |" in readme
+    assert f"⚠ baseline: no verdict from this lap: {reason}." in readme
+    assert "lost the lap: baseline (12 %) ⚠ replaying an unstable timing" in readme
 
 
 def test_each_summary_finding_is_a_line_of_its_own(study_report):
