@@ -138,10 +138,12 @@ def _swap(staging: Path, folder: Path, name: str) -> None:
 
 def build_report_data(recipe: Recipe, jobs: list, store: Store) -> ReportData:
     rows = [_row(job, store) for job in jobs if job.kind in ("offline", "online")]
+    host = _host(jobs, store)
+    rows = [_timed_here(row, recipe, host) for row in rows]
     histories = {job.name.removeprefix("train "): _history(job, store) for job in jobs if job.kind == "train"}
     data = ReportData.from_dict({
         "recipe_name": recipe.name, "description": recipe.description, "recipe_text": recipe.text,
-        "versions": package_versions(), "host": _host(jobs, store), "date": datetime.now().isoformat(timespec="seconds"),
+        "versions": package_versions(), "host": host, "date": datetime.now().isoformat(timespec="seconds"),
         "rows": rows, "histories": {name: h for name, h in histories.items() if h},
         "training_worlds": training_worlds(recipe), "same_as": same_as(recipe),
         "sources": {job.name.removeprefix("train "): text for job in jobs if job.kind == "train"
@@ -182,6 +184,17 @@ def _row(job, store: Store) -> dict[str, Any]:
     if job.kind == "online" and row["status"] == "ok" and (why := _replayed_unstable(job, store)):
         row["unstable"] = {"latency_ms": why}
     return row
+
+
+def _timed_here(row: dict[str, Any], recipe: Recipe, host: Host) -> dict[str, Any]:
+    """An offline row of a profile whose latencies come from a device's file was timed on this host, not
+    on that device: its timings are marked (no "fastest on DEVICE" is drawn from them), with the reason."""
+    options = recipe.config.hardware.get(row.get("hardware"))
+    if row.get("kind") != "offline" or row.get("status") != "ok" or getattr(options, "latency_file", None) is None:
+        return row
+    why = (f"timed on this report's host ({host.cpu}, {host.cores} cores), not on "
+           f"{row['hardware']}; {row['hardware']}'s laps replay its latency file ({Path(options.latency_file).name})")
+    return {**row, "unstable": {name: why for name in ("latency_ms", "throughput_ips")}}
 
 
 def _replayed_unstable(job, store: Store) -> str | None:

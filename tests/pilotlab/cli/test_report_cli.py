@@ -61,3 +61,20 @@ def test_a_lap_is_marked_with_the_unstable_timing_it_replays(tmp_path):
     row = next(r for r in build_report_data(recipe, jobs, store).rows if r.kind == "online" and r.status == "ok")
     assert row.unstable_reason("latency_ms") == (f"it replays the offline timing of {timing.name}, which stayed "
                                                  "disturbed (few calls ran undisturbed)")
+
+
+def test_offline_timings_of_a_latency_file_profile_say_they_are_this_host_s(tmp_path):
+    """Outside test: with `hardware: {jet: {latency_file: ...}}` the offline table said "jet ... baseline
+    3.60 ms" and "Fastest on jet" from timings taken on the planning VM, while jet's laps replayed 50 ms."""
+    (tmp_path / "jet.csv").write_text("strategy,latency_ms\nbaseline,50\n,30\n")
+    text = QUICKSTART.read_text().replace("matrix:", "hardware:\n  jet: {latency_file: jet.csv}\nmatrix:")
+    (tmp_path / "q.yaml").write_text(text.replace("hardware: [cpu]", "hardware: [jet]"))
+    recipe, store = load_recipe(tmp_path / "q.yaml", DOMAIN), Store(tmp_path / "store")
+    jobs = [status.job for status in make_plan(recipe, DOMAIN, store).statuses]
+    timing = next(job for job in jobs if job.kind == "offline")
+    store.commit(timing.key, store.new_workdir(timing.key), timing.spec(),
+                 {"status": "ok", "value": {"latency_ms": 3.6, "throughput_ips": 700.0, "mse": 0.01,
+                                            "host": {"cpu": "AMD EPYC", "cores": 2}}})
+    row = next(r for r in build_report_data(recipe, jobs, store).rows if r.kind == "offline" and r.status == "ok")
+    assert row.unstable_reason("latency_ms") == ("timed on this report's host (AMD EPYC, 2 cores), not on jet; "
+                                                 "jet's laps replay its latency file (jet.csv)")
