@@ -122,9 +122,15 @@ class Store:
             return MISSING
         verified = read_json(verified_path)
         verified = verified if isinstance(verified, dict) else {}
-        if verified.get(CHANGED):
-            return CHANGED
         rehashed = False
+        if verified.get(CHANGED):   # known changed: hashed again only once its stat moved (put back as it was?)
+            restored = self._changed_file_restored(folder, result, verified)
+            if not restored:
+                if restored is False:   # hashed again, still not the one recorded: remember that stat
+                    _try_write(verified_path, verified)
+                return CHANGED
+            verified = {name: mark for name, mark in verified.items() if not name.startswith(CHANGED)}
+            rehashed = True
         for name, entry in result.get("manifest", {}).items():
             size, digest = (entry, None) if isinstance(entry, int) else (entry.get("size"), entry.get("sha256"))
             try:
@@ -142,6 +148,22 @@ class Store:
         if rehashed:
             _try_write(verified_path, verified)
         return INTACT
+
+    @staticmethod
+    def _changed_file_restored(folder: Path, result: dict, verified: dict) -> bool | None:
+        """Whether the file last found changed holds its recorded content again: None when its stat is
+        the one it had when last hashed (not read again), else what hashing it finds."""
+        name = verified[CHANGED]
+        entry = result.get("manifest", {}).get(name)
+        digest = entry.get("sha256") if isinstance(entry, dict) else None
+        try:
+            stat = (folder / name).stat()
+        except OSError:
+            return None
+        if digest is None or verified.get(f"{CHANGED}:{name}") == _signature(stat):
+            return None
+        verified[f"{CHANGED}:{name}"] = _signature(stat)
+        return file_sha256(folder / name) == digest
 
     def keys(self) -> Iterator[str]:
         """The keys of the stored jobs: folders named by a key, in their key's shard (anything else

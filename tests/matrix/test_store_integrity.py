@@ -57,6 +57,18 @@ def test_a_same_size_replacement_makes_the_job_stale_and_the_run_rebuilds_it(tmp
     assert status_of(path, store, "source a").state == "fresh"
 
 
+def test_an_output_put_back_as_it_was_is_fresh_again(tmp_path):
+    """Outside test: a file changed, then put back byte for byte, left the job stale for good (the
+    "changed" mark was never looked at again)."""
+    path, store, key = setup(tmp_path)
+    target = store.artifacts(key) / "value.json"
+    target.write_text("7")
+    assert status_of(path, store, "source a").reason == "output changed"
+    assert status_of(path, store, "source a").reason == "output changed"      # still, not hashed again
+    target.write_text("2")
+    assert status_of(path, store, "source a").state == "fresh"
+
+
 def test_a_replacement_that_keeps_the_stat_is_caught_before_a_job_reads_it(tmp_path):
     path, store, key = setup(tmp_path)
     target = store.artifacts(key) / "value.json"
