@@ -66,6 +66,8 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
 def cmd_plan(args, domain: Domain) -> int:
     store = engine.open_store(domain, args.store)
     plan = engine.make_plan(load_recipe(args.recipe, domain), domain, store, args.force)
+    if args.store and not store.root.is_dir():   # a typo more likely than a store to come: say so, plan all the same
+        print(f"note: --store {args.store}: no such folder yet, so every job is new (`run` makes it)", file=sys.stderr)
     if args.json:
         rows = [{"key": s.job.key, "kind": s.job.kind, "name": s.job.name, "status": s.state,
                  "reason": s.reason} for s in plan.statuses]

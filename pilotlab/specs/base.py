@@ -102,7 +102,8 @@ def _validated(config_cls: type, options: dict[str, Any]) -> dict[str, Any]:
         try:
             values[name] = _validator(types_[name]).validate_python(value)
         except pydantic.ValidationError as error:
-            problems += [f"{'.'.join(map(str, (name, *e['loc'])))}: {e['msg']}" for e in error.errors()]
+            problems += [f"{'.'.join(map(str, (name, *e['loc'])))}: {e['msg']} (got {e.get('input')!r:.80})"
+                         for e in error.errors()]
     if problems:
         raise PilotlabError("; ".join(problems))
     return values

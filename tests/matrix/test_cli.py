@@ -38,6 +38,13 @@ def test_plan_json_lists_key_kind_status_reason(recipe, tmp_path, capsys):
     assert {r["status"] for r in rows} == {"new"}
 
 
+def test_plan_on_a_store_folder_that_is_not_there_says_so(recipe, tmp_path, capsys):
+    """Outside test: `plan --store <typo>` showed every job "new" without a word (status refuses a typo)."""
+    code, out, err = cli(capsys, "plan", str(recipe), "--store", str(tmp_path / "typo"))
+    assert code == 0 and err == f"note: --store {tmp_path / 'typo'}: no such folder yet, so every job is new (`run` makes it)\n"
+    assert not (tmp_path / "typo").exists()
+
+
 def test_run_status_show_and_gc(recipe, tmp_path, capsys):
     store = str(tmp_path / "s")
     assert cli(capsys, "run", str(recipe), "--store", store)[0] == 0

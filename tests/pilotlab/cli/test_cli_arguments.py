@@ -98,6 +98,7 @@ def test_a_reader_that_stops_early_ends_the_command_quietly(tmp_path):
     import sys
     from pathlib import Path
     root = Path(__file__).resolve().parents[3]
+    (tmp_path / "s").mkdir()                       # a store there (else plan notes on stderr that it is not)
     for args in (["plan", str(root / "recipes" / "study2022.yaml"), "--all", "--store", str(tmp_path / "s")],
                  ["plan", str(root / "recipes" / "study2022.yaml"), "--json", "--store", str(tmp_path / "s")]):
         child = subprocess.Popen([sys.executable, "-m", "pilotlab", *args], cwd=tmp_path, stdout=subprocess.PIPE,
