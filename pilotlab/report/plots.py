@@ -111,9 +111,12 @@ def draw_pareto(data: ReportData) -> Figure | None:
                        edgecolors=colours[r.strategy] if unstable else "black", linewidths=1.5 if unstable else 0.6,
                        zorder=3)
         front = pareto_front([(r.get("latency_ms"), r.get("mse")) for r in here])
-        ax.plot(*zip(*front), drawstyle="steps-post", color="0.35", ls="--", lw=1.2, zorder=2)
+        # one method best on both counts is the whole front: a ring round it, as a lone step draws nothing
+        ax.plot(*zip(*front), drawstyle="steps-post", color="0.35", ls="--", lw=1.2, zorder=2,
+                marker="o" if len(front) == 1 else None, markersize=22, markerfacecolor="none")
         ax.set(title=target, xlabel="Inference time, batch 1 (ms)", ylabel="MSE (normalised v, w)")
         ax.margins(0.15)
+        ax.set_xlim(left=max(0.0, ax.get_xlim()[0]))   # no negative milliseconds
         ax.grid(alpha=0.3)
     sizes = sorted({round(r.get("size_mb"), 2) for r in rows if r.get("size_mb")})
     shown = dict.fromkeys(sizes[i] for i in (0, len(sizes) // 2, -1)) if sizes else {}     # smallest, middle, largest
