@@ -39,7 +39,8 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
                      help=f"jobs at once (worker processes; default: one per core, {default_jobs()} here); a timing "
                           "job always runs alone")
     run.add_argument("--keep-going", action="store_true", help="after a failure, run what does not depend on it")
-    run.add_argument("--force", action="append", default=[], metavar="KIND", help="rerun every job of KIND, and the jobs that stand on them")
+    run.add_argument("--force", action="append", default=[], metavar="KIND",
+                     help="rerun every job of KIND, and the jobs that stand on them")
     run.add_argument("--executor", choices=["local", "dask", "dask-local"], default="local",
                      help="local process pool (default), a Dask cluster (--scheduler), or a local Dask cluster")
     run.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address, e.g. tcp://host:8786")
@@ -50,7 +51,8 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
     plan.add_argument("--json", action="store_true", help="print a JSON list of every job instead of a table")
     plan.add_argument("--all", action="store_true",
                       help="a row for every job (by default a large plan shows a summary per kind and its first rows)")
-    plan.add_argument("--force", action="append", default=[], metavar="KIND", help="show every job of KIND (and what stands on it) as stale")
+    plan.add_argument("--force", action="append", default=[], metavar="KIND",
+                      help="show every job of KIND (and what stands on it) as stale")
     status = add("status", cmd_status, "summarise the job store")
     status.add_argument("--times", action="store_true",
                         help="how long the stored jobs took, per kind (where a recipe's minutes go)")

@@ -143,7 +143,7 @@ class ReportRow(_Frozen):
     metrics: dict[str, MetricValue] = Field(default_factory=dict)
     trajectory: Path | None = None           # online rows: PNG of the path over the red line
     spread: dict[str, Spread] = Field(default_factory=dict)  # online rows: metric -> its spread over runs
-    unstable: dict[str, str] = Field(default_factory=dict)   # timed metric -> why it is unstable (a lap: its replayed timing)
+    unstable: dict[str, str] = Field(default_factory=dict)   # timed metric -> why unstable (a lap: its replayed one)
     cpu_time: dict[str, str] = Field(default_factory=dict)   # offline rows: timed metric -> why it is CPU time
     tolerance: tuple[TolerancePoint, ...] = ()              # online rows: the laps of the tolerance search
     tolerance_at_least: bool = False         # the lap was still completed at the search's largest latency

@@ -203,7 +203,9 @@ def _replayed_unstable(job, store: Store) -> str | None:
     timing = job.deps.get("timing")
     result = store.result(timing.key) if timing is not None else None
     reason = pick_unstable((result or {}).get("value") or {}).get("latency_ms")
-    return None if reason is None else f"it replays the offline timing of {timing.name}, which stayed disturbed ({reason})"
+    if reason is None:
+        return None
+    return f"it replays the offline timing of {timing.name}, which stayed disturbed ({reason})"
 
 
 def row_from_result(result: dict[str, Any], artifacts: Path) -> dict[str, Any]:
