@@ -196,11 +196,25 @@ def find_garbage(store: Store, keep: set[str], kept_elsewhere: Callable[[dict], 
     unreached = [key for key in store.keys() if key not in keep]
     elsewhere = {key: why for key in unreached
                  if kept_elsewhere and (why := kept_elsewhere(store.spec(key) or {}))}
-    keys = [key for key in unreached if key not in elsewhere]
+    keep = set(keep) | _stood_on(store, elsewhere)   # what the jobs kept for elsewhere were made from
+    keys = [key for key in unreached if key not in keep]
     failed = [p.stem for p in (store.root / "failed").glob("*.json") if p.stem not in keep]
     temp = leftovers(store)
     size = sum(_size(store.job_dir(k)) for k in keys) + sum(_size(p) for p in temp)
     return Garbage(sorted(set(keys) | set(failed)), temp, size, elsewhere)
+
+
+def _stood_on(store: Store, keys: Iterable[str]) -> set[str]:
+    """`keys` and every stored job they depend on, transitively (read from their spec.json)."""
+    found, stack = set(), list(keys)
+    while stack:
+        key = stack.pop()
+        if key in found:
+            continue
+        found.add(key)
+        deps = (store.spec(key) or {}).get("deps", {})
+        stack += [k for value in deps.values() for k in (value if isinstance(value, list) else [value])]
+    return found
 
 
 def collect_garbage(store: Store, garbage: Garbage) -> list[str]:

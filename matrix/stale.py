@@ -45,13 +45,14 @@ def plan_statuses(jobs: list[Job], store: Store, previous: Mapping[str, dict],
 @dataclass
 class PlanSoFar:
     """What the jobs before this one in a plan found: the outputs of each fresh job's stored result,
-    and the names of the jobs that replace a stored result of theirs in this run (forced, and what
-    stands on those), whose outputs will be new."""
+    and the names of the jobs that run in this plan, whose outputs may be new: what stands on them runs
+    again after them unless, by then, their outputs are the ones it was made from (see
+    `if_dependencies_changed`)."""
     tokens: dict[str, str] = field(default_factory=dict)
     running: dict[str, str] = field(default_factory=dict)
 
     def add(self, status: JobStatus) -> JobStatus:
-        if status.replaces is not None:
+        if status.state != FRESH:
             self.running[status.job.key] = status.job.name
         return status
 
@@ -81,7 +82,7 @@ def job_status(job: Job, store: Store, previous: Mapping[str, dict],
     if outputs == INTACT:
         reasons = seen.dependency_reruns(job, result) if seen is not None else []
         if reasons:   # runs again under the same key: the stored result is the one it replaces
-            return JobStatus(job, STALE, tuple(reasons), result_token(result))
+            return JobStatus(job, STALE, tuple(reasons), if_dependencies_changed(result_token(result)))
         if seen is not None:
             seen.tokens[job.key] = outputs_token(result)
         return JobStatus(job, FRESH, ())
@@ -113,6 +114,16 @@ class StoreListing:
         failed = store.root / "failed"
         names = os.listdir(failed) if failed.is_dir() else []
         return cls(frozenset(store.keys()), frozenset(n[:-5] for n in names if n.endswith(".json")))
+
+
+CONDITIONAL = "if-dependencies-changed:"
+
+
+def if_dependencies_changed(token: str) -> str:
+    """What a job standing on one that runs again replaces: its stored result (`token`), unless, when
+    its turn comes, that result was made from its dependencies' outputs as they are then (a rebuild
+    with the same outputs, a forced run that measured the same): then the worker keeps it."""
+    return CONDITIONAL + token
 
 
 def results_to_replace(statuses: list[JobStatus]) -> dict[str, str]:

@@ -24,6 +24,7 @@ from matrix.errors import MatrixError, exit_message
 from matrix.hostlock import host_slot
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
 from matrix.runs import BUSY, DONE_ELSEWHERE, FAILED, NOT_APPLICABLE, OK
+from matrix.stale import CONDITIONAL
 from matrix.store import INTACT, LOG, Store, outputs_token, result_token
 
 _progress_sink: Callable[[str, dict], None] | None = None
@@ -77,10 +78,29 @@ def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = (), r
         if not held:
             return {"status": BUSY, "reason": "running in another process"}
         done = store.result(key)
-        if done is not None and store.outputs_intact(key, done) and result_token(done) != replaces:
-            return {"status": DONE_ELSEWHERE, "reason": done.get("reason", ""), "duration_s": 0.0}
+        kept = done is not None and store.outputs_intact(key, done) and _still_stands(store, spec, done, replaces)
+        if kept:
+            return {"status": DONE_ELSEWHERE, "reason": kept if isinstance(kept, str) else done.get("reason", ""),
+                    "duration_s": 0.0}
         with host_slot(exclusive=KINDS.get(spec["kind"]).runs_alone(spec["params"])):   # timings: the host to itself
             return _run_locked(store, spec)
+
+
+def _still_stands(store: Store, spec: dict, done: dict, replaces: str | None) -> bool | str:
+    """Whether the stored result `done` is kept: it is not the one to replace (another run replaced it
+    already), or it was to be replaced only if its dependencies' outputs changed and they did not (then
+    the reason, in words)."""
+    conditional = replaces is not None and replaces.startswith(CONDITIONAL)
+    if result_token(done) != (replaces.removeprefix(CONDITIONAL) if conditional else replaces):
+        return True
+    if conditional and done.get("deps_used") == _dependency_outputs(store, spec):
+        return "kept: its dependencies ran again with the outputs it was made from"
+    return False
+
+
+def _dependency_outputs(store: Store, spec: dict) -> dict[str, str | None]:
+    keys = [k for value in spec["deps"].values() for k in (value if isinstance(value, list) else [value])]
+    return {key: None if (result := store.result(key)) is None else outputs_token(result) for key in keys}
 
 
 def _run_locked(store: Store, spec: dict) -> dict:

@@ -135,19 +135,25 @@ def test_force_reruns_one_kind_and_nothing_else(tmp_path):
         run(recipe_file(tmp_path), store, force=["totl"])
 
 
-def test_a_forced_job_reruns_what_was_made_from_it_in_the_same_run(tmp_path):
+def test_a_forced_job_reruns_what_was_made_from_it_in_the_same_run_if_its_outputs_changed(tmp_path):
     """Outside test: `--force offline` re-timed the networks and left the laps that replay those timings
     "fresh", showing the old timings beside the new ones. Keys are unchanged, so what stands on a job
-    that runs again runs again too."""
+    that runs again is planned to run after it, and runs unless that job's outputs came out the same."""
     store = Store(tmp_path / "store")
-    run(recipe_file(tmp_path), store)
-    plan, summary = run(recipe_file(tmp_path), store, force=["power"])
-    total = next(s for s in plan.statuses if s.job.name == "total")
-    assert total.state == "stale" and total.reason.startswith("dependency runs again: ")
-    assert len(ran(summary)) == 7 and "total" in ran(summary) and summary.counts() == {"ok": 7}
+    path = recipe_file(tmp_path, c_extra=", jitter: true")   # source c measures something new at each run
+    run(path, store)
+    plan, summary = run(path, store, force=["source"])
+    stale = {s.job.name: s.reason for s in plan.statuses}
+    assert stale["power c^2"] == "dependency runs again: source c" and stale["total"].startswith("dependency runs again")
+    outcomes = {o.name: o.status for o in summary.outcomes}
+    assert [n for n, status in outcomes.items() if status == "ok"] == ["source a", "source b", "source c",
+                                                                          "power c^2", "power c^3"]
+    assert {outcomes[n] for n in ("power a^2", "power b^3", "total")} == {"done_elsewhere"}   # same outputs: kept
+    reasons = {o.name: o.reason for o in summary.outcomes}
+    assert reasons["total"] == "kept: its dependencies ran again with the outputs it was made from"
     executions = (store.root / "cache" / "executions.log").read_text().splitlines()
-    assert executions.count("total") == 2 and not any(e.startswith("source") for e in executions[10:])
-    _, summary = run(recipe_file(tmp_path), store)
+    assert executions.count("power c^2") == 2 and executions.count("power a^2") == 1 and executions.count("total") == 1
+    _, summary = run(path, store)
     assert summary.outcomes == []
 
 
@@ -183,7 +189,8 @@ def test_corrupt_output_is_stale(tmp_path):
     (store.artifacts(source_a.key) / "value.json").write_text("truncated")
     plan, summary = run(recipe_file(tmp_path), store)
     assert {s.job.name: s.reason for s in plan.statuses}["source a"] == "output missing or corrupt"
-    assert ran(summary) == ["source a"]
+    assert sorted(o.name for o in summary.outcomes if o.status == "ok") == ["source a"]
+    assert {o.status for o in summary.outcomes if o.name != "source a"} == {"done_elsewhere"}   # rebuilt the same
 
 
 KIND_MODULE = """
@@ -241,11 +248,15 @@ def test_gc_keeps_the_unreached_jobs_the_domain_says_are_kept_elsewhere(tmp_path
     run(recipe_file(tmp_path), store)
     run(recipe_file(tmp_path, b=4), store)
     keep = {j.key for j in engine.plan_jobs(load_recipe(recipe_file(tmp_path, b=4), TOY), TOY)}
-    elsewhere = lambda spec: "planned elsewhere" if spec.get("name") == "source b" else None
+    old_b2 = next(k for k in store.keys() if k not in keep and store.spec(k)["name"] == "power b^2")
+    store.record_failure(old_b2, {"error": "a forced rerun that failed"})     # its old result stays
+    elsewhere = lambda spec: "planned elsewhere" if spec.get("key") == old_b2 else None
     garbage = engine.find_garbage(store, keep, elsewhere)
-    assert len(garbage.keys) == 3 and list(garbage.elsewhere.values()) == ["planned elsewhere"]
+    old_b = store.spec(old_b2)["deps"]["source"]                              # what it was made from: kept too
+    assert sorted(store.spec(k)["name"] for k in garbage.keys) == ["power b^3", "total"]
+    assert garbage.elsewhere == {old_b2: "planned elsewhere"}
     engine.collect_garbage(store, garbage)
-    assert set(store.keys()) == keep | set(garbage.elsewhere)
+    assert set(store.keys()) == keep | {old_b2, old_b}
 
 
 def test_what_a_job_prints_at_the_fd_level_goes_to_its_log(tmp_path, capfd):

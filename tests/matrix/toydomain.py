@@ -35,6 +35,7 @@ class SourceConfig(pydantic.BaseModel):
     noise: bool = False           # write to file descriptor 2 directly, as C libraries do
     library_log: bool = False     # log through a handler on sys.stderr made once per process, as torch does
     worker: str | None = None     # the Dask worker resource its measure jobs need (as a hardware profile's)
+    jitter: bool = False          # its result also holds a measurement that differs at every run (as a timing)
 
 
 def count_execution(ctx) -> None:
@@ -79,7 +80,8 @@ def run_source(ctx) -> dict[str, Any]:
         raise NotApplicable("this source needs hardware we do not have")
     (ctx.out / "value.json").write_text(json.dumps(ctx.params["value"]))
     ctx.progress(1, 1, "written")
-    return {"value": ctx.params["value"], "omp_threads": os.environ.get("OMP_NUM_THREADS")}
+    measured = {"measured": time.perf_counter_ns()} if ctx.params["jitter"] else {}
+    return {"value": ctx.params["value"], "omp_threads": os.environ.get("OMP_NUM_THREADS"), **measured}
 
 
 @job_kind("power")
