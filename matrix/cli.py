@@ -40,7 +40,7 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
                           "job always runs alone")
     run.add_argument("--keep-going", action="store_true", help="after a failure, run what does not depend on it")
     run.add_argument("--force", action="append", default=[], metavar="KIND",
-                     help="rerun every job of KIND, and the jobs that stand on them")
+                     help="rerun every job of KIND, and the jobs that stand on them where its outputs change")
     run.add_argument("--executor", choices=["local", "dask", "dask-local"], default="local",
                      help="local process pool (default), a Dask cluster (--scheduler), or a local Dask cluster")
     run.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address, e.g. tcp://host:8786")
