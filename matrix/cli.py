@@ -63,6 +63,9 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
     gc = add("gc", cmd_gc, "remove stored jobs that none of the given recipes reaches")
     gc.add_argument("recipes", nargs="+")
     gc.add_argument("--dry-run", action="store_true", help="list what would be removed")
+    gc.add_argument("--all-hosts", action="store_true",
+                    help="remove what no recipe reaches here even where the domain keeps it for another host "
+                         "(a retired machine's timings)")
 
 
 def cmd_plan(args, domain: Domain) -> int:
@@ -138,7 +141,7 @@ def cmd_gc(args, domain: Domain) -> int:
         if not alone:
             raise MatrixError(f"a run is running on the store {store.root}: gc would remove the jobs it has finished "
                               "and still reads; run gc when it has ended")
-        garbage = engine.find_garbage(store, keep, domain.kept_elsewhere)
+        garbage = engine.find_garbage(store, keep, None if args.all_hosts else domain.kept_elsewhere)
         names = {key: _kind_and_name(store.spec(key) or {}) for key in garbage.keys}
         removed = garbage.keys if args.dry_run else engine.collect_garbage(store, garbage)
     verb = "would remove" if args.dry_run else "removed"
@@ -150,7 +153,7 @@ def cmd_gc(args, domain: Domain) -> int:
           f"the recipes reach", file=sys.stdout)
     for why, count in Counter(garbage.elsewhere.values()).most_common():
         print(f"{'keeping' if args.dry_run else 'kept'} {count} stored jobs no recipe reaches here: {why} "
-              "(gc there collects them)")
+              "(gc there collects them, or gc --all-hosts here)")
     return 0
 
 

@@ -62,6 +62,24 @@ def test_run_status_show_and_gc(recipe, tmp_path, capsys):
     assert cli(capsys, "gc", str(recipe), "--store", store)[1].startswith("removed 0 jobs")
 
 
+def test_gc_keeps_what_the_domain_keeps_for_another_host_unless_all_hosts(recipe, tmp_path, capsys):
+    import dataclasses
+    domain = dataclasses.replace(TOY, kept_elsewhere=lambda spec: "planned elsewhere" if spec.get("name") == "source b"
+                                 else None)
+    store = str(tmp_path / "s")
+    assert main(["run", str(recipe), "--store", store], domain) == 0
+    recipe.write_text(RECIPE % 4)
+    assert main(["run", str(recipe), "--store", store], domain) == 0
+    capsys.readouterr()
+    assert main(["gc", str(recipe), "--dry-run", "--store", store], domain) == 0
+    out = capsys.readouterr().out
+    assert "would remove 2 jobs" in out   # the old power b^2 and total; the old source b is kept for elsewhere
+    assert "keeping 1 stored jobs no recipe reaches here: planned elsewhere (gc there collects them, or gc " \
+           "--all-hosts here)" in out
+    assert main(["gc", str(recipe), "--all-hosts", "--store", store], domain) == 0
+    assert "removed 3 jobs" in capsys.readouterr().out
+
+
 def test_a_failed_run_exits_non_zero_and_show_explains(recipe, tmp_path, capsys):
     recipe.write_text(RECIPE.replace("{value: %d}", "{value: 1, fail: true}"))
     store = str(tmp_path / "s")
