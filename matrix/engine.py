@@ -18,6 +18,7 @@ from pathlib import Path
 
 from matrix.dag import in_order
 from matrix.errors import MatrixError, did_you_mean
+from matrix.jobs import spec_dep_keys
 from matrix.kinds import KINDS
 from matrix.recipe import Domain, Recipe
 from matrix.runs import RunSummary
@@ -212,8 +213,7 @@ def _stood_on(store: Store, keys: Iterable[str]) -> set[str]:
         if key in found:
             continue
         found.add(key)
-        deps = (store.spec(key) or {}).get("deps", {})
-        stack += [k for value in deps.values() for k in (value if isinstance(value, list) else [value])]
+        stack += spec_dep_keys((store.spec(key) or {}).get("deps", {}))
     return found
 
 

@@ -185,6 +185,11 @@ class InputFile:
     sha256: str
 
 
+def spec_dep_keys(deps: dict[str, str | list[str]]) -> list[str]:
+    """Every dependency key of a stored spec's `deps` (role -> key, or keys: `Job.dep_keys`)."""
+    return [key for value in deps.values() for key in (value if isinstance(value, list) else [value])]
+
+
 def input_file(path: str) -> InputFile:
     """An input file (or bag folder) with its content hash, for `Job(inputs=...)`."""
     return InputFile(str(path), hash_path(path))

@@ -22,6 +22,7 @@ from typing import Any
 
 from matrix.errors import MatrixError, exit_message
 from matrix.hostlock import host_slot
+from matrix.jobs import spec_dep_keys
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
 from matrix.runs import BUSY, DONE_ELSEWHERE, FAILED, NOT_APPLICABLE, OK
 from matrix.stale import CONDITIONAL
@@ -99,8 +100,8 @@ def _still_stands(store: Store, spec: dict, done: dict, replaces: str | None) ->
 
 
 def _dependency_outputs(store: Store, spec: dict) -> dict[str, str | None]:
-    keys = [k for value in spec["deps"].values() for k in (value if isinstance(value, list) else [value])]
-    return {key: None if (result := store.result(key)) is None else outputs_token(result) for key in keys}
+    return {key: None if (result := store.result(key)) is None else outputs_token(result)
+            for key in spec_dep_keys(spec["deps"])}
 
 
 def _run_locked(store: Store, spec: dict) -> dict:

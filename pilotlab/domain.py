@@ -2,7 +2,6 @@
 and what follows a run (the report)."""
 from __future__ import annotations
 
-import functools
 import json
 from pathlib import Path
 
@@ -63,14 +62,8 @@ def planned_on_another_host(spec: dict) -> str | None:
     host = (spec.get("params") or {}).get("host")
     if not isinstance(host, dict):
         return None
-    from pilotlab.hardware import describe_host
-    return None if host == _this_host() else f"planned for another host ({describe_host(host)})"
-
-
-@functools.cache
-def _this_host() -> dict:
-    from pilotlab.hardware import host_fingerprint
-    return host_fingerprint()
+    from pilotlab.hardware import describe_host, host_fingerprint   # (its parts are cached there)
+    return None if host == host_fingerprint() else f"planned for another host ({describe_host(host)})"
 
 
 def after_run(recipe: Recipe, plan, summary, store) -> None:
