@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from matrix.errors import MatrixError
 from matrix.recipe import Domain, Recipe, declared_values
 from pilotlab.planning import plan
 from pilotlab.recipe import SECTIONS
@@ -52,6 +53,11 @@ def same_definition(config, axis: str, value) -> tuple | None:
     options = dict(config.strategies.get(value, {}))
     base = options.pop("use", value)
     if not isinstance(base, str):
+        return None
+    try:   # keyed as its jobs are, defaults filled in (a name in error plans as itself, and is told)
+        from pilotlab.strategies import full_options
+        options = full_options(base, options)
+    except MatrixError:
         return None
     return ("strategy", base, json.dumps(options, sort_keys=True, default=repr))
 

@@ -8,7 +8,8 @@ Where the recording comes from (exactly one):
                      default topics;
   params["path"]     the same as inputs["bag"], for jobs built by hand (not hashed: prefer inputs).
 
-params: pilotlab.specs.frames.FramesSpec (topics, the preprocessing crop and size, a label).
+params: pilotlab.specs.frames.FramesSpec (topics, the preprocessing crop and size; a label for jobs built by
+hand: a planned job is labelled by its name, which is not in its key).
 
 artifacts: a FrameSet (frames.npy uint8 [N, 66, 200, 3] RGB, labels.npy float32 [N, 2] physical v, w,
 recording.npy, meta.json), loaded by `FrameSet.load(dep.artifacts)`.
@@ -75,7 +76,7 @@ def run_frames(ctx: JobContext) -> dict[str, Any]:
     path = recording_path(ctx)
     config = PreprocessConfig.from_params(spec.as_dict())
     topics = job_topics(ctx)
-    label = spec.label or path.name
+    label = spec.label or ctx.name.removeprefix("frames ") or path.name
     ctx.log.info("reading %s", path)
     started = time.perf_counter()
     frameset = read_frames(path, config, topics, progress=lambda done, total: ctx.progress(

@@ -102,16 +102,17 @@ class Planner:
                   **settings.model_dump(exclude={"version"})}
         shown = "" if settings == PreprocessConfig() else \
             f" ({settings.width}x{settings.height} {settings.interpolation}, rows {settings.crop_top}-{settings.crop_bottom})"
-        jobs = []
+        # (no label in the params: renaming a dataset names its jobs anew, it does not rerun them)
+        frames_spec, jobs = FramesSpec(**topics), []
         if spec.record is not None:
             for label, record in self._recordings(name, spec):
-                jobs.append(job("frames", f"frames {label}{shown}", FramesSpec(**topics, label=label),
+                jobs.append(job("frames", f"frames {label}{shown}", frames_spec,
                                 deps={"bag": record}))
         for i, path in enumerate(spec.bags + spec.folders):
             where = ["datasets", name, "bags" if i < len(spec.bags) else "folders"]
             source = self.path(path, where, "recording")
             label = f"{name}/{Path(path).name}"
-            jobs.append(job("frames", f"frames {label}{shown}", FramesSpec(**topics, label=label),
+            jobs.append(job("frames", f"frames {label}{shown}", frames_spec,
                             inputs={"bag": self._recording_input(source, where)}))
         return jobs
 
@@ -218,11 +219,11 @@ class Planner:
         return self.optimized[model, strategy, device]
 
     def strategy(self, name: str) -> tuple[str, dict[str, Any]]:
-        """(registered strategy, options) for a strategy name of the recipe (aliases via `use:`)."""
+        """(registered strategy, its full options) for a strategy name of the recipe (aliases via `use:`)."""
         return self.remembered(("strategy", name), lambda: self._strategy(name))
 
     def _strategy(self, name: str) -> tuple[str, dict[str, Any]]:
-        from pilotlab.strategies import STRATEGIES, make_strategy_config
+        from pilotlab.strategies import STRATEGIES, full_options
         options = dict(self.config.strategies.get(name, {}))
         base = options.pop("use", name)
         where = ["strategies", name]
@@ -245,11 +246,10 @@ class Planner:
         if "version" in options:     # the code's own (what the job key follows); a checkpoint keeps its own
             raise self.recipe.error("version is not an option: it is the strategy code's own", where + ["version"])
         try:
-            make_strategy_config(base, options)
+            return base, full_options(base, options)
         except MatrixError as error:   # said of `base`: say it of this recipe's name
             message = str(error).removeprefix(f"strategies.{base}").lstrip(".: ")
             raise self.recipe.error(message + (f" (an option of {base})" if base != name else ""), where) from None
-        return base, options
 
     def profile(self, name: str):
         from pilotlab.hardware import make_profile

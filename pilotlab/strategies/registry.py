@@ -122,3 +122,11 @@ def register_strategy(name: str, config_cls: type, handler: str | Handler, *, ha
 def make_strategy_config(name: str, options: dict[str, Any] | None = None):
     """The strategy's config from recipe options; unknown options and wrong types are errors."""
     return build_config(STRATEGIES.get(name).config_cls, options, f"strategies.{name}")
+
+
+def full_options(name: str, options: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Every option of the strategy's config, the recipe's where it gives one and the defaults elsewhere
+    (version left out: the code's own): what an optimize job is keyed by, so writing out a default, or
+    leaving it out, plans the same job."""
+    config = make_strategy_config(name, options)
+    return {field.name: getattr(config, field.name) for field in dataclasses.fields(config) if field.name != "version"}

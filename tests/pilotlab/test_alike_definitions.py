@@ -49,3 +49,12 @@ def test_names_a_latency_file_tells_apart_are_planned_each(tmp_path):
     laps = [job for job in jobs if job.kind == "online" and job.labels["hardware"] == "board"
             and job.params["brain"] == "network"]
     assert len(laps) == 2 * 3 * 2 and {lap.params["latency_for"]["model"] for lap in laps} == {"m0", "m1"}
+
+
+def test_strategies_that_differ_only_by_written_defaults_are_one_entry(tmp_path):
+    # s0 writes the default conv out, s1 leaves it out: one definition, planned once
+    text = recipe_text(["m0"], ["s0", "s1"]).replace("s1: {use: local_prune, conv: 0.3}", "s1: {use: local_prune}")
+    assert "s1: {use: local_prune}" in text
+    recipe, jobs = plan(tmp_path, text)
+    assert recipe.grid.same_as("strategy", "s0") == ["s0", "s1"]
+    assert len([job for job in jobs if job.kind == "optimize"]) == 2   # s0 (for both) and baseline

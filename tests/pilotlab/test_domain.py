@@ -56,8 +56,32 @@ def test_jobs_are_shared_wherever_inputs_are_equal(tmp_path):
 def test_a_strategy_alias_is_its_own_optimization_of_the_same_strategy(tmp_path):
     jobs = {job.name: job for job in engine.plan_jobs(recipe_at(tmp_path), DOMAIN)}
     alias = jobs["optimize small/prune_more"]
-    assert alias.params == {"strategy": "local_prune", "options": {"conv": 0.5}, "hardware": None, "host": None}
-    assert jobs["optimize small/local_prune"].params["options"] == {"finetune_epochs": 1}
+    assert alias.params["strategy"] == "local_prune" and alias.params["options"]["conv"] == 0.5
+    assert jobs["optimize small/local_prune"].params["options"]["finetune_epochs"] == 1
+    assert alias.params["options"].keys() == jobs["optimize small/local_prune"].params["options"].keys()
+
+
+def test_writing_out_a_default_option_plans_the_same_jobs(tmp_path):
+    """Options are keyed with the config's defaults filled in: `conv: 0.3` where 0.3 is the default
+    changes no job, and a variant that differs from a strategy only by written defaults is planned once."""
+    from pilotlab.strategies import make_strategy_config
+    default_conv = make_strategy_config("local_prune").conv
+    before = {job.name: job.key for job in engine.plan_jobs(recipe_at(tmp_path), DOMAIN)}
+    edited = RECIPE.replace("local_prune: {finetune_epochs: 1}",
+                            f"local_prune: {{finetune_epochs: 1, conv: {default_conv}}}")
+    assert edited != RECIPE
+    after = {job.name: job.key for job in engine.plan_jobs(recipe_at(tmp_path, edited), DOMAIN)}
+    assert after == before
+
+
+def test_renaming_a_dataset_names_its_jobs_anew_and_reruns_none(tmp_path):
+    before = {job.key for job in engine.plan_jobs(recipe_at(tmp_path), DOMAIN)}
+    renamed = RECIPE.replace("  train: {record", "  laps_data: {record").replace(
+        "small: {epochs: 1}", "small: {epochs: 1, data: laps_data}").replace(
+        "other: {epochs: 2}", "other: {epochs: 2, data: laps_data}")
+    jobs = engine.plan_jobs(recipe_at(tmp_path, renamed), DOMAIN)
+    assert "frames laps_data/simple_circuit cw" in {job.name for job in jobs}
+    assert {job.key for job in jobs} == before
 
 
 def test_changing_a_strategy_option_changes_only_its_jobs(tmp_path):
