@@ -40,6 +40,8 @@ VERIFIED = "verified.json"
 RUNS_LOCK = "runs.lock"
 _KEY, _SHARD = re.compile(r"[0-9a-f]{64}"), re.compile(r"[0-9a-f]{2}")
 INTACT, MISSING, CHANGED = "", "missing", "changed"
+# verified.json's record of the file last found changed: a name no artifact has (theirs are relative paths)
+CHANGED_MARK = "/changed"
 
 
 class StoreError(MatrixError):
@@ -123,13 +125,13 @@ class Store:
         verified = read_json(verified_path)
         verified = verified if isinstance(verified, dict) else {}
         rehashed = False
-        if verified.get(CHANGED):   # known changed: hashed again only once its stat moved (put back as it was?)
+        if verified.get(CHANGED_MARK):   # known changed: hashed again only once its stat moved (put back as it was?)
             restored = self._changed_file_restored(folder, result, verified)
             if not restored:
                 if restored is False:   # hashed again, still not the one recorded: remember that stat
                     _try_write(verified_path, verified)
                 return CHANGED
-            verified = {name: mark for name, mark in verified.items() if not name.startswith(CHANGED)}
+            verified = {name: mark for name, mark in verified.items() if not name.startswith(CHANGED_MARK)}
             rehashed = True
         for name, entry in result.get("manifest", {}).items():
             size, digest = (entry, None) if isinstance(entry, int) else (entry.get("size"), entry.get("sha256"))
@@ -142,7 +144,7 @@ class Store:
             if digest is None or (not full and verified.get(name) == _signature(stat)):
                 continue
             if file_sha256(folder / name) != digest:
-                _try_write(verified_path, {**verified, CHANGED: name})
+                _try_write(verified_path, {**verified, CHANGED_MARK: name})
                 return CHANGED
             verified[name], rehashed = _signature(stat), True
         if rehashed:
@@ -153,16 +155,16 @@ class Store:
     def _changed_file_restored(folder: Path, result: dict, verified: dict) -> bool | None:
         """Whether the file last found changed holds its recorded content again: None when its stat is
         the one it had when last hashed (not read again), else what hashing it finds."""
-        name = verified[CHANGED]
+        name = verified[CHANGED_MARK]
         entry = result.get("manifest", {}).get(name)
         digest = entry.get("sha256") if isinstance(entry, dict) else None
         try:
             stat = (folder / name).stat()
         except OSError:
             return None
-        if digest is None or verified.get(f"{CHANGED}:{name}") == _signature(stat):
+        if digest is None or verified.get(f"{CHANGED_MARK}:{name}") == _signature(stat):
             return None
-        verified[f"{CHANGED}:{name}"] = _signature(stat)
+        verified[f"{CHANGED_MARK}:{name}"] = _signature(stat)
         return file_sha256(folder / name) == digest
 
     def keys(self) -> Iterator[str]:

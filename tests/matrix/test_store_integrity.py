@@ -112,3 +112,18 @@ def test_a_stored_job_whose_result_json_is_damaged_is_stale_not_new(tmp_path):
     (store.job_dir(key) / "result.json").write_text("{not json")
     status = engine.make_plan(load_recipe(recipe, TOY), TOY, store).statuses[0]
     assert (status.state, status.reason) == ("stale", "stored result missing or corrupt (result.json)")
+
+
+def test_an_artifact_named_changed_is_checked_as_any_other(tmp_path):
+    """verified.json's mark of a changed file once shared its names with the artifacts': an artifact
+    called `changed` read as that mark."""
+    import hashlib
+    _, store, key = setup(tmp_path)
+    (store.artifacts(key) / "changed").write_text("x")
+    manifest = {**store.result(key)["manifest"], "changed": {"size": 1, "sha256": hashlib.sha256(b"x").hexdigest()}}
+    result = dict(store.result(key), manifest=manifest)
+    assert store.outputs_state(key, result) == store.outputs_state(key, result) == ""   # intact, twice
+    (store.artifacts(key) / "changed").write_text("y")
+    assert store.outputs_state(key, result, full=True) == "changed"
+    (store.artifacts(key) / "changed").write_text("x")
+    assert store.outputs_state(key, result) == ""
