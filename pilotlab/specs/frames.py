@@ -45,7 +45,7 @@ class PreprocessConfig(Spec):
 class FramesSpec(PreprocessConfig):
     image_topic: str | None = Field(None, description="default: /F1ROS/cameraL/image_raw, else its /compressed")
     command_topic: str | None = Field(None, description="default: the record job's, else /F1ROS/cmd_vel")
-    label: str | None = Field(None, description="a name for the recording (logs and results); default: the job's name")
+    label: str | None = Field(None, description="a name for the recording (logs and results)")
     path: str | None = Field(None, description="the recording, for jobs built by hand (not hashed: prefer inputs)")
 
 
