@@ -1,4 +1,5 @@
-"""Offline evaluation of one artifact on one hardware profile and one test FrameSet.
+"""Offline evaluation of one artifact on one hardware profile: its MSE and size on a test FrameSet
+(evaluate_accuracy, the `offline` job) and its timings (evaluate_timing, the `timing` job).
 
 Metric names are those of `pilotlab.columns` (mse, mse_v, mse_w, mse_v_phys, mse_w_phys, size_mb, size_gz_mb,
 latency_ms and its percentiles, latency_runs, throughput_ips and its percentiles, throughput_batch,
@@ -67,18 +68,28 @@ LATENCY_SAMPLES = "latency_ms.npy"
 
 def evaluate_offline(artifact_dir: Path, hardware: HardwareProfile | dict | str, test: FrameSet,
                      settings: TimingSettings = TimingSettings(), out: Path | None = None) -> dict:
-    """Every offline metric of the artifact on `test` (see the module docstring).
+    """Every offline metric of the artifact on `test` (see the module docstring): its size and MSE
+    (evaluate_accuracy), then its timings (evaluate_timing, fed frames of `test`)."""
+    accuracy = evaluate_accuracy(artifact_dir, hardware, test, settings)
+    return {**evaluate_timing(artifact_dir, hardware, test, settings, out), **accuracy}
+
+
+def evaluate_timing(artifact_dir: Path, hardware: HardwareProfile | dict | str, frames: FrameSet,
+                    settings: TimingSettings = TimingSettings(), out: Path | None = None) -> dict:
+    """The artifact's timings on `hardware` (see the module docstring): batch-1 latency, throughput at
+    `settings.throughput_batch`, peak memory and threads, fed the first frames of `frames` (what a
+    network sees does not change how long it takes, so any recording of its inputs will do).
 
     With `out`, the batch-1 latency samples (float64 ms, one per timed call the latency is made of:
     the clean calls, or every call when unstable; in measurement order) are saved there as
     `latency_ms.npy`, named by the result's `latency_samples`, so a closed-loop lap can replay the
     latency this job measured."""
     memory = PeakMemory()
-    predictor, result = _accuracy(artifact_dir, hardware, test, settings)
-    frames = max(1, predictor.meta.input_shape[1] // 3)
-    throughput = measure_throughput(predictor, sample_batch(test, settings.throughput_batch, frames), settings)
-    result["peak_mem_mb"] = memory.peak_mb()
-    latency = measure_latency(predictor.predict, sample_batch(test, 1, frames), settings, predictor.hardware)
+    predictor = load_predictor(artifact_dir, resolve_profile(hardware))
+    stacked = max(1, predictor.meta.input_shape[1] // 3)
+    throughput = measure_throughput(predictor, sample_batch(frames, settings.throughput_batch, stacked), settings)
+    result = {"threads": predictor.threads, "peak_mem_mb": memory.peak_mb()}
+    latency = measure_latency(predictor.predict, sample_batch(frames, 1, stacked), settings, predictor.hardware)
     samples = latency.pop("samples_ms")
     unstable = {**latency.pop("unstable"), **throughput.pop("unstable")}
     cpu_time = {**latency.pop("cpu_time"), **throughput.pop("cpu_time")}
@@ -96,24 +107,19 @@ def evaluate_offline(artifact_dir: Path, hardware: HardwareProfile | dict | str,
 
 def evaluate_accuracy(artifact_dir: Path, hardware: HardwareProfile | dict | str, test: FrameSet,
                       settings: TimingSettings = TimingSettings()) -> dict:
-    """The offline metrics that do not time: size, MSE on `test` (for a network timed by another job)."""
-    return _accuracy(artifact_dir, hardware, test, settings)[1]
-
-
-def _accuracy(artifact_dir: Path, hardware: HardwareProfile | dict | str, test: FrameSet,
-              settings: TimingSettings) -> tuple[Predictor, dict]:
+    """The offline metrics that do not time: size, threads, MSE on `test`."""
     test.check_finite("test data")
     predictor = load_predictor(artifact_dir, resolve_profile(hardware))
     frames = max(1, predictor.meta.input_shape[1] // 3)
-    return predictor, {"size_mb": artifact_size_mb(artifact_dir), "size_gz_mb": artifact_size_gz_mb(artifact_dir),
-                       "threads": predictor.threads, "test_frames": len(test),
-                       **mse_metrics(predictor, test, frames, settings.mse_batch)}
+    return {"size_mb": artifact_size_mb(artifact_dir), "size_gz_mb": artifact_size_gz_mb(artifact_dir),
+            "threads": predictor.threads, "test_frames": len(test),
+            **mse_metrics(predictor, test, frames, settings.mse_batch)}
 
 
-def sample_batch(test: FrameSet, size: int, frames: int) -> np.ndarray:
-    """`size` frames of the test set (repeated if it is smaller), C-contiguous float32."""
-    index = np.arange(size) % len(test)
-    return np.ascontiguousarray(test.inputs(index, frames).numpy())
+def sample_batch(recording: FrameSet, size: int, frames: int) -> np.ndarray:
+    """`size` inputs from the recording's first frames (repeated if it is shorter), C-contiguous float32."""
+    index = np.arange(size) % len(recording)
+    return np.ascontiguousarray(recording.inputs(index, frames).numpy())
 
 
 def mse_metrics(predictor: Predictor, test: FrameSet, frames: int, batch_size: int) -> dict:

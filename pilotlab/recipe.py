@@ -8,7 +8,7 @@ so the recipe, the job and the CLI share one set of names and defaults.
     models:      named networks with their training settings
     strategies:  options for strategies, or new names for a strategy with other options (`use:`)
     hardware:    named hardware profiles beside the built-in cpu, cpu1 and cuda
-    offline:     offline evaluation settings
+    offline:     offline evaluation settings: the test set (`data`), the timing jobs' throughput batch
     online:      closed-loop evaluation settings
     report:      where reports go
     worlds:      where BehaviorMetrics' worlds are (the `world` axis, datasets recorded in them)
@@ -22,7 +22,7 @@ from pydantic import Field, field_validator, model_validator
 from matrix.errors import did_you_mean
 from pilotlab.hardware import HardwareOptions
 from pilotlab.specs.base import Direction, Spec
-from pilotlab.specs.offline import OfflineSettings
+from pilotlab.specs.timing import OfflineSettings
 from pilotlab.specs.online import LapSettings
 from pilotlab.specs.record import RecordSettings
 from pilotlab.specs.train import TrainSpec
@@ -82,7 +82,7 @@ class HardwareSpec(HardwareOptions):
 
 
 class OfflineSection(OfflineSettings):
-    data: str = "test"            # the dataset offline metrics are measured on
+    data: str = "test"            # the dataset the offline MSE is measured on (the timing jobs never read it)
 
 
 class OnlineSection(LapSettings):

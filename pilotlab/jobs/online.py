@@ -85,7 +85,7 @@ def replayed_latency(ctx: JobContext, spec: OnlineSpec, brain) -> tuple[np.ndarr
     if "artifact" not in ctx.deps:
         return np.zeros(1), describe(np.zeros(1), "none: a reference brain is charged only the injected latency")
     dep = lambda role: (ctx.dep(role).artifacts, ctx.dep(role).result) if role in ctx.deps else None
-    source = TimingSource(offline=dep("timing"), latency_file=ctx.inputs.get("latency_file"),
+    source = TimingSource(timing=dep("timing"), latency_file=ctx.inputs.get("latency_file"),
                           model=spec.latency_for.get("model"), strategy=spec.latency_for.get("strategy", brain.name),
                           scale_to_ms=spec.latency_scale_to_ms, reference=dep("scale_reference"))
     return source.samples()

@@ -134,7 +134,7 @@ def replay_source(settings: DriveSettings, latency_ms: np.ndarray | None, seed: 
     if settings.fixed_inference_ms is not None:
         return lambda: settings.fixed_inference_ms / 1000
     if latency_ms is None:
-        raise PilotlabError("the replay timing mode needs latency samples (the offline timing job's, or a "
+        raise PilotlabError("the replay timing mode needs latency samples (the timing job's, or a "
                             "hardware profile's latency_file) or fixed_inference_ms; or use timing: measured")
     return LatencyDraws(latency_ms, seed).next_s
 

@@ -1,6 +1,6 @@
 """Latency samples a lap replays: what one brain iteration costs on a hardware profile, measured once.
 
-    samples = offline_samples(offline_job_artifacts, offline_result)      # the offline timing job's
+    samples = timing_samples(timing_job_artifacts, timing_result)         # the timing job's
     samples = latency_file_samples("timings/jetson.csv", model="pilotnet", strategy="baseline")
     draws = LatencyDraws(samples, seed=0); draws.next_s()                  # seconds, seeded
 
@@ -9,7 +9,7 @@ The `replay` timing mode (pilotlab.online.drive) charges each brain iteration a 
 how loaded the simulating host is, and a lap can be driven for hardware that is not this host.
 
 Two sources:
-- the offline timing job of the same artifact on the same hardware profile: its artifacts hold
+- the timing job of the same artifact on the same hardware profile: its artifacts hold
   `latency_ms.npy` (float64 milliseconds, one per timed batch-1 predict call), named by its result's
   `latency_samples`;
 - a latency file the user measured on a device (`hardware: {jetson: {latency_file: timings/jetson.csv}}`):
@@ -45,16 +45,16 @@ def check_samples(samples: np.ndarray, where: str) -> np.ndarray:
     return samples
 
 
-def offline_samples(artifacts: Path, result: Mapping[str, Any]) -> np.ndarray:
-    """The batch-1 latency samples the offline timing job kept."""
+def timing_samples(artifacts: Path, result: Mapping[str, Any]) -> np.ndarray:
+    """The batch-1 latency samples the timing job kept."""
     name = result.get(RESULT_KEY)
     if not name:
-        raise PilotlabError(f"the offline timing job in {artifacts} kept no latency samples (its result has no "
-                            f"{RESULT_KEY!r}); rerun it with `pilotlab run --force offline`")
+        raise PilotlabError(f"the timing job in {artifacts} kept no latency samples (its result has no "
+                            f"{RESULT_KEY!r}); rerun it with `pilotlab run --force timing`")
     path = Path(artifacts) / name
     if not path.is_file():
-        raise PilotlabError(f"{path}: the offline job's latency samples are missing; rerun it with "
-                            "`pilotlab run --force offline`")
+        raise PilotlabError(f"{path}: the timing job's latency samples are missing; rerun it with "
+                            "`pilotlab run --force timing`")
     return check_samples(np.load(path), str(path))
 
 
@@ -134,21 +134,21 @@ def describe(samples_ms: np.ndarray, source: str, factor: float = 1.0) -> dict[s
 @dataclass(frozen=True)
 class TimingSource:
     """Where a lap's latency samples come from (what the online job's deps and inputs give it)."""
-    offline: tuple[Path, Mapping[str, Any]] | None = None        # the offline job's (artifacts, result)
+    timing: tuple[Path, Mapping[str, Any]] | None = None         # the timing job's (artifacts, result)
     latency_file: Path | None = None                              # a user's latency file
     model: str | None = None                                      # the rows of the latency file to take
     strategy: str | None = None
     scale_to_ms: float | None = None                              # emulate a device where `reference` takes this
-    reference: tuple[Path, Mapping[str, Any]] | None = None       # the baseline's offline job (artifacts, result)
+    reference: tuple[Path, Mapping[str, Any]] | None = None       # the baseline's timing job (artifacts, result)
     reference_strategy: str = "baseline"
 
     def _own(self) -> tuple[np.ndarray, str]:
         if self.latency_file is not None:
             return latency_file_samples(self.latency_file, self.model, self.strategy), \
                 f"latency file {Path(self.latency_file).name}"
-        if self.offline is not None:
-            return offline_samples(*self.offline), "offline timing job"
-        raise PilotlabError("the replay timing mode needs the offline timing job of the same artifact and hardware "
+        if self.timing is not None:
+            return timing_samples(*self.timing), "timing job"
+        raise PilotlabError("the replay timing mode needs the timing job of the same artifact and hardware "
                             "profile (dependency 'timing') or a hardware profile's latency_file")
 
     def _reference(self) -> np.ndarray:
@@ -156,8 +156,8 @@ class TimingSource:
             return latency_file_samples(self.latency_file, self.model, self.reference_strategy)
         if self.reference is None:
             raise PilotlabError(f"scaling latencies to {self.scale_to_ms} ms needs the {self.reference_strategy} "
-                                "strategy's offline timing job (dependency 'scale_reference')")
-        return offline_samples(*self.reference)
+                                "strategy's timing job (dependency 'scale_reference')")
+        return timing_samples(*self.reference)
 
     def samples(self) -> tuple[np.ndarray, dict[str, Any]]:
         """(samples in ms, what the result says of them)."""
@@ -171,7 +171,7 @@ class TimingSource:
 
 def measure_samples(brain, runs: int = 200) -> np.ndarray:
     """Batch-1 latencies (ms) of a network brain's predict call on this host, timed once before a lap
-    (`pilotlab drive` without an offline job): the lap then replays them."""
+    (`pilotlab drive` without a timing job): the lap then replays them."""
     import time
     blank = np.zeros((1, 3 * brain.frames, brain.config.height, brain.config.width), np.float32)
     brain.warm_up()

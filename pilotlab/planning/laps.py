@@ -1,5 +1,5 @@
 """The closed-loop laps of a plan: each combination's laps (on its circuit, or in its BM world) in every
-direction, replaying the latencies of its offline job (or a device's latency file), and the reference
+direction, replaying the latencies of its timing job (or a device's latency file), and the reference
 brains' laps on every CPU profile and place the matrix drives."""
 from __future__ import annotations
 
@@ -14,8 +14,8 @@ from pilotlab.specs.online import LapSettings, OnlineSpec
 def online_jobs(planner, optimize: Job, combination: dict, hardware: str, timing: Job) -> list[Job]:
     model, strategy, place = combination["model"], combination["strategy"], lap_place(combination)
     labels = {"model": model, "strategy": strategy, "hardware": hardware}
-    # the same for every circuit of a (model, strategy, hardware, world): worked out once
-    brain, deps, inputs = planner.remembered(("replay", model, strategy, hardware, combination.get("world")),
+    # the same for every circuit and world of a (model, strategy, hardware): worked out once
+    brain, deps, inputs = planner.remembered(("replay", model, strategy, hardware),
                                              lambda: replay_inputs(planner, combination, hardware, timing))
     name, deps = f"online {model}/{strategy} on {hardware}", {"artifact": optimize, **deps}
     return [_lap(planner, name, labels, hardware, place, direction, brain, deps, inputs)
@@ -28,9 +28,10 @@ def lap_place(combination: dict) -> tuple[str, str]:
 
 
 def replay_inputs(planner, combination: dict, hardware: str, timing: Job) -> tuple[dict, dict, dict]:
-    """(params, deps, inputs) of a network lap for the latencies it replays: the offline job's samples
-    (and the baseline's, to scale them to latency_scale_to_ms), or the hardware profile's latency file.
-    (Shared by the laps of every circuit: read-only.)"""
+    """(params, deps, inputs) of a network lap for the latencies it replays: the timing job's samples
+    (and the baseline's timing job's, to scale them to latency_scale_to_ms), or the hardware profile's
+    latency file; never an offline job's, so the test set is none of a lap's business.
+    (Shared by the laps of every circuit and world: read-only.)"""
     online, model = planner.config.online, str(combination["model"])
     params: dict[str, Any] = {"brain": "network"}
     if online.timing != "replay":
@@ -44,8 +45,8 @@ def replay_inputs(planner, combination: dict, hardware: str, timing: Job) -> tup
         return params, {}, {"latency_file": input_file(str(latency_file))}
     deps: dict[str, Job] = {"timing": timing}
     if online.latency_scale_to_ms is not None:
-        base = {**combination, "strategy": "baseline"}
-        deps["scale_reference"] = planner.timing(planner.optimize(model, "baseline", hardware), base, hardware)
+        deps["scale_reference"] = planner.timing(planner.optimize(model, "baseline", hardware), model, "baseline",
+                                                 hardware)
     return params, deps, {}
 
 
@@ -95,7 +96,7 @@ def _lap(planner, name: str, labels: dict, hardware: str, place: tuple[str, str]
 
 def _brain_slot(brain: dict) -> str:
     """The brain's part of a lap's params slot: its name alone for a plain brain (most laps: a network
-    replaying its offline job's latencies), else every setting written out (never starts like a name)."""
+    replaying its timing job's latencies), else every setting written out (never starts like a name)."""
     if brain.keys() == {"brain"}:
         return brain["brain"]
     return repr(sorted(brain.items()))

@@ -1,14 +1,15 @@
 """The planner: a validated recipe -> jobs, shared wherever their inputs are equal.
 
     record (per recording) -> frames (per recording) -> train (per model)
-        -> optimize (per model × strategy) -> offline (per model × strategy × hardware)
-                                           -> online  (per model × strategy × hardware × circuit × direction)
+        -> optimize (per model × strategy) -> timing (per model × strategy × hardware, fed training frames)
+           -> offline (per model × strategy × hardware × test set: MSE, size, beside the timing's figures)
+           -> online  (per model × strategy × hardware × circuit × direction: replaying the timing's latencies)
     plus reference laps (explicit brain, expert, the user's brains) per hardware × circuit × direction.
 
 A combination may name a BehaviorMetrics `world` instead of a circuit (pilotlab.planning.worlds): its laps
-are driven there, and a recorded offline test set is recorded there too. The laps are planned in
-pilotlab.planning.laps. Relative paths in a recipe (bags, dataset folders, circuit CSVs) are relative to
-the recipe's folder.
+are driven there, and a recorded offline test set is recorded there too; the network is timed once, whatever
+its worlds and test set. The laps are planned in pilotlab.planning.laps. Relative paths in a recipe (bags,
+dataset folders, circuit CSVs) are relative to the recipe's folder.
 """
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ from pilotlab.specs.frames import FramesSpec, PreprocessConfig
 from pilotlab.specs.offline import OfflineSpec
 from pilotlab.specs.optimize import OptimizeSpec
 from pilotlab.specs.record import RecordSettings, RecordSpec
+from pilotlab.specs.timing import TimingSpec
 
 
 def job(kind: str, name: str, spec: Spec, **links) -> Job:
@@ -71,9 +73,10 @@ class Planner:
             world_param(self, str(combination["world"]), ["matrix", "world"])
         hardware = str(combination.get("hardware", "cpu"))
         optimize = self.optimize(str(combination["model"]), str(combination["strategy"]), hardware)
-        jobs = [self.offline(optimize, combination, hardware)]
+        timing = self.timing(optimize, str(combination["model"]), str(combination["strategy"]), hardware)
+        jobs = [self.offline(optimize, timing, combination, hardware)]
         if "circuit" in combination or "world" in combination:
-            jobs += online_jobs(self, optimize, combination, hardware, timing=self.timing(optimize, combination, hardware))
+            jobs += online_jobs(self, optimize, combination, hardware, timing=timing)
         return jobs
 
     # datasets -----------------------------------------------------------------------------------
@@ -280,47 +283,39 @@ class Planner:
             raise self.recipe.error(str(error), where) from None
 
     # evaluations ----------------------------------------------------------------------------------
-    def offline(self, optimize: Job, combination: dict, hardware: str) -> Job:
+    def timing(self, optimize: Job, model: str, strategy: str, hardware: str) -> Job:
+        """The timing job of a (model, strategy, hardware): fed the training frames its optimize job was made
+        from, never the test set, so editing what only the MSE reads re-times nothing (nor reruns a lap)."""
+        return self.remembered(("timing", model, strategy, hardware),
+                               lambda: self._timing(optimize, model, strategy, hardware))
+
+    def _timing(self, optimize: Job, model: str, strategy: str, hardware: str) -> Job:
+        profile = self.profile(hardware)
+        params = self.params_once(("timing", hardware), lambda: TimingSpec(
+            hardware=profile.as_dict(), host=profile.host, batch=self.config.offline.batch).model_dump(mode="json"))
+        return Job("timing", f"timing {model}/{strategy} on {hardware}", params,
+                   deps={"artifact": optimize, "frames": optimize.deps["calibration"]},
+                   labels={"model": model, "strategy": strategy, "hardware": hardware})
+
+    def offline(self, optimize: Job, timing: Job, combination: dict, hardware: str) -> Job:
         """The offline job of a combination: one per (model, strategy, hardware, world), whatever the circuit."""
         model, strategy, world = combination["model"], combination["strategy"], combination.get("world")
         return self.remembered(("offline", model, strategy, hardware, world),
-                               lambda: self._offline(optimize, model, strategy, world, hardware))
+                               lambda: self._offline(optimize, timing, model, strategy, world, hardware))
 
-    def timing(self, optimize: Job, combination: dict, hardware: str) -> Job:
-        """The offline job that times a combination's network: a network tested in several worlds is timed
-        once, in the first world the matrix names for it; its laps in every world replay that timing."""
-        first = self.first_worlds().get((combination["model"], combination["strategy"], hardware))
-        return self.offline(optimize, {**combination, "world": first} if first is not None else combination, hardware)
-
-    def first_worlds(self) -> dict[tuple, Any]:
-        """(model, strategy, hardware) -> the first world the matrix names for it."""
-        def build() -> dict[tuple, Any]:
-            first: dict[tuple, Any] = {}
-            for c in self.recipe.combinations:
-                if "world" in c and "model" in c and "strategy" in c:
-                    first.setdefault((c["model"], c["strategy"], str(c.get("hardware", "cpu"))), c["world"])
-            return first
-        return self.remembered(("first worlds",), build)
-
-    def _offline(self, optimize: Job, model: str, strategy: str, world: Any, hardware: str) -> Job:
+    def _offline(self, optimize: Job, timing: Job, model: str, strategy: str, world: Any, hardware: str) -> Job:
         test = self.dataset(self.config.offline.data, ["offline", "data"], self.config.models[model].preprocess,
                             world=None if world is None else str(world))
         labels = {"model": model, "strategy": strategy, "hardware": hardware,
                   "test_set": self.config.offline.data}
-        deps: dict[str, Any] = {"artifact": optimize, "test": tuple(test)}
         in_world = world is not None and self.config.datasets[self.config.offline.data].record is not None
         if in_world:
             labels |= {"test_set": f"{self.config.offline.data} in {world}", "world": str(world)}
-            timed_in = self.first_worlds().get((model, strategy, hardware), world)
-            if timed_in != world:   # this world's test set gives its MSE; the network was timed in `timed_in`
-                deps["timing"] = self.offline(optimize, {"model": model, "strategy": strategy, "world": timed_in},
-                                              hardware)
         profile = self.profile(hardware)
-        params = self.params_once(("offline", hardware, "timing" not in deps), lambda: OfflineSpec(
-            hardware=profile.as_dict(), host=profile.host, batch=self.config.offline.batch,
-            timed="timing" not in deps).model_dump(mode="json"))
+        params = self.params_once(("offline", hardware), lambda: OfflineSpec(
+            hardware=profile.as_dict(), host=profile.host).model_dump(mode="json"))
         return Job("offline", f"offline {model}/{strategy} on {hardware}{f' in {world}' if in_world else ''}", params,
-                   deps=deps, labels=labels)
+                   deps={"artifact": optimize, "test": tuple(test), "timing": timing}, labels=labels)
 
     def reference_jobs(self) -> list[Job]:
         return reference_jobs(self)

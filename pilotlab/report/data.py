@@ -25,7 +25,7 @@ missing, never as 0. A row whose status is not "ok" needs a one-line reason and 
 An online row whose lap was repeated from several start points carries the online job's `spread`
 ({metric: {std, min, max, runs}}, lap_completed: {completed, runs}; `pick_spread(job_result)`): its
 metrics are then the means, and the report shows `mean ± std` and how many laps were completed.
-An offline row whose timing stayed disturbed carries the offline job's `unstable` ({metric: reason},
+An offline row whose timing stayed disturbed carries the offline job's `unstable` (its timing job's; {metric: reason},
 `pick_unstable(job_result)`): the report marks those figures, shows their spread, and draws no
 summary line or verdict from them (`timing_issue` says why two rows' timings cannot be compared).
 One whose single-thread timing is the calls' thread CPU time, the wall clock being disturbed, carries

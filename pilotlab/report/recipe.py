@@ -198,14 +198,14 @@ def _timed_here(row: dict[str, Any], recipe: Recipe, host: Host) -> dict[str, An
 
 
 def _replayed_unstable(job, store: Store) -> str | None:
-    """Why the offline timing a lap replays stayed disturbed (None: it did not, or nothing was replayed):
+    """Why the timing a lap replays stayed disturbed (None: it did not, or nothing was replayed):
     the lap's brain frequency and outcome rest on it, so the lap is marked as its timing is."""
     timing = job.deps.get("timing")
     result = store.result(timing.key) if timing is not None else None
     reason = pick_unstable((result or {}).get("value") or {}).get("latency_ms")
     if reason is None:
         return None
-    return f"it replays the offline timing of {timing.name}, which stayed disturbed ({reason})"
+    return f"it replays the timing of {timing.name}, which stayed disturbed ({reason})"
 
 
 def row_from_result(result: dict[str, Any], artifacts: Path) -> dict[str, Any]:
@@ -268,7 +268,7 @@ def _history(job, store: Store) -> list[dict]:
 def _host(jobs: list, store: Store) -> Host:
     """The host the timings were measured on (from the timing jobs), else this machine."""
     for job in jobs:
-        result = store.result(job.key) if job.kind == "offline" else None
+        result = store.result(job.key) if job.kind == "timing" else None
         host = (result or {}).get("value", {}).get("host")
         if host:
             return Host(cpu=host.get("cpu") or "unknown CPU", cores=host.get("cores"), gpu=host.get("gpu"))

@@ -86,7 +86,7 @@ def _fastest(data: ReportData, rows: list[ReportRow]) -> list[Finding]:
                 continue
             if issue := timing_issue(here, metric):
                 findings.append(Finding(f"{label} on {hardware}", f"not drawn: {issue}; rerun",
-                                        "pilotlab run --force offline", "when the machine is quieter"))
+                                        "pilotlab run --force timing", "when the machine is quieter"))
                 continue
             text = f"{method_label(row, data)} — {format_value(metric, row.get(metric))} {unit}"
             versus = _versus(data, row, metric, "faster") if metric == "latency_ms" else ""

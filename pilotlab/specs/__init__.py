@@ -11,8 +11,9 @@ one place. Planning imports this package, so nothing here imports torch, OpenCV 
     frames       PreprocessConfig, FramesSpec
     train        AugmentConfig, TrainSettings (recipe models:), TrainSpec
     optimize     OptimizeSpec
-    offline      OfflineSettings (recipe offline:), OfflineSpec
+    timing       OfflineSettings (recipe offline:, but `data`), TimingSpec
+    offline      OfflineSpec
     online       DriveSettings, LapSettings (recipe online: + `pilotlab drive`), OnlineSpec
 """
-KIND_MODULES = tuple(f"pilotlab.specs.{kind}" for kind in ("record", "frames", "train", "optimize", "offline",
-                                                             "online"))
+KIND_MODULES = tuple(f"pilotlab.specs.{kind}" for kind in ("record", "frames", "train", "optimize", "timing",
+                                                             "offline", "online"))

@@ -3,9 +3,9 @@ BehaviorMetrics' metrics. Exclusive when its clock is this host's (measured and 
 `timed_live`), and asking Dask for a GPU when its hardware profile is a CUDA one.
 
 deps: `artifact` (optional): the optimize job whose artifact the network brain runs; without it,
-`brain` names a reference brain. `timing` (network brains, replay timing): the offline job of the
+`brain` names a reference brain. `timing` (network brains, replay timing): the timing job of the
 same artifact and hardware profile, whose latency samples the lap replays; `scale_reference` (with
-latency_scale_to_ms): the baseline strategy's offline job on the same profile. inputs:
+latency_scale_to_ms): the baseline strategy's timing job on the same profile. inputs:
 `latency_file` (optional): a device's latency file, replayed instead (pilotlab.online.latency).
 The recipe's `online:` section and `pilotlab drive` share the lap settings below.
 """
@@ -17,7 +17,7 @@ from pydantic import Field, field_validator, model_validator
 
 from matrix.kinds import register_kind
 from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, InWorld, Spec
-from pilotlab.specs.offline import gpu_resources, timing_resources
+from pilotlab.specs.timing import gpu_resources, timing_resources
 
 
 # the timing modes that charge the brain's time to the lap (pilotlab.online.drive explains all four)
@@ -27,7 +27,7 @@ CHARGED = ("replay", "measured")
 class DriveSettings(Spec):
     """How simulated time advances around the brain (pilotlab.online.drive explains the modes)."""
     timing: Literal["replay", "measured", "lockstep", "realtime"] = Field(
-        "replay", description="replay: each inference time, drawn from latencies measured once (the offline job's, "
+        "replay", description="replay: each inference time, drawn from latencies measured once (the timing job's, "
                               "or a device's latency file), passes in simulated time with the previous command in "
                               "force; measured: the same with this host's wall clock; lockstep: the world waits "
                               "for the brain; realtime: simulated time follows the wall clock")

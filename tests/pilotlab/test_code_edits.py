@@ -96,6 +96,19 @@ def test_editing_a_network_reruns_the_models_built_on_it(tree, original):
     assert pilotnet == jobs_of_model("pilotnet", original) | jobs_of_model("stacked", original)
 
 
+def test_editing_the_offline_job_reruns_only_the_offline_jobs(tree, original):
+    """An offline job measures MSE beside its timing job's figures: neither the timings nor the laps that
+    replay them stand on its code."""
+    changed = changed_by_editing(tree, "pilotlab/jobs/offline.py", original)
+    assert changed == {name for name in original if name.startswith("offline ")} and changed
+
+
+def test_editing_how_networks_are_timed_reruns_the_timings_and_what_reads_them(tree, original):
+    changed = changed_by_editing(tree, "pilotlab/jobs/timing.py", original)
+    network_laps = {name for name in original if name.startswith("online ") and "/" in name}
+    assert changed == {name for name in original if name.startswith(("timing ", "offline "))} | network_laps
+
+
 def test_editing_the_simulator_reruns_recordings_and_laps(tree, original):
     changed = changed_by_editing(tree, "pilotlab/sim/car.py", original)
     assert changed == set(original) and "online expert on cpu at simple_circuit cw" in changed

@@ -1,7 +1,7 @@
 """The CUDA rows on a host with a GPU (skipped elsewhere; the "not applicable" side is tested beside each
 strategy): the cuda baseline, fp16 and bf16 run on the GPU and agree with the fp32 network on the CPU,
-the offline job times them there, `cuda_graph` replays the same network as CUDA graphs, and TensorRT
-builds its engines where ONNX Runtime has the provider.
+the timing job times them there (and the offline job takes their MSE), `cuda_graph` replays the same
+network as CUDA graphs, and TensorRT builds its engines where ONNX Runtime has the provider.
 First run on an H100 (2026-11-26): an ONNX artifact on the cuda profile, with an ONNX Runtime that has
 no CUDA provider, failed instead of being "not applicable"; that case runs on every host below."""
 from __future__ import annotations
@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-import pilotlab.jobs.offline  # noqa: F401  (registers the kind)
+import pilotlab.jobs.offline  # noqa: F401  (registers the kinds)
+import pilotlab.jobs.timing  # noqa: F401
 from matrix.kinds import KINDS, NotApplicable
 from pilotlab.data.frames import FrameSet
 from pilotlab.errors import PilotlabError
@@ -57,13 +58,16 @@ def test_a_cuda_artifact_is_not_applicable_on_a_cpu_profile(trained, tmp_path):
 
 
 @gpu
-def test_the_offline_job_times_a_cuda_artifact_on_the_gpu(tmp_path, trained, frames, test_frames):
+def test_the_timing_job_times_a_cuda_artifact_on_the_gpu(tmp_path, trained, frames, test_frames):
     out = tmp_path / "optimize"
     result = apply_strategy("fp16", {}, StrategySource(trained / "model.pt", out, hardware=BUILTIN["cuda"]))
-    offline = context(tmp_path, "offline", {"hardware": make_profile("cuda").as_dict(), "host": host_fingerprint(),
-                                            "batch": 8, "timing": QUICK},
-                      {"artifact": dep("optimize", out, {**result, "strategy": "fp16"}),
-                       "test": (dep("frames", test_frames),)})
+    artifact, cuda = dep("optimize", out, {**result, "strategy": "fp16"}), make_profile("cuda").as_dict()
+    timing = context(tmp_path, "timing", {"hardware": cuda, "host": host_fingerprint(), "batch": 8, "timing": QUICK},
+                     {"artifact": artifact, "frames": (dep("frames", frames),)})
+    timed = KINDS.get("timing").handler(timing)
+    offline = context(tmp_path, "offline", {"hardware": cuda, "host": host_fingerprint()},
+                      {"artifact": artifact, "test": (dep("frames", test_frames),),
+                       "timing": dep("timing", timing.out, timed)})
     metrics = KINDS.get("offline").handler(offline)
     assert metrics["latency_ms"] > 0 and metrics["throughput_ips"] > 0 and metrics["mse"] >= 0
     assert host_fingerprint()["gpu"] == torch.cuda.get_device_name(0)

@@ -107,10 +107,11 @@ def test_a_profile_times_on_the_dask_worker_of_its_machine_and_its_lap_replays_t
         summary = run_dask(plan.statuses, store, client, kind_modules=DOMAIN.kind_modules)
     assert not summary.failed, summary.outcomes
     done = results(store, plan)
-    timing = done["offline pilotnet/baseline on jetson"]["value"]
+    timing = done["timing pilotnet/baseline on jetson"]["value"]
     assert timing["hostname"] == "jetson" and timing["hardware"]["worker_resource"] == "JETSON"
-    offline = next(s.job for s in plan.statuses if s.job.name == "offline pilotnet/baseline on jetson")
-    samples = np.load(store.artifacts(offline.key) / timing["latency_samples"])
+    assert done["offline pilotnet/baseline on jetson"]["value"]["hostname"] == "jetson"   # the timing's figures
+    timed = next(s.job for s in plan.statuses if s.job.name == "timing pilotnet/baseline on jetson")
+    samples = np.load(store.artifacts(timed.key) / timing["latency_samples"])
     lap = done["online pilotnet/baseline on jetson at simple_circuit cw"]["value"]
     assert lap["replayed_latency_samples"] == len(samples)
     assert lap["replayed_latency_ms"] == round(float(np.median(samples)), 4)

@@ -46,7 +46,8 @@ def test_jobs_are_shared_wherever_inputs_are_equal(tmp_path):
         "record": 3, "frames": 3,        # two training recordings, one test recording
         "train": 2,                      # one per model
         "optimize": 2 * 3,               # per (model, strategy)
-        "offline": 2 * 3 * 2,            # per (model, strategy, hardware)
+        "timing": 2 * 3 * 2,             # per (model, strategy, hardware)
+        "offline": 2 * 3 * 2,            # per (model, strategy, hardware) and test set
         "online": 2 * 3 * 2 + 2 * 2,     # per cell and direction, plus explicit + expert per CPU profile
     }
     names = [job.name for job in jobs]
@@ -91,7 +92,8 @@ def test_changing_a_strategy_option_changes_only_its_jobs(tmp_path):
     assert set(before) == set(after)
     assert sorted(name for name in after if after[name] != before[name]) == sorted(
         [f"optimize {m}/prune_more" for m in ("small", "other")]
-        + [f"offline {m}/prune_more on {h}" for m in ("small", "other") for h in ("cpu", "cpu1")]
+        + [f"{kind} {m}/prune_more on {h}" for kind in ("timing", "offline") for m in ("small", "other")
+           for h in ("cpu", "cpu1")]
         + [f"online {m}/prune_more on {h} at simple_circuit cw" for m in ("small", "other") for h in ("cpu", "cpu1")])
 
 
@@ -235,31 +237,70 @@ def test_shipped_recipes_plan(tmp_path, monkeypatch):
                 engine.plan_jobs(loaded, DOMAIN)
             continue
         jobs = engine.plan_jobs(loaded, DOMAIN)
-        assert jobs and {"train", "optimize", "offline", "online"} <= set(kinds(jobs))
+        assert jobs and {"train", "optimize", "timing", "offline", "online"} <= set(kinds(jobs))
 
 
 def network_laps(jobs):
     return [job for job in jobs if job.kind == "online" and job.params.get("brain") == "network"]
 
 
-def test_network_laps_replay_their_offline_jobs_latencies(tmp_path):
+def cells(jobs, kind: str) -> dict:
+    return {(j.labels["model"], j.labels["strategy"], j.labels["hardware"]): j for j in jobs if j.kind == kind}
+
+
+def test_network_laps_replay_their_timing_jobs_latencies(tmp_path):
     jobs = engine.plan_jobs(recipe_at(tmp_path), DOMAIN)
-    offline = {(j.labels["model"], j.labels["strategy"], j.labels["hardware"]): j for j in jobs if j.kind == "offline"}
+    timing, offline = cells(jobs, "timing"), cells(jobs, "offline")
     for lap in network_laps(jobs):
         assert lap.params["timing"] == "replay" and lap.params["tolerance"] is None
         cell = (lap.labels["model"], lap.labels["strategy"], lap.labels["hardware"])
-        assert lap.deps["timing"].key == offline[cell].key and "scale_reference" not in lap.deps
+        assert lap.deps["timing"] is timing[cell] and "scale_reference" not in lap.deps
+        assert offline[cell].deps["timing"] is timing[cell]
+        assert not any(dep.kind == "offline" for dep in lap.dep_jobs())
+
+
+def test_a_timing_job_is_fed_the_training_frames_not_the_test_set(tmp_path):
+    jobs = engine.plan_jobs(recipe_at(tmp_path), DOMAIN)
+    for job in cells(jobs, "timing").values():
+        optimize = job.deps["artifact"]
+        assert optimize.kind == "optimize" and job.deps["frames"] == optimize.deps["calibration"]
+        assert {dep.name for dep in job.deps["frames"]} == {"frames train/simple_circuit cw",
+                                                          "frames train/simple_circuit ccw"}
+        assert job.params["batch"] == 64 and job.params["hardware"]["name"] == job.labels["hardware"]
+
+
+@pytest.mark.parametrize("edit", [("laps: 0.1, seed: 3", "laps: 0.1, seed: 4"),
+                                  ("laps: 0.1, seed: 3", "laps: 0.2, seed: 3")])
+def test_editing_the_test_set_reruns_only_the_offline_jobs(tmp_path, edit):
+    """The laps replay the timing jobs' latencies, which never read the test set: an edit of the test set
+    re-times nothing and reruns no lap (the most expensive jobs), only its recording and the MSEs."""
+    before = {job.name: job.key for job in engine.plan_jobs(recipe_at(tmp_path), DOMAIN)}
+    after = {job.name: job.key for job in engine.plan_jobs(recipe_at(tmp_path, RECIPE.replace(*edit)), DOMAIN)}
+    assert set(after) == set(before)
+    changed = {name for name in after if after[name] != before[name]}
+    assert {name.split()[0] for name in changed} == {"record", "frames", "offline"}
+    assert {name for name in changed if name.startswith("offline")} == {
+        name for name in after if name.startswith("offline")}
+    assert "record test/simple_circuit cw" in changed and not any("train/" in name for name in changed)
+
+
+def test_the_throughput_batch_re_times_and_reruns_the_laps(tmp_path):
+    before = {job.name: job.key for job in engine.plan_jobs(recipe_at(tmp_path), DOMAIN)}
+    edited = RECIPE.replace("matrix:", "offline: {batch: 32}\nmatrix:")
+    after = {job.name: job.key for job in engine.plan_jobs(recipe_at(tmp_path, edited), DOMAIN)}
+    changed = {name.split()[0] for name in after if after[name] != before[name]}
+    assert changed == {"timing", "offline", "online"}
 
 
 def test_scaled_latencies_and_the_tolerance_search(tmp_path):
     text = RECIPE + "online: {latency_scale_to_ms: 124, tolerance: true}\n"
     jobs = engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
-    offline = {(j.labels["model"], j.labels["strategy"], j.labels["hardware"]): j for j in jobs if j.kind == "offline"}
+    timing = cells(jobs, "timing")
     for lap in network_laps(jobs):
         assert lap.params["latency_scale_to_ms"] == 124
         assert lap.params["tolerance"] == {"fixed_ms": [0.0, 50.0, 100.0, 200.0], "max_ms": 1000.0, "step_ms": 5.0}
         base = (lap.labels["model"], "baseline", lap.labels["hardware"])
-        assert lap.deps["scale_reference"].key == offline[base].key
+        assert lap.deps["scale_reference"] is timing[base]
     references = [job for job in jobs if job.kind == "online" and job.params["brain"] != "network"]
     assert references and all(job.params["tolerance"] is not None and not job.deps for job in references)
 

@@ -1,9 +1,9 @@
 """Plan cost follows jobs, not cells (issue 25): prints the seconds and the peak memory of planning
 
 - a grid of identical entries: 1000 models × 250 strategies × 2 hardware × 2 circuits (1,000,000 cells,
-  20 jobs; target ≤ 10 s and ≤ 1 GB), and
+  22 jobs; target ≤ 10 s and ≤ 1 GB), and
 - a recipe of distinct entries: 100 models × 100 strategies × 2 hardware × 4 circuits (80,000 cells,
-  about 110,000 jobs; target ≤ 5 s).
+  about 130,000 jobs; target ≤ 5 s).
 
 Each is planned in a fresh interpreter (so its peak memory is its own): seconds of load + plan, the
 process's peak resident memory (imports included) and, where `perf` is installed, the instructions it ran

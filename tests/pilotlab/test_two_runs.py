@@ -1,6 +1,6 @@
 """Slow: two `pilotlab run` of one recipe in one folder at once, as two people (or a CI job and a
 person) might start them: both finish with exit 0, each job runs once, the report is whole, and no
-job that runs alone (the offline timings, the training; laps that replay timings run beside others)
+job that runs alone (the timing jobs, the training; laps that replay timings run beside others)
 overlaps another job."""
 import importlib
 import re
@@ -58,7 +58,7 @@ def test_two_runs_of_one_recipe_in_one_folder(tmp_path):
     specs = {key: store.spec(key) or {} for key in store.keys()}
     spans = {key: (spec.get("kind"), span(store.job_dir(key) / "log.txt")) for key, spec in specs.items()}
     alone = [(key, spans[key][1]) for key, spec in specs.items() if KINDS.get(spec["kind"]).runs_alone(spec["params"])]
-    assert {spans[key][0] for key, _ in alone} == {"offline", "train"}
+    assert {spans[key][0] for key, _ in alone} == {"timing", "train"}
     for key, (start, end) in alone:
         for other, (_, (o_start, o_end)) in spans.items():
             assert other == key or o_end <= start or o_start >= end, (key[:8], other[:8])

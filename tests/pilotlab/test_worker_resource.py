@@ -39,10 +39,12 @@ def resources(job) -> dict:
 
 def test_its_timing_jobs_go_to_its_machine_and_its_laps_replay_them_anywhere(tmp_path):
     jobs = plan(tmp_path)
-    jetson, here = jobs["offline pilotnet/baseline on jetson"], jobs["offline pilotnet/baseline on cpu1"]
+    jetson, here = jobs["timing pilotnet/baseline on jetson"], jobs["timing pilotnet/baseline on cpu1"]
     assert resources(jetson) == {"JETSON": 1} and jetson.params["host"] is None
     assert jetson.params["hardware"] == {"name": "jetson", "device": "cpu", "threads": 1, "worker_resource": "JETSON"}
     assert resources(here) == {} and here.params["host"] == host_fingerprint()
+    offline = jobs["offline pilotnet/baseline on jetson"]   # its MSE: any worker, beside other jobs
+    assert offline.deps["timing"] is jetson and resources(offline) == {} and offline.params["host"] is None
     lap = jobs["online pilotnet/baseline on jetson at simple_circuit cw"]
     assert lap.deps["timing"] is jetson and resources(lap) == {} and lap.params["host"] is None
 

@@ -59,7 +59,7 @@ def test_a_lap_is_marked_with_the_unstable_timing_it_replays(tmp_path):
     commit(timing, {"latency_ms": 132.5, "unstable": {"latency_ms": "few calls ran undisturbed"}})
     commit(lap, {"lap_completed": False, "percentage_completed": 12.0, "mean_inference_ms": 136.0})
     row = next(r for r in build_report_data(recipe, jobs, store).rows if r.kind == "online" and r.status == "ok")
-    assert row.unstable_reason("latency_ms") == (f"it replays the offline timing of {timing.name}, which stayed "
+    assert row.unstable_reason("latency_ms") == (f"it replays the timing of {timing.name}, which stayed "
                                                  "disturbed (few calls ran undisturbed)")
 
 

@@ -60,19 +60,19 @@ def test_an_artifact_drives_from_two_start_points(tmp_path, artifact_dep):
     assert row.get("mean_inference_ms") == pytest.approx(5.0)
 
 
-def test_a_network_lap_replays_the_offline_jobs_latency_scaled_and_searches_its_tolerance(tmp_path, artifact_dep):
-    timed = tmp_path / "offline"
+def test_a_network_lap_replays_the_timing_jobs_latency_scaled_and_searches_its_tolerance(tmp_path, artifact_dep):
+    timed = tmp_path / "timing"
     timed.mkdir()
     np.save(timed / "latency_ms.npy", np.array([3.0, 4.0, 5.0]))
     np.save(timed / "base.npy", np.array([2.0]))
-    offline = DepResult(key="offline-key", kind="offline", params={}, result={"latency_samples": "latency_ms.npy"},
-                        artifacts=timed, name="offline:baseline")
-    base = DepResult(key="offline-base", kind="offline", params={}, result={"latency_samples": "base.npy"},
-                     artifacts=timed, name="offline:baseline")
+    timing = DepResult(key="timing-key", kind="timing", params={}, result={"latency_samples": "latency_ms.npy"},
+                       artifacts=timed, name="timing:baseline")
+    base = DepResult(key="timing-base", kind="timing", params={}, result={"latency_samples": "base.npy"},
+                     artifacts=timed, name="timing:baseline")
     _, result = run(tmp_path, "online-replay", {**SHORT, "latency_scale_to_ms": 20.0,
                                                 "tolerance": {"fixed_ms": [0, 50], "max_ms": 100, "step_ms": 25}},
-                    deps={"artifact": artifact_dep, "timing": offline, "scale_reference": base})
-    assert result["latency_source"] == "offline timing job, scaled ×10 so that baseline takes 20 ms"
+                    deps={"artifact": artifact_dep, "timing": timing, "scale_reference": base})
+    assert result["latency_source"] == "timing job, scaled ×10 so that baseline takes 20 ms"
     assert result["latency_scale"] == 10.0 and result["replayed_latency_ms"] == 40.0
     assert result["bm_mean_inference_ms"] is None or 30.0 <= result["bm_mean_inference_ms"] <= 50.0
     assert {lap["injected_ms"] for lap in result["tolerance_laps"]} >= {0.0}
@@ -119,7 +119,7 @@ def test_the_kind_runs_alone_on_the_hosts_clock_only_and_asks_for_a_gpu_only_for
      "starts lists 2 point.s. but repetitions is 3"),
     ({"circuit": "simple_circuit", "brain": "expert", "timing": "lockstep", "fixed_inference_ms": 3}, False,
      "only means something in the replay and measured timing modes"),
-    ({"circuit": "simple_circuit", "timeout_s": 1.0}, True, "needs the offline timing job"),
+    ({"circuit": "simple_circuit", "timeout_s": 1.0}, True, "needs the timing job"),
     ({"circuit": "simple_circut", "brain": "expert"}, False, "did you mean 'simple_circuit'"),
 ])
 def test_params_are_checked(tmp_path, artifact_dep, params, deps, message):

@@ -1,6 +1,6 @@
 """Issue 6's acceptance, end to end through the job handlers (slow: about a minute and a half on 2 cores):
 the expert records simple_circuit both ways with swerves (recoveries), PilotNet trains on it, the
-`baseline` strategy packs it, the `offline` job times it on cpu1, and the `online` job drives it,
+`baseline` strategy packs it, the `timing` job times it on cpu1, and the `online` job drives it,
 replaying those timings (the default timing mode, as a recipe wires it).
 
 - the trained baseline completes simple_circuit; the metrics and the trajectory picture are in the result;
@@ -18,10 +18,10 @@ import pytest
 import torch
 
 import pilotlab.jobs.frames  # noqa: F401  (register the kinds)
-import pilotlab.jobs.offline  # noqa: F401
 import pilotlab.jobs.online  # noqa: F401
 import pilotlab.jobs.optimize  # noqa: F401
 import pilotlab.jobs.record  # noqa: F401
+import pilotlab.jobs.timing  # noqa: F401
 import pilotlab.jobs.train  # noqa: F401
 from matrix.kinds import KINDS, DepResult
 from pilotlab.report import pick_metrics
@@ -44,7 +44,7 @@ def run_job(tmp_path, kind: str, name: str, params: dict, deps=None, inputs=None
 
 @pytest.fixture(scope="module")
 def artifact(tmp_path_factory) -> dict[str, DepResult]:
-    """record (x2) -> frames (x2) -> train -> optimize baseline -> offline on cpu1: the online job's
+    """record (x2) -> frames (x2) -> train -> optimize baseline -> timing on cpu1: the online job's
     `artifact` and `timing` dependencies."""
     torch.set_num_threads(2)
     root = tmp_path_factory.mktemp("acceptance")
@@ -57,8 +57,8 @@ def artifact(tmp_path_factory) -> dict[str, DepResult]:
     print(f"\ntrained PilotNet: val_mse {model.result['val_mse']:.4f} "
           f"(mean predictor {model.result['val_mse_mean_predictor']:.4f}) in {model.result['seconds']:.0f} s")
     optimized = run_job(root, "optimize", "optimize", {"strategy": "baseline"}, deps={"model": model})
-    timed = run_job(root, "offline", "offline", {"hardware": CPU1, "timing": QUICK_TIMING},
-                    deps={"artifact": optimized, "test": (frames[1],)})
+    timed = run_job(root, "timing", "timing", {"hardware": CPU1, "timing": QUICK_TIMING},
+                    deps={"artifact": optimized, "frames": tuple(frames)})
     print(f"baseline on cpu1: {timed.result['latency_ms']:.2f} ms per frame (replayed by the laps)")
     return {"artifact": optimized, "timing": timed}
 

@@ -1,5 +1,5 @@
 """The replay timing mode: a lap charged latencies measured once gives the same trajectory and metrics
-on a quiet machine and beside two CPU hogs; latency samples from the offline job and from a user's file."""
+on a quiet machine and beside two CPU hogs; latency samples from the timing job and from a user's file."""
 import subprocess
 import sys
 
@@ -10,7 +10,7 @@ from pilotlab.errors import PilotlabError
 from pilotlab.online.bm_metrics import bm_run_metrics
 from pilotlab.online.brains import NetworkBrain
 from pilotlab.online.drive import DriveSettings, drive
-from pilotlab.online.latency import latency_file_samples, offline_samples
+from pilotlab.online.latency import latency_file_samples, timing_samples
 from pilotlab.online.metrics import run_metrics
 from pilotlab.online.trajectory import COLUMNS
 from pilotlab.predictor import load_predictor
@@ -48,11 +48,13 @@ def test_a_replayed_lap_is_the_same_beside_two_cpu_hogs(pilotnet_artifact):
                {k: v for k, v in second.items() if k not in WALL_METRICS}
 
 
-def test_offline_samples_follow_the_offline_jobs_contract(tmp_path):
+def test_timing_samples_follow_the_timing_jobs_contract(tmp_path):
     np.save(tmp_path / "latency_ms.npy", np.array([2.5, 3.0, 2.75]))
-    np.testing.assert_array_equal(offline_samples(tmp_path, {"latency_samples": "latency_ms.npy"}), [2.5, 3.0, 2.75])
-    with pytest.raises(PilotlabError, match="kept no latency samples"):
-        offline_samples(tmp_path, {})
+    np.testing.assert_array_equal(timing_samples(tmp_path, {"latency_samples": "latency_ms.npy"}), [2.5, 3.0, 2.75])
+    with pytest.raises(PilotlabError, match="kept no latency samples.*pilotlab run --force timing"):
+        timing_samples(tmp_path, {})
+    with pytest.raises(PilotlabError, match="latency samples are missing; rerun it with `pilotlab run --force timing`"):
+        timing_samples(tmp_path, {"latency_samples": "gone.npy"})
 
 
 def test_a_latency_file_gives_the_most_specific_rows(tmp_path):
@@ -76,22 +78,22 @@ def test_scaling_gives_the_reference_its_target_median():
     assert factor == pytest.approx(62.0) and list(scaled) == pytest.approx([62.0, 93.0])
 
 
-def test_a_timing_source_takes_the_file_over_the_offline_job_and_scales(tmp_path):
+def test_a_timing_source_takes_the_file_over_the_timing_job_and_scales(tmp_path):
     from pilotlab.online.latency import TimingSource
     np.save(tmp_path / "latency_ms.npy", np.array([2.0, 2.0, 4.0]))
     np.save(tmp_path / "base.npy", np.array([4.0]))
-    offline = (tmp_path, {"latency_samples": "latency_ms.npy"})
-    samples, said = TimingSource(offline=offline).samples()
-    assert list(samples) == [2.0, 2.0, 4.0] and said["latency_source"] == "offline timing job"
+    timing = (tmp_path, {"latency_samples": "latency_ms.npy"})
+    samples, said = TimingSource(timing=timing).samples()
+    assert list(samples) == [2.0, 2.0, 4.0] and said["latency_source"] == "timing job"
     assert said["replayed_latency_ms"] == 2.0 and "latency_scale" not in said
-    scaled, said = TimingSource(offline=offline, scale_to_ms=124.0, reference=(tmp_path, {"latency_samples": "base.npy"})
+    scaled, said = TimingSource(timing=timing, scale_to_ms=124.0, reference=(tmp_path, {"latency_samples": "base.npy"})
                                 ).samples()
     assert list(scaled) == [62.0, 62.0, 124.0] and said["latency_scale"] == 31.0
     path = tmp_path / "device.csv"
     path.write_text("strategy,latency_ms\nbaseline,30\nqat,10\n")
-    samples, said = TimingSource(offline=offline, latency_file=path, strategy="qat").samples()
+    samples, said = TimingSource(timing=timing, latency_file=path, strategy="qat").samples()
     assert list(samples) == [10.0] and said["latency_source"] == "latency file device.csv"
-    with pytest.raises(PilotlabError, match="needs the offline timing job"):
+    with pytest.raises(PilotlabError, match="needs the timing job"):
         TimingSource().samples()
 
 

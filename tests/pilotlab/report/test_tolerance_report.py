@@ -61,7 +61,7 @@ def test_behaviormetrics_figures_are_columns_of_their_own_where_laps_have_them()
 
 
 def test_a_simulation_table_says_where_its_replayed_latencies_came_from():
-    source = "offline timing job, scaled ×56.4 so that baseline takes 124 ms"
+    source = "timing job, scaled ×56.4 so that baseline takes 124 ms"
     rows = [online_row("baseline", lap_completed=True) | {"latency_source": source},
             online_row("qat", lap_completed=True) | {"latency_source": source},
             online_row("expert", lap_completed=True) | {"latency_source": "none: a reference brain is charged only "

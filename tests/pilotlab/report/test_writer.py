@@ -210,17 +210,17 @@ def test_an_unstable_timing_is_marked_in_the_results_files_and_both_pages(tmp_pa
     assert f"⚠ baseline: inference time unstable: {reason}." in readme
     assert "Timings on 2 thread(s), one method at a time: inference time is the median of 24–900" in readme
     assert "**Fastest on cpu1**: not drawn: baseline (cpu1): unstable" in readme
-    assert "; rerun `pilotlab run --force offline` when the machine is quieter" in readme   # code, not \`
+    assert "; rerun `pilotlab run --force timing` when the machine is quieter" in readme   # code, not \`
     assert "\\`" not in readme
     page = paths.html.read_text()
     assert "2.30 (2.20–9.50) ⚠" in page
-    assert "; rerun <code>pilotlab run --force offline</code> when the machine is quieter" in page and "`pilotlab" not in page
+    assert "; rerun <code>pilotlab run --force timing</code> when the machine is quieter" in page and "`pilotlab" not in page
 
 
 def test_a_lap_replaying_an_unstable_timing_is_marked_and_draws_no_verdict(tmp_path):
     """Outside test: a baseline timed at 132 ms under load (⚠ in the offline table) lost its replayed lap,
     and the simulation table, the closed-loop summary and results.csv said nothing of it."""
-    reason = "it replays the offline timing of offline pilotnet/baseline on cpu1, which stayed disturbed (few calls)"
+    reason = "it replays the timing of timing pilotnet/baseline on cpu1, which stayed disturbed (few calls)"
     lost = online_row("baseline", lap_completed=False, percentage_completed=12.0, brain_frequency_sim_hz=7.2,
                       mean_inference_ms=136.0)
     rows = [{**lost, "unstable": {"latency_ms": reason}},

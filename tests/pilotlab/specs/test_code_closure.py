@@ -117,7 +117,7 @@ def test_every_module_a_handler_can_run_is_in_its_jobs_key(jobs):
             with edited(module):
                 assert code_of(job) != before, f"editing {module} would not change the key of {job.name}"
             checked.add(module)
-    assert {"pilotlab.hardware", "pilotlab.offline", "pilotlab.online.drive", "pilotlab.training",
+    assert {"pilotlab.hardware", "pilotlab.offline", "pilotlab.timing", "pilotlab.specs.timing", "pilotlab.online.drive", "pilotlab.training",
             "pilotlab.data.bags", "pilotlab.strategies.prune"} <= checked
 
 
@@ -133,6 +133,13 @@ def test_editing_how_timings_are_taken_makes_every_timing_job_stale(jobs):
     before = {job.name: code_of(job) for job in jobs}
     with edited("pilotlab.hardware"):
         changed = {job.name for job in jobs if code_of(job) != before[job.name]}
-    timing = {job.name for job in jobs if job.kind in ("offline", "online")}
-    assert timing and timing <= changed
+    timing = {job.name for job in jobs if job.kind in ("timing", "offline", "online")}
+    assert timing and timing <= changed and any(job.kind == "timing" for job in jobs)
     assert not any(name.startswith(("record", "frames", "train")) for name in changed)
+
+
+def test_a_timing_job_runs_the_timing_code_and_no_lap_or_training(jobs):
+    modules = set(KINDS.get("timing").base_modules())
+    assert {"pilotlab.jobs.timing", "pilotlab.specs.timing", "pilotlab.offline", "pilotlab.timing",
+            "pilotlab.predictor", "pilotlab.data.frames"} <= modules
+    assert not modules & {"pilotlab.jobs.offline", "pilotlab.online.drive", "pilotlab.training"}

@@ -47,14 +47,12 @@ def test_the_world_axis_records_tests_and_drives_in_each_world(tmp_path, oval_as
 
 def test_a_network_tested_in_several_worlds_is_timed_once_and_every_lap_replays_that_timing(tmp_path, oval_assets):
     jobs = plan(tmp_path, oval_assets)
-    timed, shifted = jobs["offline small/dynamic_quant on cpu in oval"], jobs["offline small/dynamic_quant on cpu in oval_no_sun"]
-    assert timed.params["timed"] and "timing" not in timed.deps
-    assert not shifted.params["timed"] and shifted.deps["timing"] is timed   # its own test set, oval's timing
-    from matrix.kinds import KINDS
-    assert KINDS.get("offline").runs_alone(timed.params) and not KINDS.get("offline").runs_alone(shifted.params)
-    for world in ("oval", "oval_no_sun"):
-        assert jobs[f"online small/dynamic_quant on cpu at {world} cw"].deps["timing"] is timed
-    assert sum(job.kind == "offline" and job.params["timed"] for job in jobs.values()) == 2   # one per strategy
+    timing = jobs["timing small/dynamic_quant on cpu"]
+    assert [dep.params["world"] for dep in timing.deps["frames"][0].dep_jobs()] == ["oval"]   # the training frames
+    for world in ("oval", "oval_no_sun"):   # each its own test set, one timing
+        assert jobs[f"offline small/dynamic_quant on cpu in {world}"].deps["timing"] is timing
+        assert jobs[f"online small/dynamic_quant on cpu at {world} cw"].deps["timing"] is timing
+    assert sum(job.kind == "timing" for job in jobs.values()) == 2   # one per strategy
 
 
 def test_an_edit_of_a_world_reruns_only_what_drove_there(tmp_path, oval_assets):

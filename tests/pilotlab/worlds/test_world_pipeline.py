@@ -24,7 +24,7 @@ models:
 online: {{timeout_s: 3, references: [], camera: {{width: 160, height: 120}}}}
 matrix:
   model: [pilotnet]
-  strategy: [baseline]          # one strategy: the offline timing jobs are what this test spends most on
+  strategy: [baseline]          # one strategy: the timing jobs are what this test spends most on
   world: [oval, oval_no_sun]
 """
 
@@ -47,7 +47,7 @@ def test_a_recipe_over_worlds_runs_reports_and_stays_fresh(tmp_path, oval_assets
     rows = json.loads((report / "results.json").read_text())["rows"]
     assert {row["world"] for row in rows} == {"oval", "oval_no_sun"}
     offline = {row["world"]: row for row in rows if row["kind"] == "offline"}
-    assert offline["oval"]["latency_ms"] == offline["oval_no_sun"]["latency_ms"]   # timed once, in oval
+    assert offline["oval"]["latency_ms"] == offline["oval_no_sun"]["latency_ms"]   # timed once
     plan = pilotlab("plan", "worlds.yaml", "--store", "store", "--json", cwd=tmp_path)
     assert plan.returncode == 0, plan.stderr
     statuses = {job["status"] for job in json.loads(plan.stdout)}
