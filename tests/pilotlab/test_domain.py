@@ -269,6 +269,13 @@ def test_a_timing_job_is_fed_the_training_frames_not_the_test_set(tmp_path):
         assert job.params["batch"] == 64 and job.params["hardware"]["name"] == job.labels["hardware"]
 
 
+def test_a_timing_job_runs_alone_and_an_offline_job_beside_others(tmp_path):
+    from matrix.kinds import KINDS
+    jobs = engine.plan_jobs(recipe_at(tmp_path), DOMAIN)
+    alone = {job.kind for job in jobs if KINDS.get(job.kind).runs_alone(job.params)}
+    assert "timing" in alone and "offline" not in alone and "online" not in alone   # replayed laps: beside others
+
+
 @pytest.mark.parametrize("edit", [("laps: 0.1, seed: 3", "laps: 0.1, seed: 4"),
                                   ("laps: 0.1, seed: 3", "laps: 0.2, seed: 3")])
 def test_editing_the_test_set_reruns_only_the_offline_jobs(tmp_path, edit):
