@@ -4,19 +4,15 @@ recording and the offline jobs only: no network is timed again and no lap is dri
 from __future__ import annotations
 
 import json
-import os
 import re
 import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from matrix.store import Store
-from tests.child import python_path
+from tests.child import run_pilotlab
 
-ROOT = Path(__file__).resolve().parents[2]
 RECIPE = """
 name: tiny_timing
 datasets:
@@ -33,10 +29,7 @@ matrix:
 """
 
 
-def pilotlab(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PYTHONPATH": python_path(ROOT)}
-    return subprocess.run([sys.executable, "-m", "pilotlab", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=1200)
+pilotlab = run_pilotlab
 
 
 def ran(run: subprocess.CompletedProcess) -> set[str]:

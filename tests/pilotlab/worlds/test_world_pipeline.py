@@ -4,15 +4,10 @@ afterwards with every job fresh."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import pytest
-from tests.child import python_path
+from tests.child import run_pilotlab
 
-ROOT = Path(__file__).resolve().parents[3]
 RECIPE = """
 name: tiny_worlds
 worlds: {{assets: {assets}}}
@@ -29,10 +24,7 @@ matrix:
 """
 
 
-def pilotlab(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PYTHONPATH": python_path(ROOT)}
-    return subprocess.run([sys.executable, "-m", "pilotlab", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=1200)
+pilotlab = run_pilotlab
 
 
 @pytest.mark.slow
