@@ -1,4 +1,6 @@
 """pilotlab's errors all derive from the engine's single root, `matrix.errors.MatrixError`."""
+import re
+
 from matrix.errors import MatrixError, RecipeError, UnknownNameError  # noqa: F401  (re-exported)
 
 
@@ -12,5 +14,12 @@ class BagError(PilotlabError):
 
 def library_message(error: BaseException, limit: int = 300) -> str:
     """A third-party error's message on one line, cut at `limit`: ONNX Runtime puts its reason on the
-    line after 'Load model from ... failed:', so the first line alone says nothing."""
-    return " ".join(line.strip() for line in str(error).splitlines() if line.strip())[:limit]
+    line after 'Load model from ... failed:', so the first line alone says nothing, and before its reason
+    the C++ source line and function signature, which alone could fill `limit` (on a GPU machine an
+    IR-version refusal was cut before 'Unsupported model IR version')."""
+    text = " ".join(line.strip() for line in str(error).splitlines() if line.strip())
+    return _CPP_LOCATION.sub(" ", text)[:limit]
+
+
+# "/onnxruntime_src/onnxruntime/core/graph/model.cc:256 onnxruntime::Model::Model(onnx::ModelProto&&, ...) "
+_CPP_LOCATION = re.compile(r"\s*/\S+\.(?:cc|cpp|h):\d+ [\w:~<>]+\(.*?\)\s+")

@@ -8,3 +8,13 @@ def test_a_library_message_keeps_the_reason_on_its_later_lines():
     assert library_message(error) == ("[ONNXRuntimeError] : 1 : FAIL : Load model from m.onnx failed: External "
                                       "data path escapes the model's folder")
     assert len(library_message(RuntimeError("x" * 1000), 200)) == 200
+
+
+def test_a_library_message_drops_onnx_runtimes_source_line_and_signature():
+    error = RuntimeError("[ONNXRuntimeError] : 1 : FAIL : Load model from /tmp/m.onnx failed:/onnxruntime_src/"
+                         "onnxruntime/core/graph/model.cc:256 onnxruntime::Model::Model(onnx::ModelProto&&, const "
+                         "onnxruntime::PathString&, const onnxruntime::IOnnxRuntimeOpSchemaRegistryList*, const "
+                         "onnxruntime::logging::Logger&, const onnxruntime::ModelOptions&) Unsupported model IR "
+                         "version: 99, max supported IR version: 14\n")
+    assert library_message(error) == ("[ONNXRuntimeError] : 1 : FAIL : Load model from /tmp/m.onnx failed: "
+                                      "Unsupported model IR version: 99, max supported IR version: 14")

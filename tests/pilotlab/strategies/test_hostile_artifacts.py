@@ -49,7 +49,10 @@ def onnx_with_external_weights(folder, location):
     graph = helper.make_graph([helper.make_node("Add", ["images", "bias"], ["vw"])], "g",
                               [helper.make_tensor_value_info("images", TensorProto.FLOAT, [None, 3, 66, 200])],
                               [helper.make_tensor_value_info("vw", TensorProto.FLOAT, None)], [bias])
-    onnx.save(helper.make_model(graph), str(folder / "model.onnx"))
+    # IR 9 / opset 17: what every ONNX Runtime pilotlab supports reads (onnx 1.23 writes IR 14 by default,
+    # which the GPU machine's ONNX Runtime 1.30 refused)
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], ir_version=9)
+    onnx.save(model, str(folder / "model.onnx"))
     write_meta(folder, meta())
 
 
