@@ -64,14 +64,17 @@ class TorchPredictor(Predictor):
         inputs = self._torch.from_numpy(batch)
         with self._torch.inference_mode():
             if self._cast:
-                return self._module(inputs.to(self._device, self._dtype)).float().cpu().numpy()
+                # to the device first, then cast: torch casts a blocking copy to the GPU on the CPU, with
+                # every intra-op thread (on an H200 host, fp16's timing kept 16 cores busy; fp32's one)
+                return self._module(inputs.to(self._device).to(self._dtype)).float().cpu().numpy()
             return self._module(inputs).numpy()
 
 
 class CudaGraphs:
     """A CUDA module replayed as one CUDA graph per batch size (captured at that size's first call):
     one launch instead of one per layer. The graph reads and writes fixed tensors on the GPU; a call
-    copies the batch in, replays, and copies the float32 output back. One caller at a time (the
+    copies the float32 batch in (the cast to the network's precision is in the graph: torch would cast
+    a copy to the GPU on the CPU), replays, and copies the float32 output back. One caller at a time (the
     buffers are shared), as a predictor is used."""
     MAX_SIZES = 8    # beyond these, run() answers None: the caller runs the module as it is (a graph holds buffers)
 
@@ -98,17 +101,17 @@ class CudaGraphs:
 
     def _capture(self, shape: tuple) -> tuple[Any, Any, Any]:
         torch = self._torch
-        inputs = torch.zeros(shape, device="cuda", dtype=self._dtype)
+        inputs = torch.zeros(shape, device="cuda", dtype=torch.float32)
         side = torch.cuda.Stream()
         side.wait_stream(torch.cuda.current_stream())
         with torch.no_grad():
             with torch.cuda.stream(side):   # warm-up off the capture (TorchScript optimises on its first runs)
                 for _ in range(3):
-                    self._module(inputs)
+                    self._module(inputs.to(self._dtype))
             torch.cuda.current_stream().wait_stream(side)
             graph = torch.cuda.CUDAGraph()
             with torch.cuda.graph(graph):
-                outputs = self._module(inputs).float()
+                outputs = self._module(inputs.to(self._dtype)).float()
         return inputs, outputs, graph
 
 
