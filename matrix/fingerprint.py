@@ -1,7 +1,8 @@
 """Content fingerprints: of code (what implements a job kind) and of input files.
 
-Code is fingerprinted by its source text, so editing a strategy's module changes the keys of that
-strategy's jobs and nothing else; which modules a module imports is read from its source, parsed
+Code is fingerprinted by its source text without comments, docstrings and blank lines
+(`code_text`), so editing a strategy's module changes the keys of that strategy's jobs and nothing
+else, and rewording a comment or a docstring changes none; which modules a module imports is read from its source, parsed
 once per text (the names are remembered across processes by its sha256), and a whole closure is
 remembered with the file hashes and folder listings it was read from. Files are hashed by content
 (sha256), remembered by (path, size, mtime, inode) in the process and, for large files, across
@@ -18,7 +19,9 @@ import os
 import stat
 import sys
 import time
+import tokenize
 from collections.abc import Iterable, Iterator
+from io import StringIO
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -59,7 +62,7 @@ def closure_fingerprint(modules: Iterable[str], extra: Iterable[Any] = ()) -> st
 def _own_source_hash(module: str) -> tuple[str, str]:
     ident = f"{module}#own"
     if ident not in _SOURCE_HASHES:
-        _SOURCE_HASHES[ident] = _file_sha256(_module_origin(module))
+        _SOURCE_HASHES[ident] = _code_sha256(_module_origin(module))
     return ident, _SOURCE_HASHES[ident]
 
 
@@ -100,9 +103,49 @@ def _module_origin(name: str) -> Path:
 def _module_files_text(origin: Path) -> str:
     """A module's text; for a package (`__init__.py`), every .py file below it, in a fixed order."""
     if origin.name != "__init__.py":
-        return origin.read_text(encoding="utf-8")
+        return code_text(origin.read_text(encoding="utf-8"))
     files = sorted(origin.parent.rglob("*.py"))
-    return "".join(f"# {f.relative_to(origin.parent)}\n{f.read_text(encoding='utf-8')}" for f in files)
+    return "".join(f"# {f.relative_to(origin.parent)}\n{code_text(f.read_text(encoding='utf-8'))}\n" for f in files)
+
+
+def code_text(source: str) -> str:
+    """`source` without its comments, docstrings, trailing spaces and blank lines: what a code
+    fingerprint hashes, so that rewording a comment or a docstring reruns nothing. The rest is kept
+    as written (what is left of a line keeps its place, so the text is the same under every Python
+    that parses it); a source that does not parse is kept whole."""
+    try:
+        spans = _comment_spans(source) + _docstring_spans(source)
+    except (SyntaxError, tokenize.TokenError, ValueError):
+        return source
+    lines = source.splitlines()
+    for (first_row, first_col), (last_row, last_col) in sorted(spans, reverse=True):
+        head, tail = lines[first_row - 1][:first_col], lines[last_row - 1][last_col:]
+        lines[first_row - 1:last_row] = [head + tail] + [""] * (last_row - first_row)
+    return "\n".join(kept for line in lines if (kept := line.rstrip()))
+
+
+def _comment_spans(source: str) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    tokens = tokenize.generate_tokens(StringIO(source).readline)
+    return [(token.start, token.end) for token in tokens if token.type == tokenize.COMMENT]
+
+
+def _docstring_spans(source: str) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """The (row, column) spans of the docstrings of the module, its classes and functions (ast's
+    columns count UTF-8 bytes; these count characters, as tokenize's do)."""
+    lines, spans = source.splitlines(), []
+    for node in ast.walk(ast.parse(source)):
+        body = getattr(node, "body", None)
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and body and \
+                isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) and \
+                isinstance(body[0].value.value, str):
+            doc = body[0]
+            spans.append(((doc.lineno, _chars(lines[doc.lineno - 1], doc.col_offset)),
+                          (doc.end_lineno, _chars(lines[doc.end_lineno - 1], doc.end_col_offset))))
+    return spans
+
+
+def _chars(line: str, utf8_offset: int) -> int:
+    return len(line.encode("utf-8")[:utf8_offset].decode("utf-8", errors="ignore"))
 
 
 def module_closure(name: str, within: str, exclude: Iterable[str] = ()) -> list[str]:
@@ -174,16 +217,16 @@ def _facts_hold(facts: dict | None) -> bool:
     the code fingerprint (`_own_source_hash`)."""
     try:
         files = facts["files"]
-        if any(_file_sha256(path) != sha for path, sha in files.values()) or \
+        if any(_file_sha256(path) != sha for path, sha, _ in files.values()) or \
                 not all(_is_file(path) for path in facts["exists"]) or \
                 any(sorted(_modules_in(folder)) != names for folder, names in facts["folders"].items()):
             return False
     except (OSError, TypeError, KeyError, ValueError, AttributeError):   # gone, or a damaged record: re-read
         return False
-    for module, (path, sha) in files.items():
+    for module, (path, _, code_sha) in files.items():
         if module not in _ORIGINS:
             _ORIGINS[module] = Path(path)
-            _SOURCE_HASHES.setdefault(f"{module}#own", sha)
+            _SOURCE_HASHES.setdefault(f"{module}#own", code_sha)
     return True
 
 
@@ -197,6 +240,18 @@ def _file_sha256(path: Path | str) -> str:
 
 
 _SOURCE_FILES: dict[str, str] = {}
+
+
+def _code_sha256(path: Path | str) -> str:
+    """sha256 of a source file's `code_text`, once per process and text."""
+    raw = _file_sha256(path)
+    if raw not in _CODE_HASHES:
+        with open(path, encoding="utf-8") as source:
+            _CODE_HASHES[raw] = hashlib.sha256(code_text(source.read()).encode()).hexdigest()
+    return _CODE_HASHES[raw]
+
+
+_CODE_HASHES: dict[str, str] = {}
 
 
 def _is_file(path: str) -> bool:
@@ -222,7 +277,7 @@ def _imported_modules(name: str, within: str) -> tuple[list[str], _Facts]:
 
 def _read_imports(name: str, within: str) -> tuple[list[str], _Facts]:
     origin, facts = _module_origin(name), _Facts()
-    facts.files[name] = [str(origin), _own_source_hash(name)[1]]
+    facts.files[name] = [str(origin), _file_sha256(origin), _own_source_hash(name)[1]]
     package = name if origin.name == "__init__.py" else name.rpartition(".")[0]
     names = [m for m in _import_names(origin, package) if m.startswith(within + ".") and _is_source(m, facts)]
     return names, facts
@@ -304,6 +359,7 @@ def clear_caches() -> None:
     _IMPORTS.clear()
     _CLOSURES.clear()
     _SOURCE_FILES.clear()
+    _CODE_HASHES.clear()
     _FILES_FOUND.clear()
     _ORIGINS.clear()
     _FOLDERS.clear()

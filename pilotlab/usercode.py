@@ -11,7 +11,8 @@ Whatever goes wrong is a `UserCodeError` of one line that names the file and lin
 a syntax error, an exception while the file is imported (the line in the user's file it came from),
 a name the file does not define (with "did you mean" and what it does define).
 
-`source_hash` is the sha256 of the file's text and of the user's own modules it imports (those found
+`source_hash` is the sha256 of the file's code (its text without comments, docstrings and blank lines) and
+of the user's own modules it imports (those found
 beside it, followed transitively; `import x`, `from x import y`, `from .x import y`, at any depth of
 the file), so editing any of them changes the key of the jobs that run the code. Nothing is imported
 to compute it: planning never runs user code.
@@ -32,6 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from matrix.errors import did_you_mean
+from matrix.fingerprint import code_text
 from pilotlab.errors import PilotlabError
 
 
@@ -226,14 +228,22 @@ def _package_inits(file: Path) -> list[Path]:
 
 
 def source_hash(spec: str, base: Path) -> str:
-    """sha256 over the text of `source_files(spec, base)` and their names (relative to their common folder)."""
+    """sha256 over the code of `source_files(spec, base)` (their text without comments, docstrings and
+    blank lines: matrix.fingerprint.code_text) and their names (relative to their common folder)."""
     files = source_files(spec, base)
     root = Path(os.path.commonpath([str(f.parent) for f in files]))
     digest = hashlib.sha256()
     for file in files:
         digest.update(f"# {file.relative_to(root).as_posix()}\n".encode())
-        digest.update(file.read_bytes())
+        digest.update(_code(file.read_bytes()))
     return digest.hexdigest()
+
+
+def _code(source: bytes) -> bytes:
+    try:
+        return code_text(source.decode("utf-8")).encode()
+    except UnicodeDecodeError:   # not UTF-8: Python reads it by its coding line; hashed as it is
+        return source
 
 
 def _module_file(code: UserCode, base: Path) -> tuple[Path, Path]:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from matrix.fingerprint import clear_caches, code_fingerprint, module_closure
+from matrix.fingerprint import clear_caches, code_fingerprint, code_text, module_closure
 from tests.child import python_path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -56,6 +56,29 @@ def test_editing_a_module_in_the_closure_changes_the_fingerprint(shop):
     (shop / "maths.py").write_text("PI = 3.14\n")   # imported by a function's import, twice removed
     clear_caches()
     assert code_fingerprint(module_closure("shop.strategy", "shop")) != before
+
+
+def test_comments_docstrings_and_blank_lines_are_not_code(shop):
+    (shop / "maths.py").write_text('"""Maths."""\nPI = 3.14  # π\n')
+    clear_caches()
+    before = code_fingerprint(module_closure("shop.strategy", "shop"))
+    (shop / "maths.py").write_text('"""Maths, reworded\nover two lines."""\n\n# a new comment\nPI = 3.14   # π, about\n')
+    clear_caches()
+    assert code_fingerprint(module_closure("shop.strategy", "shop")) == before
+    (shop / "maths.py").write_text('"""Maths."""\nPI = 3.1416\n')
+    clear_caches()
+    assert code_fingerprint(module_closure("shop.strategy", "shop")) != before
+
+
+@pytest.mark.parametrize("source, code", [
+    ('def f(x):\n    """Doc."""\n    return x  # why\n', "def f(x):\n    return x"),
+    ('class A:\n    """Doc\n    on two lines."""; B = 1\n', "class A:\n    ; B = 1"),
+    ('s = "é"  # ü\nt = "# not a comment"\n', 's = "é"\nt = "# not a comment"'),
+    ('def f():\n    x = 1\n    """not a docstring: not first"""\n', 'def f():\n    x = 1\n    """not a docstring: not first"""'),
+    ("def broken(:\n    # kept whole\n", "def broken(:\n    # kept whole\n"),
+])
+def test_code_text_drops_comments_and_docstrings_only(source, code):
+    assert code_text(source) == code
 
 
 CLOSURE_IN_A_PROCESS = ("from matrix.fingerprint import module_closure; "

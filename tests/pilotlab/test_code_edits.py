@@ -54,10 +54,10 @@ def original(tree) -> dict[str, str]:
     return plan_keys(tree)
 
 
-def changed_by_editing(tree: Path, module: str, original: dict[str, str]) -> set[str]:
+def changed_by_editing(tree: Path, module: str, original: dict[str, str], edit: str = "\n_EDITED = 1\n") -> set[str]:
     path = tree / module
     text = path.read_text()
-    path.write_text(text + "\n# an edit\n")
+    path.write_text(text + edit)
     try:
         keys = plan_keys(tree)
     finally:
@@ -68,6 +68,18 @@ def changed_by_editing(tree: Path, module: str, original: dict[str, str]) -> set
 
 def jobs_of_model(model: str, original: dict[str, str]) -> set[str]:
     return {name for name in original if name == f"train {model}" or f" {model}/" in name}
+
+
+def test_rewording_comments_and_docstrings_reruns_nothing(tree, original):
+    assert changed_by_editing(tree, "pilotlab/strategies/prune.py", original, "\n# a comment, reworded\n\n") == set()
+    path = tree / "pilotlab/predictor.py"
+    text = path.read_text()
+    path.write_text(text.replace('"""A pilotlab checkpoint (eager) or a TorchScript file."""',
+                                 '"""A pilotlab checkpoint (eager), or a TorchScript file: reworded."""', 1))
+    try:
+        assert text != path.read_text() and plan_keys(tree) == original
+    finally:
+        path.write_text(text)
 
 
 def test_editing_a_strategy_reruns_only_its_jobs(tree, original):

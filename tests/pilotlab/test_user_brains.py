@@ -52,7 +52,10 @@ def test_the_planner_makes_a_reference_lap_keyed_by_the_brain_s_source(tmp_path)
     assert lap.params["user_brain"] == {"name": "mine", "spec": SPEC, "base": str(tmp_path.resolve())}
     assert lap.inputs["brain_source"].sha256 == source_hash(SPEC, tmp_path)
     keys = {job.name: job.key for job in jobs}
-    (tmp_path / "brains" / "mine.py").write_text((tmp_path / "brains" / "mine.py").read_text() + "\n# an edit\n")
+    brain = tmp_path / "brains" / "mine.py"
+    brain.write_text(brain.read_text() + "\n# a comment: not code\n")
+    assert {job.name: job.key for job in engine.plan_jobs(load_recipe(tmp_path / "mine.yaml", DOMAIN), DOMAIN)} == keys
+    brain.write_text(brain.read_text() + "\nSPEED = 1.0\n")
     edited = {job.name: job.key for job in engine.plan_jobs(load_recipe(tmp_path / "mine.yaml", DOMAIN), DOMAIN)}
     assert {name for name in keys if keys[name] != edited[name]} == {lap.name}
 

@@ -94,7 +94,9 @@ def test_the_source_hash_follows_the_file_and_its_local_imports(brains):
     assert source_hash(spec, brains) == first
     write(brains, "brains/helpers.py", "def gain():\n    return 1.0\n")
     second = source_hash(spec, brains)
-    write(brains, "brains/mine.py", BRAIN + "\n# an edit\n")
+    write(brains, "brains/mine.py", BRAIN + "\n# a comment, reworded\n\n")
+    assert source_hash(spec, brains) == second              # comments and blank lines are not code
+    write(brains, "brains/mine.py", BRAIN + "\nLIMIT = 2\n")
     assert len({first, second, source_hash(spec, brains)}) == 3
     elsewhere = brains / "copy"
     for name in ("mine.py", "helpers.py"):
