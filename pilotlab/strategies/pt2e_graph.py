@@ -3,12 +3,14 @@ converted graph as ONNX QDQ, and what fine-tuning an exported graph needs."""
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import torch
 import torchao.quantization.pt2e.quantizer.x86_inductor_quantizer as x86
 from torch import nn
 from torchao.quantization.pt2e import move_exported_model_to_eval, move_exported_model_to_train
 
+from pilotlab.errors import PilotlabError
 from pilotlab.strategies.fold import fold_input_norm
 from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.saving import example_batch, export_onnx
@@ -30,9 +32,22 @@ def x86_quantizer(qat: bool) -> x86.X86InductorQuantizer:
 def save_quantized(converted: torch.fx.GraphModule, source: StrategySource) -> None:
     move_exported_model_to_eval(converted)
     export_onnx(converted, source.out / "model.onnx", source.input_shape)
+    check_quantized(source.out / "model.onnx")
     source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime", dtype="int8",
                              extra={"quantizer": "torchao pt2e X86InductorQuantizer",
                                     "weights": "int8 per channel", "activations": "uint8 per tensor"}))
+
+
+def check_quantized(path: Path) -> None:
+    """An int8 artifact whose ONNX graph holds no QuantizeLinear/DequantizeLinear node would run in
+    float while its row says int8 (a torch/torchao pair whose export drops the quantize ops): an error."""
+    import onnx
+    graph = onnx.load(str(path), load_external_data=False).graph
+    if not any(node.op_type in ("QuantizeLinear", "DequantizeLinear") for node in graph.node):
+        import torchao
+        raise PilotlabError(f"{path}: the quantized network was exported without a single quantize or dequantize "
+                            f"op, so it would run in float (torch {torch.__version__}, torchao {torchao.__version__}); "
+                            "pilotlab's int8 PT2E flow is made for the torch and torchao its pyproject.toml pins")
 
 
 def freeze_zeros(model: nn.Module) -> None:

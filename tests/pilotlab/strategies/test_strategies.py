@@ -169,6 +169,15 @@ def test_prune_quant_keeps_its_zeros_through_quantization(artifacts):
     assert zeros >= 0.48, zeros           # conv 30% / linear 50%, weighted by size: ~0.48
 
 
+def test_an_int8_export_without_quantize_ops_is_an_error(artifacts):
+    """Seen on a GPU host with torch 2.11 (outside the pin): prune_quant's ONNX held no int8 weights."""
+    from pilotlab.errors import PilotlabError
+    from pilotlab.strategies.pt2e_graph import check_quantized
+    check_quantized(artifacts["prune_quant"][0] / "model.onnx")
+    with pytest.raises(PilotlabError, match="without a single quantize or dequantize op, so it would run in float"):
+        check_quantized(artifacts["onnxruntime"][0] / "model.onnx")
+
+
 def test_structured_prune_really_shrinks_the_network(artifacts):
     result = artifacts["structured_prune"][1]
     assert result["params"] < 0.6 * result["params_before"]
