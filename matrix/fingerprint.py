@@ -2,8 +2,8 @@
 
 Code is fingerprinted by its source text without comments, docstrings and blank lines
 (`code_text`), so editing a strategy's module changes the keys of that strategy's jobs and nothing
-else, and rewording a comment or a docstring changes none; which modules a module imports is read from its source, parsed
-once per text (the names are remembered across processes by its sha256), and a whole closure is
+else, and rewording a comment or a docstring changes none; which modules a module imports is read
+from its source, parsed once per text (the names are remembered across processes by its sha256), and a whole closure is
 remembered with the file hashes and folder listings it was read from. Files are hashed by content
 (sha256), remembered by (path, size, mtime, inode) in the process and, for large files, across
 processes, so an unchanged multi-GB bag is read once (both memories: matrix.hashcache).
@@ -213,8 +213,8 @@ class _Facts:
 
 
 def _facts_hold(facts: dict | None) -> bool:
-    """Whether a remembered closure's facts are still true; the file hashes read to tell are kept for
-    the code fingerprint (`_own_source_hash`)."""
+    """Whether a remembered closure's facts are still true (each file's raw sha256); the code hashes
+    remembered beside them are kept for the code fingerprint (`_own_source_hash`)."""
     try:
         files = facts["files"]
         if any(_file_sha256(path) != sha for path, sha, _ in files.values()) or \
