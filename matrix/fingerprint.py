@@ -109,20 +109,29 @@ def _module_files_text(origin: Path) -> str:
     return "".join(f"# {f.relative_to(origin.parent)}\n{code_text(f.read_text(encoding='utf-8'))}\n" for f in files)
 
 
+CODE_TEXT_VERSION = 2   # in the remembered closures' key: a change of code_text re-reads them
+
+
 def code_text(source: str) -> str:
     """`source` without its comments, docstrings, trailing spaces and blank lines: what a code
     fingerprint hashes, so that rewording a comment or a docstring reruns nothing. The rest is kept
-    as written (what is left of a line keeps its place, so the text is the same under every Python
-    that parses it); a source that does not parse is kept whole."""
+    as written (what is left of a line keeps its place, and the lines of a multi-line string keep
+    their spaces and blank lines), so the text is the same under every Python that parses it; a
+    source that does not parse is kept whole."""
+    source = source.removeprefix("\ufeff").replace("\r\n", "\n").replace("\r", "\n")
     try:
-        spans = _comment_spans(source) + _docstring_spans(source)
+        tree = ast.parse(source)
+        comments = _comment_spans(source)
     except (SyntaxError, tokenize.TokenError, ValueError):
         return source
-    lines = source.splitlines()
-    for (first_row, first_col), (last_row, last_col) in sorted(spans, reverse=True):
+    lines = source.split("\n")   # rows as tokenize and ast count them (not str.splitlines: \x0c, \u2028...)
+    docstrings = _docstring_spans(tree, lines)
+    as_written = _string_rows(tree, {start for start, _ in docstrings})
+    for (first_row, first_col), (last_row, last_col) in sorted(comments + docstrings, reverse=True):
         head, tail = lines[first_row - 1][:first_col], lines[last_row - 1][last_col:]
         lines[first_row - 1:last_row] = [head + tail] + [""] * (last_row - first_row)
-    return "\n".join(kept for line in lines if (kept := line.rstrip()))
+    kept = (line if row in as_written else line.rstrip() for row, line in enumerate(lines, 1))
+    return "\n".join(line for row, line in enumerate(kept, 1) if line or row in as_written)
 
 
 def _comment_spans(source: str) -> list[tuple[tuple[int, int], tuple[int, int]]]:
@@ -130,11 +139,11 @@ def _comment_spans(source: str) -> list[tuple[tuple[int, int], tuple[int, int]]]
     return [(token.start, token.end) for token in tokens if token.type == tokenize.COMMENT]
 
 
-def _docstring_spans(source: str) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+def _docstring_spans(tree: ast.Module, lines: list[str]) -> list[tuple[tuple[int, int], tuple[int, int]]]:
     """The (row, column) spans of the docstrings of the module, its classes and functions (ast's
     columns count UTF-8 bytes; these count characters, as tokenize's do)."""
-    lines, spans = source.splitlines(), []
-    for node in ast.walk(ast.parse(source)):
+    spans = []
+    for node in ast.walk(tree):
         body = getattr(node, "body", None)
         if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and body and \
                 isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) and \
@@ -143,6 +152,18 @@ def _docstring_spans(source: str) -> list[tuple[tuple[int, int], tuple[int, int]
             spans.append(((doc.lineno, _chars(lines[doc.lineno - 1], doc.col_offset)),
                           (doc.end_lineno, _chars(lines[doc.end_lineno - 1], doc.end_col_offset))))
     return spans
+
+
+def _string_rows(tree: ast.Module, docstring_starts: set[tuple[int, int]]) -> set[int]:
+    """Rows that end inside a multi-line string (not a docstring) or begin inside one: their spaces and
+    blank lines are the string's, kept as written."""
+    rows = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Constant, ast.JoinedStr)) and node.end_lineno > node.lineno and \
+                (isinstance(node, ast.JoinedStr) or isinstance(node.value, (str, bytes))) and \
+                node.lineno not in {row for row, _ in docstring_starts}:
+            rows.update(range(node.lineno, node.end_lineno))
+    return rows
 
 
 def _chars(line: str, utf8_offset: int) -> int:
@@ -167,7 +188,8 @@ _CLOSURES: dict[tuple, tuple[str, ...]] = {}
 
 
 def _remembered_closure(name: str, within: str, skip: tuple[str, ...]) -> tuple[str, ...]:
-    where = [name, within, list(skip), str(_module_origin(within))]   # another checkout: another closure
+    where = [name, within, list(skip), str(_module_origin(within)),   # another checkout: another closure
+             CODE_TEXT_VERSION]
     key = hashlib.sha256(json.dumps(where).encode()).hexdigest()
     record = HASH_CACHE.get_closure(key)
     if record is not None and _facts_hold(record.get("facts")):

@@ -22,4 +22,5 @@ def library_message(error: BaseException, limit: int = 300) -> str:
 
 
 # "/onnxruntime_src/onnxruntime/core/graph/model.cc:256 onnxruntime::Model::Model(onnx::ModelProto&&, ...) "
-_CPP_LOCATION = re.compile(r"\s*/\S+\.(?:cc|cpp|h):\d+ [\w:~<>]+\(.*?\)\s+")
+# up to the signature's last ")" (with " const" or " [with T = ...]") before the reason's capital letter
+_CPP_LOCATION = re.compile(r"\s*/\S+\.(?:cc|cpp|cu|h):\d+ .*?\)(?: const)?(?: \[with [^\]]*\])?\s+(?=[A-Z])")

@@ -76,6 +76,12 @@ def test_comments_docstrings_and_blank_lines_are_not_code(shop):
     ('s = "é"  # ü\nt = "# not a comment"\n', 's = "é"\nt = "# not a comment"'),
     ('def f():\n    x = 1\n    """not a docstring: not first"""\n', 'def f():\n    x = 1\n    """not a docstring: not first"""'),
     ("def broken(:\n    # kept whole\n", "def broken(:\n    # kept whole\n"),
+    # rows as Python counts them: a line separator or a form feed in a comment moves no cut (review)
+    ("# see\u2028here\nx = 123456789\ny = 2  # c\n", "x = 123456789\ny = 2"),
+    ('x = 1\n\x0c\ndef f(a):\n    """doc\n    more"""\n    return a\n', "x = 1\ndef f(a):\n    return a"),
+    # a multi-line string's spaces and blank lines are its value
+    ('x = """a   \n\nb"""  # c\n', 'x = """a   \n\nb"""'),
+    ("\ufeff# c\r\nx = 1\r\n", "x = 1"),
 ])
 def test_code_text_drops_comments_and_docstrings_only(source, code):
     assert code_text(source) == code

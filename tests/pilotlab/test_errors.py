@@ -18,3 +18,12 @@ def test_a_library_message_drops_onnx_runtimes_source_line_and_signature():
                          "version: 99, max supported IR version: 14\n")
     assert library_message(error) == ("[ONNXRuntimeError] : 1 : FAIL : Load model from /tmp/m.onnx failed: "
                                       "Unsupported model IR version: 99, max supported IR version: 14")
+
+
+def test_a_library_message_drops_a_templated_signature_too():
+    error = RuntimeError("CUDA failure 100: no CUDA-capable device is detected ; GPU=0 ; hostname=h ; file=/onnxruntime_src/"
+                         "onnxruntime/core/providers/cuda/cuda_call.cc:123 std::conditional_t<THRW, void, "
+                         "onnxruntime::common::Status> onnxruntime::CudaCall(ERRTYPE, const char*, const char*, "
+                         "SUCCTYPE, const char*, const char*, int) [with ERRTYPE = cudaError; bool THRW = true; "
+                         "SUCCTYPE = cudaError; std::conditional_t<THRW, void, common::Status> = void] CUDA call failed")
+    assert library_message(error).endswith("hostname=h ; file= CUDA call failed")

@@ -6,7 +6,6 @@
 # stripped module is 8 MB (the wheel with its debug symbols and pybullet_data is 100 MB, over what travels).
 # Run from the repository root, once, here: `tools/gpu/prepare.sh [python3.12]`; then tools/gpu/check.sh there.
 set -euo pipefail
-py312=${1:-$(command -v python3.12 || ls /root/.pyenv/versions/3.12*/bin/python3.12 | head -1)}
 mkdir -p .whl/pb
 platforms=(--platform manylinux_2_17_x86_64 --platform manylinux2014_x86_64 --platform manylinux_2_24_x86_64
            --platform manylinux_2_28_x86_64 --platform manylinux_2_34_x86_64 --platform manylinux1_x86_64
@@ -21,6 +20,8 @@ for package in pydantic==2.14.4 pydantic_core==2.50.5 annotated-types==0.8.0 typ
         "${platforms[@]}" -d .whl "$package"
 done
 if [ ! -f .whl/pb/pybullet.cpython-312-x86_64-linux-gnu.so ]; then
+    py312=${1:-$(command -v python3.12 || ls /root/.pyenv/versions/3.12*/bin/python3.12 2>/dev/null | head -1)}
+    [ -n "$py312" ] || { echo "no Python 3.12 here to build pybullet with: name one (tools/gpu/prepare.sh PYTHON)"; exit 1; }
     build=$(mktemp -d)
     "$py312" -m venv "$build/venv" && "$build/venv/bin/pip" install -q setuptools wheel
     "$build/venv/bin/pip" wheel -q --no-deps --no-build-isolation pybullet==3.2.7 -w "$build/out"
