@@ -86,7 +86,9 @@ def _ident(source: Any) -> str:
 def _source_hash(source: Any) -> tuple[str, str]:
     ident = _ident(source)
     if ident not in _SOURCE_HASHES:
-        _SOURCE_HASHES[ident] = hashlib.sha256(_module_files_text(_module_origin(ident)).encode()).hexdigest()
+        origin = _module_origin(ident)
+        _SOURCE_HASHES[ident] = hashlib.sha256(_package_text(origin).encode()).hexdigest() \
+            if origin.name == "__init__.py" else _code_sha256(origin)   # a module's: read once for both uses
     return ident, _SOURCE_HASHES[ident]
 
 
@@ -101,10 +103,8 @@ def _module_origin(name: str) -> Path:
     return _ORIGINS[name]
 
 
-def _module_files_text(origin: Path) -> str:
-    """A module's text; for a package (`__init__.py`), every .py file below it, in a fixed order."""
-    if origin.name != "__init__.py":
-        return code_text(origin.read_text(encoding="utf-8"))
+def _package_text(origin: Path) -> str:
+    """A package's code (`origin`: its `__init__.py`): every .py file below it, in a fixed order."""
     files = sorted(origin.parent.rglob("*.py"))
     return "".join(f"# {f.relative_to(origin.parent)}\n{code_text(f.read_text(encoding='utf-8'))}\n" for f in files)
 
