@@ -5,7 +5,8 @@
 """
 from __future__ import annotations
 
-from collections.abc import Hashable, Iterable, Mapping
+from collections.abc import Callable, Hashable, Iterable, Mapping
+from typing import Any
 
 from matrix.errors import CycleError
 
@@ -127,6 +128,19 @@ def heights(graph: Graph) -> dict:
         for dep in graph.get(node, ()):
             height[dep] = max(height.get(dep, 0), height[node] + 1)
     return height
+
+
+def critical_paths(graph: Graph, cost: Callable[[Any], float]) -> dict:
+    """For each node, its own cost plus the costliest chain of nodes that depend on it (a list
+    scheduler's "upward rank"): with every cost 1 it is `heights` + 1; with expected seconds a short
+    recording that a long training waits on outranks a long lap that nothing needs."""
+    order = toposort(graph)
+    own = {node: float(cost(node)) for node in order}
+    path = dict(own)
+    for node in reversed(order):   # every dependent comes before the nodes it needs
+        for dep in graph.get(node, ()):
+            path[dep] = max(path[dep], own[dep] + path[node])
+    return path
 
 
 def subgraph(graph: Graph, targets: Iterable) -> dict:

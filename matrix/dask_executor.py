@@ -25,7 +25,7 @@ from collections.abc import Iterable
 
 from matrix.display import NullDisplay
 from matrix.errors import MatrixError
-from matrix.execute import BUSY_RETRY_S, Schedule, record_outcome
+from matrix.execute import BUSY_RETRY_S, Schedule, expected_seconds, record_outcome
 from matrix.jobs import Job
 from matrix.kinds import KINDS
 from matrix.runs import FAILED, NOT_STARTED, Outcome, RunSummary
@@ -80,7 +80,7 @@ def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: boo
     summary = RunSummary(fresh=len(statuses) - len(stale))
     started = time.monotonic()
     submit = _Submitter(client, store, tuple(kind_modules), timing_resource, results_to_replace(statuses))
-    schedule, running = Schedule(stale), {}
+    schedule, running = Schedule(stale, expected_seconds(store)), {}
     finished = distributed.as_completed()
     stopping = False
     while running or (schedule.has_work() and not stopping):

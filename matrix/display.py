@@ -28,13 +28,10 @@ from rich.table import Table
 from matrix.errors import MatrixError
 from matrix.runs import RunSummary
 from matrix.store import ARTIFACTS, LOG, Store, read_json, write_json_atomic
-from matrix.times import kind_times, recipe_keys
+from matrix.times import KindStats, kind_times, recipe_keys
 
 SYMBOLS = {"ok": "[green]✓[/]", "not_applicable": "[yellow]–[/]", "failed": "[red]✗[/]",
            "skipped": "[red]↷[/]", "not_started": "[red]·[/]", "done_elsewhere": "[green]✓[/]"}
-DEFAULT_ESTIMATE_S = 5.0
-STATS_FORMAT = 2          # <store>/stats.json: {"format", "kinds": {kind: [mean, n]}, "names": {job name: [mean, n]}}
-MAX_NAMES = 20_000        # job names remembered in stats.json (the least recently run go first)
 KNOWN_WEIGHT = 3          # a kind's mean on the store counts as this many of this run's finished jobs
 NAME_WIDTH = 44           # longer job names are cut, so the times stay on the line
 PLAIN_INTERVAL_S = 10.0   # a status line this often when the output is not a terminal
@@ -111,59 +108,6 @@ class NullDisplay:
 Display = NullDisplay
 
 
-class KindStats:
-    """How long jobs took on this store, for time-left estimates: a moving mean per job kind, and per
-    job name (a rerun of an edited recipe knows what each of its jobs took the last time)."""
-
-    def __init__(self, store: Store):
-        self.path = store.root / "stats.json"
-        saved = read_json(self.path)
-        saved = saved if isinstance(saved, dict) else {}
-        if saved.get("format") != STATS_FORMAT:      # the first format: {kind: [mean, count]}
-            saved = {"kinds": saved, "names": {}}
-        self.means = _means(saved.get("kinds"))
-        self.names = _means(saved.get("names"))
-
-    def estimate(self, kind: str, name: str | None = None) -> float:
-        """The job's own mean if it ran here before, else its kind's, else the median kind's (a kind
-        never run here is not charged the mean of a few slow ones, a training's)."""
-        if name is not None and name in self.names:
-            return self.names[name][0]
-        if kind in self.means:
-            return self.means[kind][0]
-        known = sorted(mean for mean, _ in self.means.values())
-        return known[len(known) // 2] if known else DEFAULT_ESTIMATE_S
-
-    def add(self, kind: str, seconds: float, name: str | None = None) -> None:
-        _add_to(self.means, kind, seconds)
-        if name is not None:
-            self.names.pop(name, None)                # re-inserted last: the oldest names go first
-            _add_to(self.names, name, seconds)
-            for old in list(self.names)[:max(0, len(self.names) - MAX_NAMES)]:
-                del self.names[old]
-
-    def save(self) -> None:
-        try:
-            write_json_atomic(self.path, {"format": STATS_FORMAT, "kinds": self.means, "names": self.names})
-        except OSError:
-            pass  # estimates are a nicety; a read-only store still runs
-
-
-def _means(saved: object) -> dict[str, list[float]]:
-    """The {slot: [mean, count]} entries of a saved mapping that are that (a damaged file loses those only)."""
-    if not isinstance(saved, dict):
-        return {}
-    return {slot: [float(value[0]), int(value[1])] for slot, value in saved.items()
-            if isinstance(value, list) and len(value) == 2
-            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)}
-
-
-def _add_to(means: dict[str, list[float]], slot: str, seconds: float) -> None:
-    mean, count = means.get(slot, [0.0, 0])
-    count = min(count + 1, 20)  # a moving mean: recent runs matter more
-    means[slot] = [mean + (seconds - mean) / count, count]
-
-
 class Estimate:
     """Seconds left: the prior of each job not finished, the running ones corrected by their own
     progress, divided by how many jobs have been running at once; smoothed. A job's prior is what it
@@ -175,7 +119,7 @@ class Estimate:
         self.known = {kind: mean for kind, (mean, _) in stats.means.items()}   # before this run adds to them
         self.kind = {job.key: job.kind for job in jobs}
         self.own = {job.key for job in jobs if job.name in stats.names}   # priors of the job itself
-        self.prior = {job.key: stats.estimate(job.kind, job.name) for job in jobs}
+        self.prior = {job.key: stats.estimate(job.kind, job.name, getattr(job, "params", None)) for job in jobs}
         self.finished: dict[str, list[float]] = {}   # kind -> [seconds in all, jobs] of this run
         self.started_at: dict[str, float] = {}
         self.fraction: dict[str, float] = {}

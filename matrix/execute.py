@@ -14,31 +14,39 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 
-from matrix.dag import dependents, heights
+from matrix.dag import critical_paths, dependents
 from matrix.display import Display, NullDisplay
 from matrix.jobs import Job
 from matrix.kinds import KINDS
 from matrix.runs import BUSY, DONE_ELSEWHERE, FAILED, NOT_STARTED, SKIPPED, Outcome, RunSummary, worker_threads
 from matrix.stale import FRESH, JobStatus, results_to_replace
 from matrix.store import Store
+from matrix.times import KindStats
 from matrix.worker import execute_job, init_worker
 
 BUSY_RETRY_S = 0.2
+BACKFILL_SCAN = 256   # the best-ranked waiting jobs looked at for one that fits before an exclusive job
 
 
 class Schedule:
     """Which stale jobs may start: all their stale dependencies done, none failed.
 
-    Ready jobs start in order of how long a chain of jobs waits on them (`matrix.dag.heights`),
-    then in plan order, so the critical path moves first: a training that the whole study waits on
-    starts before a reference lap that only the report needs."""
+    Ready jobs start in order of their critical path (`matrix.dag.critical_paths`: a job's expected
+    seconds plus those of the longest chain of jobs waiting on it), then in plan order, so the
+    critical path moves first: a training that the whole study waits on starts before a reference lap
+    that only the report needs. `expected(job)` gives seconds (`matrix.times.KindStats`); without it
+    every job counts 1 and the longest chain in jobs decides.
 
-    def __init__(self, stale: list[Job]):
+    A job that runs alone (a timing) waits for the running jobs to finish; meanwhile a job it outranks
+    starts only if it is expected to end before they are (backfilling, as batch schedulers do): the
+    idle core works and the timing starts no later for it."""
+
+    def __init__(self, stale: list[Job], expected: Callable[[Job], float] | None = None):
         self.jobs = {job.key: job for job in stale}
         # one entry per dependency, even one a job needs under two roles (else it would be made ready twice)
         self.graph = {job.key: list(dict.fromkeys(d.key for d in job.dep_jobs() if d.key in self.jobs))
@@ -48,8 +56,9 @@ class Schedule:
         for key, deps in self.graph.items():
             for dep in deps:
                 self.needed_by.setdefault(dep, []).append(key)
-        height = heights(self.graph)
-        self.rank = {key: (-height[key], order) for order, key in enumerate(self.jobs)}
+        self.expected = {key: max(float(expected(job)), 0.0) if expected else 1.0 for key, job in self.jobs.items()}
+        path = critical_paths(self.graph, self.expected.__getitem__)
+        self.rank = {key: (-path[key], order) for order, key in enumerate(self.jobs)}
         self.alone: list[tuple] = []    # heaps of (rank, key): jobs that run alone, and the others
         self.beside: list[tuple] = []
         for key in self.jobs:
@@ -57,6 +66,7 @@ class Schedule:
                 self._make_ready(key)
         self.later: list[tuple[float, str]] = []   # jobs another run holds, retried after a pause
         self.settled: set[str] = set()
+        self.started: dict[str, float] = {}        # running jobs: when they started (monotonic)
 
     def has_work(self) -> bool:
         return bool(self.alone or self.beside or self.later)
@@ -66,18 +76,35 @@ class Schedule:
         if exclusive_running or running >= slots or not self.has_ready():
             return None
         if not running:  # an idle host: the first job, exclusive or not
-            return self.next_ready()
+            return self._starting(self.next_ready())
         # Others run: an exclusive job waits until the host is idle (it then runs alone). Work of its
         # rank or lower goes on meanwhile; work it outranks waits with it, so that a training many
-        # jobs need is not held up behind a long job nothing needs.
+        # jobs need is not held up behind a long job nothing needs, unless it fits before the host is idle.
         if self.beside and not self._exclusive_outranks_the_rest():
-            return self.jobs[heapq.heappop(self.beside)[1]]
-        return None
+            return self._starting(self.jobs[heapq.heappop(self.beside)[1]])
+        return self._starting(self._backfill()) if self.beside else None
 
     def _exclusive_outranks_the_rest(self) -> bool:
         """The first exclusive job has a longer chain waiting on it than the first of the others."""
-        negated_height = 0   # a heap entry is (rank, key), rank = (-height, plan order)
-        return bool(self.alone) and self.alone[0][0][negated_height] < self.beside[0][0][negated_height]
+        negated_path = 0   # a heap entry is (rank, key), rank = (-critical path, plan order)
+        return bool(self.alone) and self.alone[0][0][negated_path] < self.beside[0][0][negated_path]
+
+    def _backfill(self) -> Job | None:
+        """The first-ranked waiting job expected to end before the running ones are (so the exclusive
+        job starts no later); None when none is, or when a running job is already past its estimate."""
+        now = time.monotonic()
+        window = max((at + self.expected[key] - now for key, at in self.started.items()), default=0.0)
+        for entry in heapq.nsmallest(BACKFILL_SCAN, self.beside):
+            if self.expected[entry[1]] <= window:
+                self.beside.remove(entry)
+                heapq.heapify(self.beside)
+                return self.jobs[entry[1]]
+        return None
+
+    def _starting(self, job: Job | None) -> Job | None:
+        if job is not None:
+            self.started[job.key] = time.monotonic()
+        return job
 
     def has_ready(self) -> bool:
         return bool(self.alone or self.beside)
@@ -105,17 +132,20 @@ class Schedule:
 
     def done(self, key: str) -> None:
         self.settled.add(key)
+        self.started.pop(key, None)
         for other in self.needed_by.get(key, ()):
             self.waiting[other].discard(key)
             if not self.waiting[other]:
                 self._make_ready(other)
 
     def retry_later(self, key: str) -> None:
+        self.started.pop(key, None)
         self.later.append((time.monotonic() + BUSY_RETRY_S, key))
 
     def blocked_by(self, key: str) -> list[Job]:
         """Settle and return every job that depends on `key`."""
         self.settled.add(key)
+        self.started.pop(key, None)
         blocked = dependents(self.graph, [key]) - self.settled
         self.settled |= blocked
         self.alone = [entry for entry in self.alone if entry[1] not in blocked]
@@ -127,6 +157,13 @@ class Schedule:
     def pending(self) -> list[Job]:
         """Jobs that never started."""
         return [job for key, job in self.jobs.items() if key not in self.settled]
+
+
+def expected_seconds(store: Store) -> Callable[[Job], float]:
+    """How long a job is expected to take: what it, or its kind, took on this store before, else what
+    its kind says is typical (matrix.times.KindStats)."""
+    stats = KindStats(store)
+    return lambda job: stats.estimate(job.kind, job.name, job.params)
 
 
 def runs_alone(job: Job) -> bool:
@@ -144,7 +181,7 @@ def run_local(statuses: list[JobStatus], store: Store, *, jobs: int = 1, keep_go
     if stale:
         replacing = results_to_replace(statuses)
         with _Pool(store, max(1, jobs), tuple(kind_modules), display, replacing) as pool, _interrupt_at_safe_points():
-            _drive(Schedule(stale), pool, summary, keep_going, display)
+            _drive(Schedule(stale, expected_seconds(store)), pool, summary, keep_going, display)
     summary.wall_s = time.monotonic() - started
     return summary
 

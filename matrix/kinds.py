@@ -112,10 +112,18 @@ class JobKind:
     resources: Mapping[str, float] = field(default_factory=dict)  # e.g. {"GPU": 1} for Dask placement
     resources_for: Callable[[Mapping[str, Any]], Mapping[str, float]] | None = None  # per job
     exclusive_for: Callable[[Mapping[str, Any]], bool] | None = None  # per job, instead of `exclusive`
+    # Seconds a job of this kind typically takes, for a store that has not run it yet (as Dask's default
+    # task durations): the scheduler's and the time left's first guess, never part of a key.
+    typical_s: float | None = None
+    typical_for: Callable[[Mapping[str, Any]], float] | None = None   # per job, instead of `typical_s`
 
     def runs_alone(self, params: Mapping[str, Any]) -> bool:
         """Whether a job with `params` must have its host to itself (it measures time there)."""
         return bool(self.exclusive_for(params)) if self.exclusive_for is not None else self.exclusive
+
+    def typical(self, params: Mapping[str, Any]) -> float | None:
+        """Seconds a job with `params` typically takes (None: the kind does not say)."""
+        return float(self.typical_for(params)) if self.typical_for is not None else self.typical_s
 
     @property
     def module(self) -> str:
@@ -204,10 +212,13 @@ KINDS: Registry[JobKind] = Registry("job kind")
 
 def register_kind(name: str, target: str | Handler, *, params: Any = None, code: CodeSources = (),
                   code_for=None, code_exclude=None, exclusive: bool = False,
-                  resources: Mapping[str, float] | None = None, resources_for=None, exclusive_for=None) -> JobKind:
+                  resources: Mapping[str, float] | None = None, resources_for=None, exclusive_for=None,
+                  typical_s: float | None = None, typical_for=None) -> JobKind:
     """Register job kind `name`, run by `target` ("module:function", or the function)."""
+    if typical_s is not None and not 0 < typical_s < float("inf"):
+        raise MatrixError(f"job kind {name!r}: typical_s must be a positive number of seconds (got {typical_s!r})")
     return KINDS.add(name, JobKind(name, target, params, tuple(code), code_for, code_exclude, exclusive,
-                                   dict(resources or {}), resources_for, exclusive_for))
+                                   dict(resources or {}), resources_for, exclusive_for, typical_s, typical_for))
 
 
 def job_kind(name: str, **options) -> Callable[[Handler], Handler]:

@@ -1,4 +1,6 @@
-"""Where a recipe's minutes go: the stored jobs' durations, summed per kind.
+"""Where a recipe's minutes go: the stored jobs' durations, summed per kind; and how long a job is
+expected to take (`KindStats`: what it or its kind took on this store), for the scheduler and the
+time left.
 
     rows = kind_times(store, recipe="quickstart")    # [KindTime(kind, jobs, total_s, mean_s, max_s, slowest)]
 
@@ -8,10 +10,17 @@ exceed the run's wall time (`run` prints that).
 """
 from __future__ import annotations
 
-from collections.abc import Iterable
+import math
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
-from matrix.store import Store, read_json
+from matrix.kinds import KINDS, JobKind
+from matrix.store import Store, read_json, write_json_atomic
+
+DEFAULT_ESTIMATE_S = 5.0
+STATS_FORMAT = 2          # <store>/stats.json: {"format", "kinds": {kind: [mean, n]}, "names": {job name: [mean, n]}}
+MAX_NAMES = 20_000        # job names remembered in stats.json (the least recently run go first)
 
 
 @dataclass(frozen=True)
@@ -51,3 +60,73 @@ def kind_times(store: Store, keys: Iterable[str] | None = None) -> list[KindTime
             entry[2], entry[3] = seconds, spec.get("name", key[:10])
     rows = [KindTime(kind, jobs, total, longest, name) for kind, (jobs, total, longest, name) in totals.items()]
     return sorted(rows, key=lambda row: -row.total_s)
+
+
+class KindStats:
+    """How long jobs took on this store, for time-left estimates: a moving mean per job kind, and per
+    job name (a rerun of an edited recipe knows what each of its jobs took the last time)."""
+
+    def __init__(self, store: Store):
+        self.path = store.root / "stats.json"
+        saved = read_json(self.path)
+        saved = saved if isinstance(saved, dict) else {}
+        if saved.get("format") != STATS_FORMAT:      # the first format: {kind: [mean, count]}
+            saved = {"kinds": saved, "names": {}}
+        self.means = _means(saved.get("kinds"))
+        self.names = _means(saved.get("names"))
+
+    def estimate(self, kind: str, name: str | None = None, params: Mapping[str, Any] | None = None) -> float:
+        """The job's own mean if it ran here before; else, for a kind that tells its jobs apart by params
+        (`typical_for`: a lap with a tolerance search is a dozen laps), what it says of these params; else
+        the kind's mean here, else what the kind says its jobs typically take, else the median kind's (a
+        kind never run here is not charged the mean of a few slow ones, a training's)."""
+        if name is not None and name in self.names:
+            return self.names[name][0]
+        found = KINDS.get(kind) if kind in KINDS else None
+        if found is not None and found.typical_for is not None and (typical := _typical(found, params)):
+            return typical
+        if kind in self.means:
+            return self.means[kind][0]
+        if found is not None and (typical := _typical(found, params)):
+            return typical
+        known = sorted(mean for mean, _ in self.means.values())
+        return known[len(known) // 2] if known else DEFAULT_ESTIMATE_S
+
+    def add(self, kind: str, seconds: float, name: str | None = None) -> None:
+        _add_to(self.means, kind, seconds)
+        if name is not None:
+            self.names.pop(name, None)                # re-inserted last: the oldest names go first
+            _add_to(self.names, name, seconds)
+            for old in list(self.names)[:max(0, len(self.names) - MAX_NAMES)]:
+                del self.names[old]
+
+    def save(self) -> None:
+        try:
+            write_json_atomic(self.path, {"format": STATS_FORMAT, "kinds": self.means, "names": self.names})
+        except OSError:
+            pass  # estimates are a nicety; a read-only store still runs
+
+
+def _typical(kind: JobKind, params: Mapping[str, Any] | None) -> float | None:
+    """What the kind says a job with `params` typically takes; None when it does not say (or its guess
+    fails or is not a positive number: a guess never stops a run)."""
+    try:
+        seconds = kind.typical(params or {})
+    except Exception:   # a domain's guess that trips on odd params: no guess
+        return None
+    return seconds if seconds is not None and 0 < seconds < math.inf else None
+
+
+def _means(saved: object) -> dict[str, list[float]]:
+    """The {slot: [mean, count]} entries of a saved mapping that are that (a damaged file loses those only)."""
+    if not isinstance(saved, dict):
+        return {}
+    return {slot: [float(value[0]), int(value[1])] for slot, value in saved.items()
+            if isinstance(value, list) and len(value) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)}
+
+
+def _add_to(means: dict[str, list[float]], slot: str, seconds: float) -> None:
+    mean, count = means.get(slot, [0.0, 0])
+    count = min(count + 1, 20)  # a moving mean: recent runs matter more
+    means[slot] = [mean + (seconds - mean) / count, count]

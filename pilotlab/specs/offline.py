@@ -24,4 +24,6 @@ class OfflineSpec(Spec):
                                                           "another host keeps it with its timing")
 
 
-register_kind("offline", "pilotlab.jobs.offline:run_offline", params=OfflineSpec, resources_for=gpu_resources)
+# typical seconds (a guess for the scheduler, matrix.times): a test set of a few hundred frames
+register_kind("offline", "pilotlab.jobs.offline:run_offline", params=OfflineSpec, resources_for=gpu_resources,
+              typical_s=1.0)

@@ -158,5 +158,18 @@ def lap_resources(params) -> dict[str, float]:
     return timing_resources(params) if timed_live(params) else gpu_resources(params)
 
 
+# What a lap cell typically takes, for the scheduler of a store that has not run it (matrix.times): a
+# lap of simple_circuit took 4-11 s on the 2-core development machine; a tolerance search drives a lap
+# per fixed latency and about seven more to bisect.
+LAP_S, BISECTION_LAPS = 6.0, 7
+
+
+def typical_seconds(params) -> float:
+    settings = LapSettings.model_validate({k: params[k] for k in ("laps", "repetitions", "starts", "tolerance")
+                                           if k in params})
+    searched = 0 if settings.tolerance is None else len(settings.tolerance.fixed_ms) + BISECTION_LAPS
+    return LAP_S * settings.laps * settings.runs * (1 + searched)
+
+
 register_kind("online", "pilotlab.jobs.online:run_online", params=OnlineSpec, exclusive_for=timed_live,
-              resources_for=lap_resources)
+              resources_for=lap_resources, typical_for=typical_seconds)

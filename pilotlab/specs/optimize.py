@@ -41,5 +41,6 @@ def own_strategy(params) -> list[str]:
     return list(dict.fromkeys(found))
 
 
+# typical seconds (a guess for the scheduler, matrix.times): 1-18 s on 2 cores, fine-tunes the longest
 register_kind("optimize", "pilotlab.jobs.optimize:run_optimize", params=OptimizeSpec,
-              code_for=own_strategy, code_exclude=strategy_modules)
+              code_for=own_strategy, code_exclude=strategy_modules, typical_s=10.0)

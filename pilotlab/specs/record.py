@@ -50,7 +50,16 @@ class RecordSpec(RecordSettings, InWorld):
     version: int = 1
 
 
-register_kind("record", "pilotlab.jobs.record:run_record", params=RecordSpec)
+# What a recording typically takes, for the scheduler of a store that has not run it (matrix.times):
+# a lap of simple_circuit at 640×480 took 4-6 s on the 2-core development machine.
+LAP_S = 5.0
+
+
+def typical_seconds(params) -> float:
+    return LAP_S * float(params.get("laps", RecordSpec.model_fields["laps"].default))
+
+
+register_kind("record", "pilotlab.jobs.record:run_record", params=RecordSpec, typical_for=typical_seconds)
 
 
 def with_circuit_file(spec, inputs):

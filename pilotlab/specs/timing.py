@@ -41,5 +41,6 @@ def timing_resources(params) -> dict[str, float]:
     return gpu_resources(params) | ({machine: 1} if machine else {})
 
 
+# typical seconds (a guess for the scheduler, matrix.times): 3-4 s, most of it the measuring itself
 register_kind("timing", "pilotlab.jobs.timing:run_timing", params=TimingSpec, exclusive=True,
-              resources_for=timing_resources)
+              resources_for=timing_resources, typical_s=3.5)

@@ -4,7 +4,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from matrix import CycleError
-from matrix.dag import dependents, find_cycle, graph_of, heights, in_order, subgraph, toposort
+from matrix.dag import critical_paths, dependents, find_cycle, graph_of, heights, in_order, subgraph, toposort
 from matrix.jobs import Job
 from tests.matrix import toydomain  # noqa: F401
 
@@ -39,6 +39,17 @@ def test_heights_count_the_longest_chain_waiting_on_a_node():
     assert heights(GRAPH) == {"data": 4, "train": 3, "opt": 2, "eval1": 1, "eval2": 1, "report": 0}
 
 
+def test_critical_paths_add_a_node_s_cost_to_the_costliest_chain_waiting_on_it():
+    assert critical_paths(GRAPH, lambda node: 1) == {node: h + 1 for node, h in heights(GRAPH).items()}
+    seconds = {"report": 0, "eval1": 5, "eval2": 60, "opt": 10, "train": 30, "data": 4}
+    path = critical_paths(GRAPH, seconds.__getitem__)
+    assert path == {"report": 0, "eval1": 5, "eval2": 60, "opt": 70, "train": 100, "data": 104}
+    # a short recording outranks a long lap nothing needs when what waits on it is longer still
+    lab = {"lap": [], "training": ["recording"], "recording": []}
+    assert critical_paths(lab, {"lap": 40, "training": 60, "recording": 5}.__getitem__)["recording"] == 65
+    assert critical_paths(lab, {"lap": 40, "training": 30, "recording": 5}.__getitem__)["recording"] == 35
+
+
 def test_graph_of_jobs_shares_equal_jobs():
     source = Job("source", "s", {"value": 1})
     twin = Job("source", "s again", {"value": 1})
@@ -60,6 +71,8 @@ def test_toposort_on_random_dags(edges):
     assert find_cycle(graph) is None
     height = heights(graph)
     assert all(height[d] > height[n] for n, deps in graph.items() for d in deps)
+    path = critical_paths(graph, lambda node: node % 3 + 0.5)
+    assert all(path[d] > path[n] for n, deps in graph.items() for d in deps)
 
 
 @given(dags, st.lists(st.integers(0, 24), max_size=6))

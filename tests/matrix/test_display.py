@@ -1,5 +1,6 @@
 """The run's display: time left labelled and smoothed, long names cut, and a status line at a steady
-interval when the output is not a terminal (CI, nohup)."""
+interval when the output is not a terminal (CI, nohup). Its kinds are named apart from any domain's
+(a domain's kinds say what their jobs typically take, matrix.times)."""
 import io
 import time
 from types import SimpleNamespace
@@ -11,7 +12,7 @@ from matrix.runs import Outcome
 from matrix.store import Store
 
 
-def job(key, kind="train", name=None):
+def job(key, kind="fit", name=None):
     return SimpleNamespace(key=key, kind=kind, name=name or f"job {key}")
 
 
@@ -22,8 +23,8 @@ def stats_with(tmp_path, **means):
 
 
 def test_time_left_starts_from_each_kinds_mean_and_counts_down(tmp_path):
-    stats = stats_with(tmp_path, train=60.0, offline=10.0)
-    estimate = Estimate(stats, [job("t"), job("o1", "offline"), job("o2", "offline")], now=0.0)
+    stats = stats_with(tmp_path, fit=60.0, score=10.0)
+    estimate = Estimate(stats, [job("t"), job("o1", "score"), job("o2", "score")], now=0.0)
     assert estimate.left(0.0) == 80.0
     estimate.job_started("t", 0.0)
     assert 60.0 <= estimate.left(20.0) <= 80.0          # counts down, never up, while things go as expected
@@ -32,7 +33,7 @@ def test_time_left_starts_from_each_kinds_mean_and_counts_down(tmp_path):
 
 
 def test_the_shown_estimate_does_not_jump_with_a_jumpy_progress(tmp_path):
-    estimate = Estimate(stats_with(tmp_path, train=60.0), [job("t")], now=0.0)
+    estimate = Estimate(stats_with(tmp_path, fit=60.0), [job("t")], now=0.0)
     estimate.job_started("t", 0.0)
     shown, raw = [estimate.left(0.0)], [estimate.raw(0.0)]
     for second, fraction in ((5, 0.5), (10, 0.1), (15, 0.9), (20, 0.2)):   # a progress that leaps about
@@ -54,11 +55,11 @@ def plain_display(tmp_path, interval_s=0.2):
 def test_without_a_terminal_a_status_line_comes_at_a_steady_interval(tmp_path):
     display, buffer = plain_display(tmp_path)
     long_name = "train " + "a_very_long_model_name_" * 8
-    display.start([job("t", name=long_name), job("o", "offline")])
+    display.start([job("t", name=long_name), job("o", "score")])
     display.job_started(job("t", name=long_name))
     display.job_progress("t", completed=3, total=10, description="epoch 3/10")
     time.sleep(0.7)
-    display.job_finished(Outcome("t", long_name, "train", "ok", duration_s=0.7))
+    display.job_finished(Outcome("t", long_name, "fit", "ok", duration_s=0.7))
     display.stop()
     lines = [line for line in buffer.getvalue().splitlines() if "jobs, elapsed" in line]
     assert len(lines) >= 2, buffer.getvalue()
@@ -74,8 +75,8 @@ def test_clock_reads_hours_minutes_seconds():
 def test_a_kind_new_to_the_store_is_priced_by_the_median_kind_then_by_its_own_finished_jobs(tmp_path):
     # The study's first run on a store that had trained and fine-tuned only: 100 laps were priced at the
     # mean of every kind (a training's 688 s among them), "about 6:51:52 left" for a 40-minute run.
-    stats = stats_with(tmp_path, frames=6.0, record=17.0, train=688.0)
-    laps = [job(f"lap{i}", "online") for i in range(10)]
+    stats = stats_with(tmp_path, decode=6.0, capture=17.0, fit=688.0)
+    laps = [job(f"lap{i}", "drive") for i in range(10)]
     estimate = Estimate(stats, laps, now=0.0)
     assert estimate.raw(0.0) == 10 * 17.0              # the median kind's mean, not (6 + 17 + 688) / 3
     estimate.job_started("lap0", 0.0)
@@ -84,41 +85,41 @@ def test_a_kind_new_to_the_store_is_priced_by_the_median_kind_then_by_its_own_fi
 
 
 def test_a_known_kinds_mean_moves_towards_this_runs_jobs(tmp_path):
-    stats = stats_with(tmp_path, offline=10.0)
-    estimate = Estimate(stats, [job(f"o{i}", "offline") for i in range(5)], now=0.0)
+    stats = stats_with(tmp_path, score=10.0)
+    estimate = Estimate(stats, [job(f"o{i}", "score") for i in range(5)], now=0.0)
     estimate.job_started("o0", 0.0)
     estimate.job_finished("o0", 50.0)
-    stats.add("offline", 50.0, "job o0")    # as the display does when a job finishes: not counted twice
+    stats.add("score", 50.0, "job o0")    # as the display does when a job finishes: not counted twice
     assert abs(estimate.raw(50.0) - 4 * (3 * 10.0 + 50.0) / 4) < 1e-9
 
 
 def test_a_job_that_ran_here_before_is_priced_by_its_own_time(tmp_path):
     stats = KindStats(Store(tmp_path))
-    stats.add("optimize", 200.0, "optimize pilotnet/qat")
-    stats.add("optimize", 10.0, "optimize pilotnet/baseline")
+    stats.add("tune", 200.0, "optimize pilotnet/qat")
+    stats.add("tune", 10.0, "optimize pilotnet/baseline")
     stats.save()
     again = KindStats(Store(tmp_path))
-    assert again.estimate("optimize", "optimize pilotnet/qat") == 200.0
-    assert again.estimate("optimize", "optimize pilotnet/new") == again.estimate("optimize") == 105.0
-    estimate = Estimate(again, [job("q", "optimize", "optimize pilotnet/qat"),
-                                job("n", "optimize", "optimize pilotnet/new")], now=0.0)
+    assert again.estimate("tune", "optimize pilotnet/qat") == 200.0
+    assert again.estimate("tune", "optimize pilotnet/new") == again.estimate("tune") == 105.0
+    estimate = Estimate(again, [job("q", "tune", "optimize pilotnet/qat"),
+                                job("n", "tune", "optimize pilotnet/new")], now=0.0)
     estimate.job_started("n", 0.0)
     estimate.job_finished("n", 1.0)                   # a quick new one does not make qat look quick
     assert estimate.raw(1.0) == 200.0
 
 
 def test_stats_of_the_first_format_are_read(tmp_path):
-    (tmp_path / "stats.json").write_text('{"train": [60.0, 3], "offline": [10.0, 5]}')
+    (tmp_path / "stats.json").write_text('{"fit": [60.0, 3], "score": [10.0, 5]}')
     stats = KindStats(Store(tmp_path))
-    assert (stats.estimate("train"), stats.estimate("offline", "offline x")) == (60.0, 10.0)
-    stats.add("train", 30.0, "train m")
+    assert (stats.estimate("fit"), stats.estimate("score", "offline x")) == (60.0, 10.0)
+    stats.add("fit", 30.0, "train m")
     stats.save()
-    assert KindStats(Store(tmp_path)).estimate("train", "train m") == 30.0
+    assert KindStats(Store(tmp_path)).estimate("fit", "train m") == 30.0
 
 
 def test_a_damaged_stats_file_loses_only_its_damaged_entries(tmp_path):
-    (tmp_path / "stats.json").write_text('{"format": 2, "kinds": {"train": [60.0, 3], "offline": "x", '
-                                         '"online": [1, 2, 3], "frames": [NaN, 1]}, "names": "not a mapping"}')
+    (tmp_path / "stats.json").write_text('{"format": 2, "kinds": {"fit": [60.0, 3], "score": "x", '
+                                         '"drive": [1, 2, 3], "decode": [NaN, 1]}, "names": "not a mapping"}')
     stats = KindStats(Store(tmp_path))
-    assert stats.means == {"train": [60.0, 3]} and stats.names == {}
-    assert stats.estimate("offline", "offline x") == 60.0
+    assert stats.means == {"fit": [60.0, 3]} and stats.names == {}
+    assert stats.estimate("score", "offline x") == 60.0

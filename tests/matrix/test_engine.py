@@ -357,6 +357,38 @@ def test_the_critical_path_starts_first_and_a_long_job_nothing_needs_does_not_ho
         KINDS._entries.pop("alone_toy")
 
 
+def test_an_exclusive_job_waiting_for_the_host_lets_only_work_that_ends_before_it_start():
+    """Backfilling: the quickstart's timings waited for the last fine-tune while the other core idled,
+    and the reference laps, which nothing needs, ran last. A job the waiting timing outranks starts
+    beside the running one only if it is expected to end first (the timing then starts no later)."""
+    import time
+    from matrix.execute import Schedule
+    from matrix.kinds import register_kind
+    register_kind("alone_toy", lambda ctx: {}, exclusive=True)
+    try:
+        fine_tune, recording = Job("source", "fine-tune", {"value": 1}), Job("source", "recording", {"value": 2})
+        timing = Job("alone_toy", "timing", {}, deps={"data": recording})
+        trainings = [Job("power", f"training {i}", {"power": i}, deps={"source": timing}) for i in (2, 3)]
+        fits, too_long = Job("source", "reference lap", {"value": 3}), Job("source", "search", {"value": 4})
+        seconds = {fine_tune.key: 60.0, recording.key: 1.0, timing.key: 3.0, fits.key: 20.0, too_long.key: 50.0,
+                   **{t.key: 100.0 for t in trainings}}
+        schedule = Schedule([fine_tune, recording, timing, *trainings, fits, too_long], lambda job: seconds[job.key])
+        assert schedule.take(False, 0, 3) == recording          # 104 s of work wait on it
+        assert schedule.take(False, 1, 3) == fine_tune          # then the longest: 60 s
+        schedule.done(recording.key)                            # the timing is ready: it waits for the host
+        schedule.started[fine_tune.key] = time.monotonic() - 30   # 30 s of the fine-tune's 60 are left
+        assert schedule.take(False, 1, 3) == fits               # 20 s ends before; the 50 s search would not
+        assert schedule.take(False, 2, 3) is None
+        schedule.done(fits.key)
+        schedule.started[fine_tune.key] -= 60                   # past its estimate: nothing is known to fit
+        assert schedule.take(False, 1, 3) is None
+        schedule.done(fine_tune.key)
+        assert schedule.take(False, 0, 3) == timing             # an idle host: the timing runs alone
+        assert schedule.take(True, 1, 3) is None
+    finally:
+        KINDS._entries.pop("alone_toy")
+
+
 @pytest.mark.parametrize("freeze_from, frozen", [(10_000, False), (1, True)])
 def test_planning_pauses_the_collector_and_freezes_only_after_a_large_plan(tmp_path, monkeypatch, freeze_from,
                                                                         frozen):

@@ -7,9 +7,12 @@ import pytest
 
 from matrix import RecipeError, engine
 from matrix.errors import MatrixError
+from matrix.kinds import KINDS
 from matrix.recipe import load_recipe
 from pilotlab.domain import DOMAIN
 from tests.pilotlab.tracks import stadium
+
+ROOT = Path(__file__).resolve().parents[2]
 
 RECIPE = """\
 name: plan-test
@@ -238,6 +241,21 @@ def test_shipped_recipes_plan(tmp_path, monkeypatch):
             continue
         jobs = engine.plan_jobs(loaded, DOMAIN)
         assert jobs and {"train", "optimize", "timing", "offline", "online"} <= set(kinds(jobs))
+        assert all(0 < KINDS.get(job.kind).typical(job.params) < 3600 for job in jobs)   # a guess for each
+
+
+def test_a_cold_store_guesses_a_lap_with_a_tolerance_search_as_a_dozen_laps(tmp_path):
+    """The scheduler's first guesses (matrix.times): a lap cell with its latency-tolerance search drives a
+    lap per fixed latency and about seven to bisect; a training's time follows its epochs."""
+    laps = [job for job in engine.plan_jobs(load_recipe(ROOT / "recipes/study2022.yaml", DOMAIN), DOMAIN)
+            if job.kind == "online"]
+    searched = [job.params for job in laps if job.params["tolerance"] is not None]
+    assert searched
+    online, plain = KINDS.get("online"), dict(searched[0], tolerance=None)
+    assert online.typical(searched[0]) / online.typical(plain) == 1 + len(searched[0]["tolerance"]["fixed_ms"]) + 7
+    assert online.typical(dict(plain, laps=3)) == 3 * online.typical(plain)
+    train = KINDS.get("train")
+    assert train.typical({"epochs": 40}) == 2 * train.typical({"epochs": 20}) == 2 * train.typical({})
 
 
 def network_laps(jobs):

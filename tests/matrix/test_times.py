@@ -1,0 +1,45 @@
+"""How long a job is expected to take (matrix.times.KindStats): what it took here, what its kind says of
+its params, what its kind took here, what its kind says it typically takes."""
+import pytest
+
+from matrix.errors import MatrixError
+from matrix.kinds import KINDS, register_kind
+from matrix.store import Store
+from matrix.times import DEFAULT_ESTIMATE_S, KindStats
+
+
+@pytest.fixture
+def kinds():
+    register_kind("flat_toy", lambda ctx: {}, typical_s=4.0)
+    register_kind("laps_toy", lambda ctx: {}, typical_for=lambda params: 6.0 * params.get("laps", 1))
+    register_kind("odd_toy", lambda ctx: {}, typical_for=lambda params: 1 / 0)
+    yield
+    for name in ("flat_toy", "laps_toy", "odd_toy"):
+        KINDS._entries.pop(name)
+
+
+def test_a_job_s_own_time_then_its_kind_s_guess_for_its_params_then_the_kind_s_mean(tmp_path, kinds):
+    stats = KindStats(Store(tmp_path))
+    assert stats.estimate("flat_toy", "a") == 4.0 and stats.estimate("laps_toy", "b", {"laps": 3}) == 18.0
+    stats.add("flat_toy", 9.0, "a")
+    stats.add("laps_toy", 7.0, "b")
+    assert stats.estimate("flat_toy", "a") == 9.0 and stats.estimate("laps_toy", "b", {"laps": 3}) == 7.0
+    # the kind's mean here beats its flat guess (same work, this machine); a guess by params beats the
+    # mean of jobs with other params (a tolerance search is a dozen laps)
+    assert stats.estimate("flat_toy", "c") == 9.0
+    assert stats.estimate("laps_toy", "d", {"laps": 12}) == 72.0
+
+
+def test_a_guess_that_fails_is_no_guess_and_an_unknown_kind_gets_the_median(tmp_path, kinds):
+    stats = KindStats(Store(tmp_path))
+    assert stats.estimate("odd_toy", "x", {}) == DEFAULT_ESTIMATE_S
+    for kind, seconds in (("k1", 1.0), ("k2", 2.0), ("k3", 30.0)):
+        stats.add(kind, seconds)
+    assert stats.estimate("odd_toy", "x", {}) == 2.0 == stats.estimate("never_registered")
+
+
+@pytest.mark.parametrize("seconds", [0, -1.0, float("inf"), float("nan")])
+def test_a_typical_time_is_a_positive_number(seconds):
+    with pytest.raises(MatrixError, match="typical_s must be a positive number"):
+        register_kind("bad_toy", lambda ctx: {}, typical_s=seconds)
+    assert "bad_toy" not in KINDS
