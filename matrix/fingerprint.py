@@ -110,6 +110,7 @@ def _package_text(origin: Path) -> str:
 
 
 CODE_TEXT_VERSION = 2   # in the remembered closures' key: a change of code_text re-reads them
+CLOSURE_VERSION = 2     # the same for what a closure holds (2: the packages above each module)
 
 
 def code_text(source: str) -> str:
@@ -172,7 +173,8 @@ def _chars(line: str, utf8_offset: int) -> int:
 
 def module_closure(name: str, within: str, exclude: Iterable[str] = ()) -> list[str]:
     """`name` and the modules below package `within` that it imports, transitively (imports inside
-    functions included), found by reading the source: nothing is imported, so a domain can name the
+    functions included), and the packages above each (their `__init__.py` runs first: see
+    `_packages_above`), found by reading the source: nothing is imported, so a domain can name the
     code behind a job without loading the heavy libraries that code uses. Modules in `exclude` (and
     what only they import) are left out: shared code a kind fingerprints anyway. A closure is
     remembered in the process (until `clear_caches`) and across processes with what it was read from
@@ -189,7 +191,7 @@ _CLOSURES: dict[tuple, tuple[str, ...]] = {}
 
 def _remembered_closure(name: str, within: str, skip: tuple[str, ...]) -> tuple[str, ...]:
     where = [name, within, list(skip), str(_module_origin(within)),   # another checkout: another closure
-             CODE_TEXT_VERSION]
+             CODE_TEXT_VERSION, CLOSURE_VERSION]
     key = hashlib.sha256(json.dumps(where).encode()).hexdigest()
     record = HASH_CACHE.get_closure(key)
     if record is not None and _facts_hold(record.get("facts")):
@@ -203,15 +205,31 @@ def _remembered_closure(name: str, within: str, skip: tuple[str, ...]) -> tuple[
 
 def _walked_closure(name: str, within: str, skip: set[str]) -> tuple[list[str], _Facts]:
     found: list[str] = []
+    walked: set[str] = set()
     facts, pending = _Facts(), [name]
     while pending:
         module = pending.pop()
-        if module not in found and module not in skip:
-            found.append(module)
-            imported, read_from = _imported_modules(module, within)
-            facts.merge(read_from)
-            pending += imported
+        if module in walked or module in skip:
+            continue
+        walked.add(module)
+        found += [module] if module not in found else []
+        imported, read_from = _imported_modules(module, within)
+        facts.merge(read_from)
+        pending += imported
+        for package in _packages_above(module, within):
+            if package not in found and package not in skip:
+                found.append(package)
+                facts.files[package] = _file_facts(package)
     return found, facts
+
+
+def _packages_above(module: str, within: str) -> list[str]:
+    """The packages whose `__init__.py` runs before `module` can (those below `within`, and `within`):
+    'pilotlab.sim.env' -> ['pilotlab', 'pilotlab.sim']. Their own code is in the closure; what they
+    import is followed only where a module imports it by name (a package that imports its members to
+    register them would otherwise make every member the code of every job)."""
+    parts = module.split(".")
+    return [".".join(parts[:end]) for end in range(within.count(".") + 1, len(parts))]
 
 
 class _Facts:
@@ -300,10 +318,16 @@ def _imported_modules(name: str, within: str) -> tuple[list[str], _Facts]:
 
 def _read_imports(name: str, within: str) -> tuple[list[str], _Facts]:
     origin, facts = _module_origin(name), _Facts()
-    facts.files[name] = [str(origin), _file_sha256(origin), _own_source_hash(name)[1]]
+    facts.files[name] = _file_facts(name)
     package = name if origin.name == "__init__.py" else name.rpartition(".")[0]
     names = [m for m in _import_names(origin, package) if m.startswith(within + ".") and _is_source(m, facts)]
     return names, facts
+
+
+def _file_facts(module: str) -> list[str]:
+    """[path, sha256 of the file, sha256 of its code]: what a remembered closure rests on, per module."""
+    origin = _module_origin(module)
+    return [str(origin), _file_sha256(origin), _own_source_hash(module)[1]]
 
 
 def _import_names(origin: Path, package: str) -> list[str]:

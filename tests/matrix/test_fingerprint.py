@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from matrix.fingerprint import clear_caches, code_fingerprint, code_text, module_closure
+from matrix.fingerprint import clear_caches, closure_fingerprint, code_fingerprint, code_text, module_closure
 from tests.child import python_path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -47,7 +47,7 @@ def shop(tmp_path, monkeypatch):
 
 def test_closure_follows_imports_inside_functions_without_importing(shop):
     closure = module_closure("shop.strategy", "shop", exclude=["shop.shared"])
-    assert sorted(closure) == ["shop.config", "shop.kernels", "shop.maths", "shop.strategy", "shop.tables"]
+    assert sorted(closure) == ["shop", "shop.config", "shop.kernels", "shop.maths", "shop.strategy", "shop.tables"]
     assert not {"shop.strategy", "shop.kernels", "not_installed_heavy_library"} & set(sys.modules)
 
 
@@ -56,6 +56,33 @@ def test_editing_a_module_in_the_closure_changes_the_fingerprint(shop):
     (shop / "maths.py").write_text("PI = 3.14\n")   # imported by a function's import, twice removed
     clear_caches()
     assert code_fingerprint(module_closure("shop.strategy", "shop")) != before
+
+
+def test_the_packages_above_a_module_are_its_code_too(shop):
+    """Importing shop.sub.leaf runs shop/__init__.py and shop/sub/__init__.py first (pilotlab/sim's
+    registers the Gymnasium environment): an edit there reruns what imports the leaf. What such a
+    package imports is not followed (pilotlab/strategies/configs imports every strategy's config to
+    register it: each strategy's jobs would become every strategy's)."""
+    (shop / "sub").mkdir()
+    (shop / "sub" / "__init__.py").write_text("from shop.sub import other\nREGISTRY = {}\n")
+    (shop / "sub" / "other.py").write_text("")
+    (shop / "sub" / "leaf.py").write_text("")
+    (shop / "user.py").write_text("from shop.sub.leaf import thing\n")
+    clear_caches()
+    assert sorted(module_closure("shop.user", "shop")) == ["shop", "shop.sub", "shop.sub.leaf", "shop.user"]
+    before = closure_fingerprint(module_closure("shop.user", "shop"))
+    (shop / "sub" / "other.py").write_text("X = 1\n")
+    clear_caches()
+    assert closure_fingerprint(module_closure("shop.user", "shop")) == before
+    for edited in (shop / "sub" / "__init__.py", shop / "__init__.py"):
+        edited.write_text(edited.read_text() + "REGISTERED = True\n")
+        clear_caches()
+        after = closure_fingerprint(module_closure("shop.user", "shop"))
+        assert after != before, edited
+        before = after
+    (shop / "user.py").write_text("from shop.sub.leaf import thing\nimport shop.sub\n")   # by name: followed
+    clear_caches()
+    assert "shop.sub.other" in module_closure("shop.user", "shop")
 
 
 def test_comments_docstrings_and_blank_lines_are_not_code(shop):
@@ -100,7 +127,7 @@ def closure_in_a_new_process(shop: Path, cache: Path) -> list[str]:
 def test_the_imports_read_are_remembered_across_processes_by_the_text(shop, tmp_path):
     cache = tmp_path / "hashes.sqlite"
     closure = closure_in_a_new_process(shop, cache)
-    assert closure == ["shop.config", "shop.kernels", "shop.maths", "shop.strategy", "shop.tables"]
+    assert closure == ["shop", "shop.config", "shop.kernels", "shop.maths", "shop.strategy", "shop.tables"]
     # without the closure itself remembered, the next process believes the names the first one read
     # (proof that it parses no file again) ...
     with sqlite3.connect(cache) as db:
