@@ -212,7 +212,8 @@ def _walked_closure(name: str, within: str, skip: set[str]) -> tuple[list[str], 
         if module in walked or module in skip:
             continue
         walked.add(module)
-        found += [module] if module not in found else []
+        if module not in found:   # a package may be found first as the one above a module
+            found.append(module)
         imported, read_from = _imported_modules(module, within)
         facts.merge(read_from)
         pending += imported
