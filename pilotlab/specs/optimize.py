@@ -41,6 +41,17 @@ def own_strategy(params) -> list[str]:
     return list(dict.fromkeys(found))
 
 
-# typical seconds (a guess for the scheduler, matrix.times): 1-18 s on 2 cores, fine-tunes the longest
+# What an optimization typically takes, for the scheduler of a store that has not run it (matrix.times),
+# on one core of the 2-core development machine: a conversion 1-4 s, a calibration ~2 s more, and each
+# epoch of fine-tuning (pruning, QAT, clustering; a strategy's *epochs options) 3-4 s on a thousand frames.
+BASE_S, CALIBRATION_S, EPOCH_S = 3.0, 2.0, 3.5
+
+
+def typical_seconds(params) -> float:
+    options = params.get("options") or {}
+    epochs = sum(value for name, value in options.items() if name.endswith("epochs") and isinstance(value, int))
+    return BASE_S + (CALIBRATION_S if options.get("calibration_frames") else 0.0) + EPOCH_S * epochs
+
+
 register_kind("optimize", "pilotlab.jobs.optimize:run_optimize", params=OptimizeSpec,
-              code_for=own_strategy, code_exclude=strategy_modules, typical_s=10.0)
+              code_for=own_strategy, code_exclude=strategy_modules, typical_for=typical_seconds)

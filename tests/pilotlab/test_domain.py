@@ -256,6 +256,14 @@ def test_a_cold_store_guesses_a_lap_with_a_tolerance_search_as_a_dozen_laps(tmp_
     assert online.typical(dict(plain, laps=3)) == 3 * online.typical(plain)
     train = KINDS.get("train")
     assert train.typical({"epochs": 40}) == 2 * train.typical({"epochs": 20}) == 2 * train.typical({})
+    # a fine-tune is guessed by its epochs (the longest optimization starts first)
+    optimize = {job.params["strategy"]: job.params for job in engine.plan_jobs(
+        load_recipe(ROOT / "recipes/quickstart.yaml", DOMAIN), DOMAIN) if job.kind == "optimize"}
+    guess = {strategy: KINDS.get("optimize").typical(params) for strategy, params in optimize.items()}
+    assert max(guess, key=guess.get) == "structured_prune_int8" and guess["baseline"] == guess["dynamic_quant"]
+    longer = dict(optimize["structured_prune_int8"], options=dict(optimize["structured_prune_int8"]["options"],
+                                                                  finetune_epochs=8))
+    assert KINDS.get("optimize").typical(longer) > guess["structured_prune_int8"] > guess["onnxruntime_int8"]
 
 
 def network_laps(jobs):
