@@ -12,17 +12,19 @@ from __future__ import annotations
 import torch
 
 from matrix.kinds import JobContext
-from pilotlab.hardware import BUILTIN, profile_from_dict
+from pilotlab.hardware import BUILTIN, profile_from_dict, worker_share
 from pilotlab.specs.optimize import OptimizeSpec
 from pilotlab.strategies.apply import StrategySource, apply_strategy
 
 
-# Torch's thread count when the worker started (matrix sets the worker's share of the cores before it
-# imports the kinds). A job before this one in the same worker may have left another count (a timing job
-# sets its profile's, the training every core), and a fine-tune's figures follow the thread count, so
-# they depended on the schedule (two cold study runs gave one fine-tuned strategy 1.6x and 2.3x the
-# baseline's MSE; this is one way such runs differ).
-WORKER_THREADS = torch.get_num_threads()
+# The worker's share of the cores (matrix sets OMP_NUM_THREADS to it before the worker imports the kinds;
+# every core outside a worker). A job before this one in the same worker may have left another count (a
+# timing job sets its profile's, the training every core), and a fine-tune's figures follow the thread
+# count, so they depended on the schedule (two cold study runs gave one fine-tuned strategy 1.6x and 2.3x
+# the baseline's MSE). Not torch's count when this module is imported: that is the first optimize job's
+# in the worker, after whatever ran before it (a quickstart whose fine-tune followed the training in one
+# worker fine-tuned on 2 threads: another network, which left the road).
+WORKER_THREADS = worker_share()
 
 
 def run_optimize(ctx: JobContext) -> dict:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 
 import numpy as np
 import pytest
@@ -104,6 +105,21 @@ def test_an_optimize_job_runs_at_the_workers_thread_count_whatever_ran_before(tm
     finally:
         torch.set_num_threads(WORKER_THREADS)
     assert seen == [WORKER_THREADS]
+
+
+def test_the_worker_s_thread_count_is_its_share_even_when_a_training_ran_first_in_it():
+    """The handler's module is imported by the worker's first optimize job: after a training in the same
+    worker (every core) its share was read as 2 threads, and the quickstart's fine-tune gave another
+    network (off the road after 6 s) than when it ran in a fresh worker (a whole lap)."""
+    import subprocess
+    import sys
+    from tests.child import ROOT, python_path
+    code = ("import torch; torch.set_num_threads(2)\n"          # what the training leaves in the worker
+            "from pilotlab.jobs.optimize import WORKER_THREADS; print(WORKER_THREADS)")
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": python_path(ROOT)}   # a worker's share on 2 cores
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["1"]
 
 
 def test_a_cuda_only_strategy_is_not_applicable_here(tmp_path, trained, frames):
