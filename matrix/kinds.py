@@ -18,6 +18,10 @@ can reach changes the keys of its jobs. `code=` adds what no import statement na
 A handler raises `NotApplicable(reason)` when the job cannot run on this hardware: the result is
 recorded (and cached) as "not applicable: reason", and jobs that depend on it get the same status
 without running.
+
+`typical_s=30` (or `typical_for=lambda params: 3.0 * params["epochs"]`) says what a job of the kind
+typically takes: until a store has run it, the scheduler orders ready jobs and fills an idle core with
+it (matrix.execute.Schedule), and the time left starts from it. A guess only, never in a key.
 """
 from __future__ import annotations
 
