@@ -22,7 +22,7 @@ import sys
 import time
 import tokenize
 from collections.abc import Iterable, Iterator
-from io import StringIO
+from io import BytesIO, StringIO
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -106,11 +106,27 @@ def _module_origin(name: str) -> Path:
 def _package_text(origin: Path) -> str:
     """A package's code (`origin`: its `__init__.py`): every .py file below it, in a fixed order."""
     files = sorted(origin.parent.rglob("*.py"))
-    return "".join(f"# {f.relative_to(origin.parent)}\n{code_text(f.read_text(encoding='utf-8'))}\n" for f in files)
+    return "".join(f"# {f.relative_to(origin.parent)}\n{source_code_text(f.read_bytes())}\n" for f in files)
 
 
 CODE_TEXT_VERSION = 2   # in the remembered closures' key: a change of code_text re-reads them
 CLOSURE_VERSION = 2     # the same for what a closure holds (2: the packages above each module)
+
+
+def python_source(data: bytes) -> str | None:
+    """A source file's text as Python reads it: by its BOM or its coding line (PEP 263), else UTF-8;
+    None where it does not decode (Python would refuse to import it)."""
+    try:
+        encoding, _ = tokenize.detect_encoding(BytesIO(data).readline)
+        return data.decode(encoding)
+    except (SyntaxError, LookupError, UnicodeDecodeError):
+        return None
+
+
+def source_code_text(data: bytes) -> str:
+    """`code_text` of a source file's bytes; a file that does not decode is kept whole (escaped)."""
+    text = python_source(data)
+    return code_text(text) if text is not None else data.decode("utf-8", errors="backslashreplace")
 
 
 def code_text(source: str) -> str:
@@ -288,8 +304,8 @@ def _code_sha256(path: Path | str) -> str:
     """sha256 of a source file's `code_text`, once per process and text."""
     raw = _file_sha256(path)
     if raw not in _CODE_HASHES:
-        with open(path, encoding="utf-8") as source:
-            _CODE_HASHES[raw] = hashlib.sha256(code_text(source.read()).encode()).hexdigest()
+        with open(path, "rb") as source:
+            _CODE_HASHES[raw] = hashlib.sha256(source_code_text(source.read()).encode()).hexdigest()
     return _CODE_HASHES[raw]
 
 

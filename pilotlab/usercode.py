@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from matrix.errors import did_you_mean
-from matrix.fingerprint import code_text
+from matrix.fingerprint import source_code_text
 from pilotlab.errors import PilotlabError
 
 
@@ -235,15 +235,8 @@ def source_hash(spec: str, base: Path) -> str:
     digest = hashlib.sha256()
     for file in files:
         digest.update(f"# {file.relative_to(root).as_posix()}\n".encode())
-        digest.update(_code(file.read_bytes()))
+        digest.update(source_code_text(file.read_bytes()).encode())   # read by its coding line, as Python does
     return digest.hexdigest()
-
-
-def _code(source: bytes) -> bytes:
-    try:
-        return code_text(source.decode("utf-8")).encode()
-    except UnicodeDecodeError:   # not UTF-8: Python reads it by its coding line; hashed as it is
-        return source
 
 
 def _module_file(code: UserCode, base: Path) -> tuple[Path, Path]:
@@ -278,7 +271,7 @@ def _local_imports(file: Path, roots: list[Path]) -> list[Path]:
     """Files under `roots` that `file` imports (and the packages' __init__.py on the way); a file
     that does not parse imports nothing here (loading it will say why)."""
     try:
-        tree = ast.parse(file.read_text(encoding="utf-8"), str(file))
+        tree = ast.parse(file.read_bytes(), str(file))   # bytes: decoded by the file's coding line
     except (SyntaxError, UnicodeDecodeError, ValueError):
         return []
     found = []

@@ -97,6 +97,18 @@ def test_comments_docstrings_and_blank_lines_are_not_code(shop):
     assert code_fingerprint(module_closure("shop.strategy", "shop")) != before
 
 
+def test_a_module_is_read_by_its_coding_line(shop):
+    """A Latin-1 module (PEP 263 coding line) is code like any other: its comments are not code, its
+    code is (it was read as UTF-8 and failed)."""
+    def write(text: str):
+        (shop / "maths.py").write_bytes(f"# -*- coding: latin-1 -*-\n{text}".encode("latin-1"))
+        clear_caches()
+        return code_fingerprint(module_closure("shop.strategy", "shop"))
+    before = write("NAME = 'café'  # é\n")
+    assert write("NAME = 'café'  # è, reworded\n") == before
+    assert write("NAME = 'cafè'\n") != before
+
+
 @pytest.mark.parametrize("source, code", [
     ('def f(x):\n    """Doc."""\n    return x  # why\n', "def f(x):\n    return x"),
     ('class A:\n    """Doc\n    on two lines."""; B = 1\n', "class A:\n    ; B = 1"),

@@ -104,6 +104,19 @@ def test_the_source_hash_follows_the_file_and_its_local_imports(brains):
     assert source_hash(spec, elsewhere) == source_hash(spec, brains)   # the content counts, not the place
 
 
+def test_a_latin_1_network_file_is_read_by_its_coding_line(brains):
+    """Its imports are followed (they were not: it was parsed as UTF-8) and its comments are not code."""
+    mine = brains / "brains" / "mine.py"
+    mine.write_bytes(("# -*- coding: latin-1 -*-\n# café\n" + BRAIN).encode("latin-1"))
+    spec = "brains/mine.py:MyBrain"
+    assert [f.name for f in source_files(spec, brains)] == ["mine.py", "helpers.py"]
+    first = source_hash(spec, brains)
+    mine.write_bytes(("# -*- coding: latin-1 -*-\n# crème, reworded\n" + BRAIN).encode("latin-1"))
+    assert source_hash(spec, brains) == first
+    write(brains, "brains/helpers.py", "def gain():\n    return 1.0\n")
+    assert source_hash(spec, brains) != first
+
+
 @pytest.fixture(autouse=True)
 def clean_imports(monkeypatch):
     """User modules (helpers, failing...) leave no trace in sys.path or sys.modules for other tests."""
