@@ -109,7 +109,7 @@ def _package_text(origin: Path) -> str:
     return "".join(f"# {f.relative_to(origin.parent)}\n{source_code_text(f.read_bytes())}\n" for f in files)
 
 
-CODE_TEXT_VERSION = 2   # in the remembered closures' key: a change of code_text re-reads them
+CODE_TEXT_VERSION = 3   # in the remembered closures' key: a change of code_text re-reads them
 CLOSURE_VERSION = 2     # the same for what a closure holds (2: the packages above each module)
 
 
@@ -234,10 +234,19 @@ def _walked_closure(name: str, within: str, skip: set[str]) -> tuple[list[str], 
         facts.merge(read_from)
         pending += imported
         for package in _packages_above(module, within):
-            if package not in found and package not in skip:
+            if package not in found and package not in skip and _has_file(package):   # (not a namespace package)
                 found.append(package)
                 facts.files[package] = _file_facts(package)
     return found, facts
+
+
+def _has_file(module: str) -> bool:
+    """Whether the module has a file (a namespace package, a folder without `__init__.py`, runs no code)."""
+    try:
+        _module_origin(module)
+    except MatrixError:
+        return False
+    return True
 
 
 def _packages_above(module: str, within: str) -> list[str]:

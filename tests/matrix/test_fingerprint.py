@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from matrix.fingerprint import clear_caches, closure_fingerprint, code_fingerprint, code_text, module_closure
+from matrix.fingerprint import clear_caches, closure_fingerprint, code_text, module_closure
 from tests.child import python_path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -28,6 +28,7 @@ PACKAGE = {
     "config.py": "",
     "shared.py": "from shop import unrelated\n",
     "unrelated.py": "",
+    "bystander.py": "",    # imported by nothing
 }
 
 
@@ -51,11 +52,17 @@ def test_closure_follows_imports_inside_functions_without_importing(shop):
     assert not {"shop.strategy", "shop.kernels", "not_installed_heavy_library"} & set(sys.modules)
 
 
-def test_editing_a_module_in_the_closure_changes_the_fingerprint(shop):
-    before = code_fingerprint(module_closure("shop.strategy", "shop"))
-    (shop / "maths.py").write_text("PI = 3.14\n")   # imported by a function's import, twice removed
+def fingerprint_after(shop: Path, name: str, text: str) -> str:
+    """The closure fingerprint of shop.strategy (as a job's key takes it) once `name` holds `text`."""
+    (shop / name).write_text(text)
     clear_caches()
-    assert code_fingerprint(module_closure("shop.strategy", "shop")) != before
+    return closure_fingerprint(module_closure("shop.strategy", "shop"))
+
+
+def test_editing_a_module_in_the_closure_changes_the_fingerprint(shop):
+    before = fingerprint_after(shop, "maths.py", "")
+    assert fingerprint_after(shop, "bystander.py", "X = 1\n") == before   # not in the closure
+    assert fingerprint_after(shop, "maths.py", "PI = 3.14\n") != before   # imported by a function's import, twice removed
 
 
 def test_the_packages_above_a_module_are_its_code_too(shop):
@@ -86,15 +93,20 @@ def test_the_packages_above_a_module_are_its_code_too(shop):
 
 
 def test_comments_docstrings_and_blank_lines_are_not_code(shop):
-    (shop / "maths.py").write_text('"""Maths."""\nPI = 3.14  # π\n')
+    before = fingerprint_after(shop, "maths.py", '"""Maths."""\nPI = 3.14  # π\n')
+    assert fingerprint_after(shop, "maths.py",
+                             '"""Maths, reworded\nover two lines."""\n\n# a new comment\nPI = 3.14   # π, about\n') == before
+    assert fingerprint_after(shop, "maths.py", '"""Maths."""\nPI = 3.1416\n') != before
+
+
+def test_a_folder_without_init_above_a_job_s_module_runs_no_code(shop):
+    """A job's module in a namespace package (a folder without `__init__.py`) below `within`: the
+    folder is no code of the job (naming it failed: 'cannot find module 'shop.plain'')."""
+    (shop / "plain").mkdir()
+    (shop / "plain" / "leaf.py").write_text("from shop import maths\n")
     clear_caches()
-    before = code_fingerprint(module_closure("shop.strategy", "shop"))
-    (shop / "maths.py").write_text('"""Maths, reworded\nover two lines."""\n\n# a new comment\nPI = 3.14   # π, about\n')
-    clear_caches()
-    assert code_fingerprint(module_closure("shop.strategy", "shop")) == before
-    (shop / "maths.py").write_text('"""Maths."""\nPI = 3.1416\n')
-    clear_caches()
-    assert code_fingerprint(module_closure("shop.strategy", "shop")) != before
+    assert sorted(module_closure("shop.plain.leaf", "shop")) == ["shop", "shop.maths", "shop.plain.leaf"]
+    assert closure_fingerprint(module_closure("shop.plain.leaf", "shop"))
 
 
 def test_a_module_is_read_by_its_coding_line(shop):
@@ -103,7 +115,7 @@ def test_a_module_is_read_by_its_coding_line(shop):
     def write(text: str):
         (shop / "maths.py").write_bytes(f"# -*- coding: latin-1 -*-\n{text}".encode("latin-1"))
         clear_caches()
-        return code_fingerprint(module_closure("shop.strategy", "shop"))
+        return closure_fingerprint(module_closure("shop.strategy", "shop"))
     before = write("NAME = 'café'  # é\n")
     assert write("NAME = 'café'  # è, reworded\n") == before
     assert write("NAME = 'cafè'\n") != before
