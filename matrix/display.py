@@ -32,7 +32,7 @@ from matrix.times import KindStats, kind_times, recipe_keys
 
 SYMBOLS = {"ok": "[green]✓[/]", "not_applicable": "[yellow]–[/]", "failed": "[red]✗[/]",
            "skipped": "[red]↷[/]", "not_started": "[red]·[/]", "done_elsewhere": "[green]✓[/]"}
-KNOWN_WEIGHT = 3          # a kind's mean on the store counts as this many of this run's finished jobs
+KNOWN_WEIGHT = 3          # the store's estimate of a kind counts as this many of this run's finished jobs
 NAME_WIDTH = 44           # longer job names are cut, so the times stay on the line
 PLAIN_INTERVAL_S = 10.0   # a status line this often when the output is not a terminal
 SMOOTHING = 0.2           # weight of a new estimate against the shown one, per update
@@ -111,16 +111,18 @@ Display = NullDisplay
 class Estimate:
     """Seconds left: the prior of each job not finished, the running ones corrected by their own
     progress, divided by how many jobs have been running at once; smoothed. A job's prior is what it
-    took the last time on this store; failing that its kind's mean, which the jobs of the kind that
-    finish in this run correct as they go (a kind never run here has only its own jobs to go by)."""
+    took the last time on this store; failing that its kind's estimate (matrix.times.KindStats), which
+    the jobs of the kind that finish in this run correct as they go: by how their time compared with
+    their own prior, so that a lap with a tolerance search still counts as a dozen plain ones (a kind
+    not measured on this store has only its own jobs to go by)."""
 
     def __init__(self, stats: KindStats, jobs: Iterable, now: float):
         jobs = list(jobs)
-        self.known = {kind: mean for kind, (mean, _) in stats.means.items()}   # before this run adds to them
+        self.measured = {job.kind for job in jobs if stats.measured(job.kind)}   # before this run adds to them
         self.kind = {job.key: job.kind for job in jobs}
         self.own = {job.key for job in jobs if job.name in stats.names}   # priors of the job itself
         self.prior = {job.key: stats.estimate(job.kind, job.name, getattr(job, "params", None)) for job in jobs}
-        self.finished: dict[str, list[float]] = {}   # kind -> [seconds in all, jobs] of this run
+        self.finished: dict[str, list[float]] = {}   # kind -> [sum of seconds / prior, jobs] of this run
         self.started_at: dict[str, float] = {}
         self.fraction: dict[str, float] = {}
         self.busy_s = 0.0                      # job-seconds of finished jobs
@@ -138,15 +140,15 @@ class Estimate:
         if key in self.started_at:
             seconds = now - self.started_at.pop(key)
             self.busy_s += seconds
-            if key in self.kind:
+            if key in self.kind and self.prior.get(key, 0) > 0:
                 total = self.finished.setdefault(self.kind[key], [0.0, 0])
-                total[0], total[1] = total[0] + seconds, total[1] + 1
+                total[0], total[1] = total[0] + seconds / self.prior[key], total[1] + 1
         self.prior.pop(key, None)
         self.fraction.pop(key, None)
 
     def raw(self, now: float) -> float:
-        kind_means = {kind: self._kind_mean(kind) for kind in self.finished}
-        work = sum(self._left_of(key, now, kind_means) for key in self.prior)
+        factors = {kind: self._kind_factor(kind) for kind in self.finished}
+        work = sum(self._left_of(key, now, factors) for key in self.prior)
         running = sum(now - at for at in self.started_at.values())
         parallel = max(1.0, (self.busy_s + running) / max(now - self.began, 1e-9))
         return work / min(parallel, max(1, len(self.started_at)))
@@ -162,18 +164,18 @@ class Estimate:
         self.shown_at = now
         return self.shown
 
-    def _kind_mean(self, kind: str) -> float:
-        """The kind's mean, this run's finished jobs included (they count as much as the store's mean
-        from KNOWN_WEIGHT jobs; for a kind new to the store they are all there is)."""
-        seconds, count = self.finished[kind]
-        if kind not in self.known:
-            return seconds / count
-        return (self.known[kind] * KNOWN_WEIGHT + seconds) / (KNOWN_WEIGHT + count)
+    def _kind_factor(self, kind: str) -> float:
+        """How much longer than their priors the kind's jobs took in this run (the store's estimate
+        counts as KNOWN_WEIGHT jobs that took their prior; for a kind not measured here this run's jobs
+        are all there is)."""
+        ratios, count = self.finished[kind]
+        weight = KNOWN_WEIGHT if kind in self.measured else 0
+        return (weight + ratios) / (weight + count)
 
-    def _left_of(self, key: str, now: float, kind_means: Mapping[str, float]) -> float:
+    def _left_of(self, key: str, now: float, factors: Mapping[str, float]) -> float:
         prior = self.prior[key]
         if key not in self.own:
-            prior = kind_means.get(self.kind.get(key, ""), prior)
+            prior *= factors.get(self.kind.get(key, ""), 1.0)
         if key not in self.started_at:
             return prior
         elapsed, done = now - self.started_at[key], self.fraction.get(key, 0.0)
@@ -216,6 +218,7 @@ class RichDisplay(NullDisplay):
         now = time.monotonic()
         self.total, self.began = len(jobs), now
         self.estimate = Estimate(self.stats, jobs, now)
+        self.params = {job.key: getattr(job, "params", None) for job in jobs}   # how the kind's guess compared
         self.weights = dict(self.estimate.prior)      # each job's share of the bar: its prior, priced once
         self.overall = self.progress.add_task(f"[bold]{short(self.title, 24)}", total=sum(self.weights.values()) or 1,
                                               count=f"0/{self.total}", times=self._times(now))
@@ -260,7 +263,7 @@ class RichDisplay(NullDisplay):
             self.progress.update(self.overall, advance=self.weights.get(outcome.key, 0),
                                  count=f"{self.done}/{self.total}", times=self._times(time.monotonic()))
         if outcome.status == "ok":
-            self.stats.add(outcome.kind, outcome.duration_s, outcome.name)
+            self.stats.add(outcome.kind, outcome.duration_s, outcome.name, self.params.get(outcome.key))
         reason = f" [dim]{escape(outcome.reason)}[/]" if outcome.reason else ""
         took = f" [dim]{outcome.duration_s:.1f}s[/]" if outcome.duration_s else ""
         self.progress.console.print(f"{SYMBOLS.get(outcome.status, '?')} {escape(outcome.name)}{took}{reason}",

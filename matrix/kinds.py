@@ -127,7 +127,10 @@ class JobKind:
 
     def typical(self, params: Mapping[str, Any]) -> float | None:
         """Seconds a job with `params` typically takes (None: the kind does not say)."""
-        return float(self.typical_for(params)) if self.typical_for is not None else self.typical_s
+        if self.typical_for is None:
+            return self.typical_s
+        seconds = self.typical_for(params)
+        return None if seconds is None else float(seconds)
 
     @property
     def module(self) -> str:
@@ -219,7 +222,8 @@ def register_kind(name: str, target: str | Handler, *, params: Any = None, code:
                   resources: Mapping[str, float] | None = None, resources_for=None, exclusive_for=None,
                   typical_s: float | None = None, typical_for=None) -> JobKind:
     """Register job kind `name`, run by `target` ("module:function", or the function)."""
-    if typical_s is not None and not 0 < typical_s < float("inf"):
+    if typical_s is not None and (not isinstance(typical_s, (int, float)) or isinstance(typical_s, bool)
+                                  or not 0 < typical_s < float("inf")):
         raise MatrixError(f"job kind {name!r}: typical_s must be a positive number of seconds (got {typical_s!r})")
     return KINDS.add(name, JobKind(name, target, params, tuple(code), code_for, code_exclude, exclusive,
                                    dict(resources or {}), resources_for, exclusive_for, typical_s, typical_for))

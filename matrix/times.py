@@ -19,7 +19,9 @@ from matrix.kinds import KINDS, JobKind
 from matrix.store import Store, read_json, write_json_atomic
 
 DEFAULT_ESTIMATE_S = 5.0
-STATS_FORMAT = 2          # <store>/stats.json: {"format", "kinds": {kind: [mean, n]}, "names": {job name: [mean, n]}}
+# <store>/stats.json: {"format", "kinds": {kind: [mean, n]}, "names": {job name: [mean, n]},
+#                      "ratios": {kind: [mean of measured / guessed seconds, n]}}
+STATS_FORMAT = 3
 MAX_NAMES = 20_000        # job names remembered in stats.json (the least recently run go first)
 
 
@@ -64,27 +66,30 @@ def kind_times(store: Store, keys: Iterable[str] | None = None) -> list[KindTime
 
 class KindStats:
     """How long jobs took on this store, for time-left estimates: a moving mean per job kind, and per
-    job name (a rerun of an edited recipe knows what each of its jobs took the last time)."""
+    job name (a rerun of an edited recipe knows what each of its jobs took the last time); for a kind
+    that guesses by params, how far off its guesses were here (this machine's speed, the circuits)."""
 
     def __init__(self, store: Store):
         self.path = store.root / "stats.json"
         saved = read_json(self.path)
         saved = saved if isinstance(saved, dict) else {}
-        if saved.get("format") != STATS_FORMAT:      # the first format: {kind: [mean, count]}
+        if not isinstance(saved.get("format"), int):      # the first format: {kind: [mean, count]}
             saved = {"kinds": saved, "names": {}}
         self.means = _means(saved.get("kinds"))
         self.names = _means(saved.get("names"))
+        self.ratios = _means(saved.get("ratios"))     # absent before format 3
 
     def estimate(self, kind: str, name: str | None = None, params: Mapping[str, Any] | None = None) -> float:
         """The job's own mean if it ran here before; else, for a kind that tells its jobs apart by params
-        (`typical_for`: a lap with a tolerance search is a dozen laps), what it says of these params; else
-        the kind's mean here, else what the kind says its jobs typically take, else the median kind's (a
-        kind never run here is not charged the mean of a few slow ones, a training's)."""
+        (`typical_for`: a lap with a tolerance search is a dozen laps), what it says of these params,
+        scaled by how its guesses compared with what its jobs took here; else the kind's mean here, else
+        what the kind says its jobs typically take, else the median kind's (a kind never run here is not
+        charged the mean of a few slow ones, a training's)."""
         if name is not None and name in self.names:
             return self.names[name][0]
         found = KINDS.get(kind) if kind in KINDS else None
         if found is not None and found.typical_for is not None and (typical := _typical(found, params)):
-            return typical
+            return typical * self.ratios.get(kind, [1.0])[0]
         if kind in self.means:
             return self.means[kind][0]
         if found is not None and (typical := _typical(found, params)):
@@ -92,8 +97,19 @@ class KindStats:
         known = sorted(mean for mean, _ in self.means.values())
         return known[len(known) // 2] if known else DEFAULT_ESTIMATE_S
 
-    def add(self, kind: str, seconds: float, name: str | None = None) -> None:
+    def measured(self, kind: str) -> bool:
+        """Whether the kind's estimates rest on what its jobs took on this store."""
+        found = KINDS.get(kind) if kind in KINDS else None
+        return kind in (self.ratios if found is not None and found.typical_for is not None else self.means)
+
+    def add(self, kind: str, seconds: float, name: str | None = None,
+            params: Mapping[str, Any] | None = None) -> None:
+        """Count a finished job; with its `params`, also how its kind's guess compared."""
         _add_to(self.means, kind, seconds)
+        found = KINDS.get(kind) if kind in KINDS else None
+        if params is not None and found is not None and found.typical_for is not None \
+                and (typical := _typical(found, params)) and seconds > 0:
+            _add_to(self.ratios, kind, seconds / typical)
         if name is not None:
             self.names.pop(name, None)                # re-inserted last: the oldest names go first
             _add_to(self.names, name, seconds)
@@ -102,7 +118,8 @@ class KindStats:
 
     def save(self) -> None:
         try:
-            write_json_atomic(self.path, {"format": STATS_FORMAT, "kinds": self.means, "names": self.names})
+            write_json_atomic(self.path, {"format": STATS_FORMAT, "kinds": self.means, "names": self.names,
+                                          "ratios": self.ratios})
         except OSError:
             pass  # estimates are a nicety; a read-only store still runs
 

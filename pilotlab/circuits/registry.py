@@ -51,6 +51,13 @@ for _name, _timeout, _smoothing in (("simple_circuit", 82.5, None), ("many_curve
     CIRCUITS.add(_name, CircuitConfig(_name, f"{_name}.csv", _timeout, smoothing_m=_smoothing))
 
 
+def lap_scale(name: str) -> float:
+    """How long a lap of built-in circuit `name` takes against one of simple_circuit (BehaviorMetrics'
+    per-lap timeouts follow the circuits' lengths: Montreal's is 3.3 times simple_circuit's), for
+    the scheduler's first guess; 1 for another circuit (its length is known once it is built)."""
+    return CIRCUITS.get(name).timeout_s / CIRCUITS.get("simple_circuit").timeout_s if name in CIRCUITS else 1.0
+
+
 def user_dirs(recipe_folder: Path | None = None) -> list[Path]:
     """Folders searched for `NAME.csv` user circuits, in order (`recipe_folder`: the recipe's, if any)."""
     listed = [Path(p) for p in os.environ.get(USER_DIR_ENV, "").split(os.pathsep) if p]

@@ -16,6 +16,7 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from matrix.kinds import register_kind
+from pilotlab.circuits.registry import lap_scale
 from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, InWorld, Spec
 from pilotlab.specs.timing import gpu_resources, timing_resources
 
@@ -159,8 +160,8 @@ def lap_resources(params) -> dict[str, float]:
 
 
 # What a lap cell typically takes, for the scheduler of a store that has not run it (matrix.times): a
-# lap of simple_circuit took 4-11 s on the 2-core development machine; a tolerance search drives a lap
-# per fixed latency and about seven more to bisect.
+# lap of simple_circuit took 4-11 s on the 2-core development machine, other circuits by their length;
+# a tolerance search drives a lap per fixed latency and about seven more to bisect.
 LAP_S, BISECTION_LAPS = 6.0, 7
 
 
@@ -168,7 +169,7 @@ def typical_seconds(params) -> float:
     settings = LapSettings.model_validate({k: params[k] for k in ("laps", "repetitions", "starts", "tolerance")
                                            if k in params})
     searched = 0 if settings.tolerance is None else len(settings.tolerance.fixed_ms) + BISECTION_LAPS
-    return LAP_S * settings.laps * settings.runs * (1 + searched)
+    return LAP_S * lap_scale(str(params.get("circuit", ""))) * settings.laps * settings.runs * (1 + searched)
 
 
 register_kind("online", "pilotlab.jobs.online:run_online", params=OnlineSpec, exclusive_for=timed_live,

@@ -93,6 +93,30 @@ def test_a_known_kinds_mean_moves_towards_this_runs_jobs(tmp_path):
     assert abs(estimate.raw(50.0) - 4 * (3 * 10.0 + 50.0) / 4) < 1e-9
 
 
+def test_a_kinds_finished_jobs_scale_the_guesses_of_the_rest_by_their_params(tmp_path):
+    """The study's display said "about 2:00:41 left" for a 40-minute run: its first lap cell, a Montreal
+    tolerance search, became the price of every lap left. The jobs of a kind that finish correct the
+    kind's guesses by how far off theirs were: a plain lap that took twice its guess makes a searched
+    lap twice its own guess, not a plain lap's time."""
+    from matrix.kinds import KINDS, register_kind
+    register_kind("drive_toy", lambda ctx: {}, typical_for=lambda params: 6.0 * params["laps"])
+    try:
+        plain = SimpleNamespace(key="p", kind="drive_toy", name="lap p", params={"laps": 1})
+        searched = SimpleNamespace(key="s", kind="drive_toy", name="lap s", params={"laps": 12})
+        estimate = Estimate(KindStats(Store(tmp_path)), [plain, searched], now=0.0)
+        assert estimate.raw(0.0) == 78.0
+        estimate.job_started("p", 0.0)
+        estimate.job_finished("p", 12.0)
+        assert abs(estimate.raw(12.0) - 144.0) < 1e-9
+        display, _ = plain_display(tmp_path / "shown")
+        display.start([plain, searched])
+        display.job_finished(Outcome("p", "lap p", "drive_toy", "ok", duration_s=12.0))
+        display.stop()
+        assert KindStats(Store(tmp_path / "shown")).estimate("drive_toy", "lap s", searched.params) == 144.0
+    finally:
+        KINDS._entries.pop("drive_toy")
+
+
 def test_a_job_that_ran_here_before_is_priced_by_its_own_time(tmp_path):
     stats = KindStats(Store(tmp_path))
     stats.add("tune", 200.0, "optimize pilotnet/qat")

@@ -43,3 +43,39 @@ def test_a_typical_time_is_a_positive_number(seconds):
     with pytest.raises(MatrixError, match="typical_s must be a positive number"):
         register_kind("bad_toy", lambda ctx: {}, typical_s=seconds)
     assert "bad_toy" not in KINDS
+
+
+def test_a_guess_by_params_is_scaled_by_how_far_off_the_kind_s_guesses_were_here(tmp_path, kinds):
+    """The study's first laps of Montreal and fine-tunes on its larger data took 3-4 times the guesses
+    made on the development machine's quickstart: what the kind's jobs took here corrects its guesses,
+    and a guess by params still tells a tolerance search from a plain lap."""
+    stats = KindStats(Store(tmp_path))
+    assert not stats.measured("laps_toy")
+    stats.add("laps_toy", 12.0, "b", {"laps": 1})      # guessed 6 s: twice as long here
+    assert stats.measured("laps_toy") and stats.estimate("laps_toy", "d", {"laps": 12}) == 144.0
+    stats.save()
+    assert KindStats(Store(tmp_path)).estimate("laps_toy", "d", {"laps": 12}) == 144.0
+    stats.add("flat_toy", 9.0, "a", {})                # a flat guess: the kind's mean does the scaling
+    assert stats.measured("flat_toy") and stats.estimate("flat_toy", "c") == 9.0
+    stats.add("odd_toy", 9.0, "o", {})                 # a guess that fails: nothing to compare with
+    assert not stats.measured("odd_toy")
+
+
+@pytest.mark.parametrize("seconds", ["30", True, None])
+def test_a_typical_time_of_another_type_is_refused_with_the_kind_s_name(seconds):
+    if seconds is None:   # None means "no guess"
+        register_kind("none_toy", lambda ctx: {}, typical_s=seconds)
+        assert KINDS.get("none_toy").typical({}) is None
+        KINDS._entries.pop("none_toy")
+        return
+    with pytest.raises(MatrixError, match="'bad_toy': typical_s must be a positive number"):
+        register_kind("bad_toy", lambda ctx: {}, typical_s=seconds)
+
+
+def test_a_guess_by_params_may_say_it_has_none(tmp_path):
+    register_kind("shy_toy", lambda ctx: {}, typical_for=lambda params: None)
+    try:
+        assert KINDS.get("shy_toy").typical({}) is None
+        assert KindStats(Store(tmp_path)).estimate("shy_toy", "x", {}) == DEFAULT_ESTIMATE_S
+    finally:
+        KINDS._entries.pop("shy_toy")

@@ -254,6 +254,11 @@ def test_a_cold_store_guesses_a_lap_with_a_tolerance_search_as_a_dozen_laps(tmp_
     online, plain = KINDS.get("online"), dict(searched[0], tolerance=None)
     assert online.typical(searched[0]) / online.typical(plain) == 1 + len(searched[0]["tolerance"]["fixed_ms"]) + 7
     assert online.typical(dict(plain, laps=3)) == 3 * online.typical(plain)
+    # a lap of Montreal is about three of simple_circuit (by BehaviorMetrics' timeouts); a user's circuit, one
+    simple, montreal = online.typical(dict(plain, circuit="simple_circuit")), online.typical(dict(plain, circuit="montreal"))
+    assert 3.0 < montreal / simple < 3.5 and online.typical(dict(plain, circuit="tracks/mine.csv")) == simple
+    record = KINDS.get("record")
+    assert 3.0 < record.typical({"circuit": "montreal"}) / record.typical({"circuit": "simple_circuit"}) < 3.5
     train = KINDS.get("train")
     assert train.typical({"epochs": 40}) == 2 * train.typical({"epochs": 20}) == 2 * train.typical({})
     # a fine-tune is guessed by its epochs (the longest optimization starts first)
