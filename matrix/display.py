@@ -136,11 +136,13 @@ class Estimate:
     def job_progress(self, key: str, fraction: float) -> None:
         self.fraction[key] = min(max(fraction, 0.0), 1.0)
 
-    def job_finished(self, key: str, now: float) -> None:
+    def job_finished(self, key: str, now: float, counted: bool = True) -> None:
+        """`counted`: whether the job did its work (one that was not applicable, failed or was skipped
+        says nothing of how long the others of its kind take)."""
         if key in self.started_at:
             seconds = now - self.started_at.pop(key)
             self.busy_s += seconds
-            if key in self.kind and self.prior.get(key, 0) > 0:
+            if counted and key in self.kind and self.prior.get(key, 0) > 0:
                 total = self.finished.setdefault(self.kind[key], [0.0, 0])
                 total[0], total[1] = total[0] + seconds / self.prior[key], total[1] + 1
         self.prior.pop(key, None)
@@ -258,7 +260,7 @@ class RichDisplay(NullDisplay):
         with self.lock:
             self._remove(outcome.key)
             self.running.pop(outcome.key, None)
-            self.estimate.job_finished(outcome.key, time.monotonic())
+            self.estimate.job_finished(outcome.key, time.monotonic(), counted=outcome.status == "ok")
             self.done += 1
             self.progress.update(self.overall, advance=self.weights.get(outcome.key, 0),
                                  count=f"{self.done}/{self.total}", times=self._times(time.monotonic()))

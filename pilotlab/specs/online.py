@@ -18,7 +18,7 @@ from pydantic import Field, field_validator, model_validator
 from matrix.kinds import register_kind
 from pilotlab.circuits.registry import lap_scale
 from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, InWorld, Spec
-from pilotlab.specs.timing import gpu_resources, timing_resources
+from pilotlab.specs.timing import NOT_HERE_S, gpu_resources, not_applicable_here, timing_resources
 
 
 # the timing modes that charge the brain's time to the lap (pilotlab.online.drive explains all four)
@@ -166,6 +166,8 @@ LAP_S, BISECTION_LAPS = 6.0, 7
 
 
 def typical_seconds(params) -> float:
+    if not_applicable_here(params):
+        return NOT_HERE_S
     settings = LapSettings.model_validate({k: params[k] for k in ("laps", "repetitions", "starts", "tolerance")
                                            if k in params})
     searched = 0 if settings.tolerance is None else len(settings.tolerance.fixed_ms) + BISECTION_LAPS

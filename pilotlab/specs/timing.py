@@ -41,6 +41,20 @@ def timing_resources(params) -> dict[str, float]:
     return gpu_resources(params) | ({machine: 1} if machine else {})
 
 
-# typical seconds (a guess for the scheduler, matrix.times): 3-4 s, most of it the measuring itself
+# What a job typically takes, for the scheduler and the time left of a store that has not run it
+# (matrix.times): one for a CUDA profile, planned on a host without a GPU, says "not applicable" at once.
+NOT_HERE_S, TIMING_S = 0.1, 3.5    # a timing: 3-4 s, most of it the measuring itself
+
+
+def not_applicable_here(params) -> bool:
+    """A job for a CUDA profile whose planned host has no GPU (it is "not applicable" when it runs)."""
+    host = params.get("host")
+    return (params.get("hardware") or {}).get("device") == "cuda" and isinstance(host, dict) and not host.get("gpu")
+
+
+def typical_seconds(params) -> float:
+    return NOT_HERE_S if not_applicable_here(params) else TIMING_S
+
+
 register_kind("timing", "pilotlab.jobs.timing:run_timing", params=TimingSpec, exclusive=True,
-              resources_for=timing_resources, typical_s=3.5)
+              resources_for=timing_resources, typical_for=typical_seconds)

@@ -108,6 +108,13 @@ def test_a_kinds_finished_jobs_scale_the_guesses_of_the_rest_by_their_params(tmp
         estimate.job_started("p", 0.0)
         estimate.job_finished("p", 12.0)
         assert abs(estimate.raw(12.0) - 144.0) < 1e-9
+        # a job of the kind that was not applicable (a cuda lap on a host without a GPU, in 0.1 s) says
+        # nothing of how long the others take
+        other = SimpleNamespace(key="o", kind="drive_toy", name="lap o", params={"laps": 1})
+        estimate = Estimate(KindStats(Store(tmp_path)), [plain, searched, other], now=0.0)
+        estimate.job_started("o", 0.0)
+        estimate.job_finished("o", 0.1, counted=False)
+        assert estimate.raw(0.1) == 78.0
         display, _ = plain_display(tmp_path / "shown")
         display.start([plain, searched])
         display.job_finished(Outcome("p", "lap p", "drive_toy", "ok", duration_s=12.0))

@@ -259,6 +259,16 @@ def test_a_cold_store_guesses_a_lap_with_a_tolerance_search_as_a_dozen_laps(tmp_
     assert 3.0 < montreal / simple < 3.5 and online.typical(dict(plain, circuit="tracks/mine.csv")) == simple
     record = KINDS.get("record")
     assert 3.0 < record.typical({"circuit": "montreal"}) / record.typical({"circuit": "simple_circuit"}) < 3.5
+    # a job for the cuda profile, planned on a host without a GPU, is "not applicable" at once (the study's
+    # 84 were priced as work: "about 4:21:22 left" for a 20-minute run); with a GPU it is work
+    cuda = [job for job in laps if job.params["hardware"]["device"] == "cuda"]
+    no_gpu, gpu = dict(cuda[0].params, host={"gpu": None}), dict(cuda[0].params, host={"gpu": "NVIDIA H200"})
+    assert online.typical(no_gpu) == 0.1 and online.typical(gpu) > 10
+    for kind in ("timing", "offline", "optimize"):
+        params = {"hardware": {"name": "cuda", "device": "cuda"}, "options": {}}
+        assert KINDS.get(kind).typical(dict(params, host={"gpu": None})) == 0.1
+        assert KINDS.get(kind).typical(dict(params, host={"gpu": "NVIDIA H200"})) >= 1.0
+        assert KINDS.get(kind).typical(dict(params, host=None)) >= 1.0   # on whichever worker has the GPU
     train = KINDS.get("train")
     assert train.typical({"epochs": 40}) == 2 * train.typical({"epochs": 20}) == 2 * train.typical({})
     # a fine-tune is guessed by its epochs (the longest optimization starts first)
