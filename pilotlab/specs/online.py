@@ -159,10 +159,12 @@ def lap_resources(params) -> dict[str, float]:
     return timing_resources(params) if timed_live(params) else gpu_resources(params)
 
 
-# What a lap cell typically takes, for the scheduler of a store that has not run it (matrix.times): a
-# lap of simple_circuit took 4-11 s on the 2-core development machine, other circuits by their length;
-# a tolerance search drives a lap per fixed latency and about seven more to bisect.
-LAP_S, BISECTION_LAPS = 6.0, 7
+# What a lap cell typically takes, for the scheduler of a store that has not run it (matrix.times), as
+# measured in the study's cold run on the 2-core development machine: a network's lap of simple_circuit
+# (replayed timing) 1.2 s of driving after 2.5 s of setting up, other circuits by their length (Montreal
+# 3.3 times); a tolerance search drives a lap per fixed latency and about seven more to bisect, of which
+# the lost ones end where the car leaves the road: 11.5 s a simple_circuit cell in all, 32.7 s Montreal's.
+SETUP_S, LAP_S, BISECTION_LAPS, SEARCH_SHARE = 2.5, 1.2, 7, 0.6
 
 
 def typical_seconds(params) -> float:
@@ -170,8 +172,8 @@ def typical_seconds(params) -> float:
         return NOT_HERE_S
     settings = LapSettings.model_validate({k: params[k] for k in ("laps", "repetitions", "starts", "tolerance")
                                            if k in params})
-    searched = 0 if settings.tolerance is None else len(settings.tolerance.fixed_ms) + BISECTION_LAPS
-    return LAP_S * lap_scale(str(params.get("circuit", ""))) * settings.laps * settings.runs * (1 + searched)
+    searched = 0 if settings.tolerance is None else SEARCH_SHARE * (len(settings.tolerance.fixed_ms) + BISECTION_LAPS)
+    return SETUP_S + LAP_S * lap_scale(str(params.get("circuit", ""))) * settings.laps * settings.runs * (1 + searched)
 
 
 register_kind("online", "pilotlab.jobs.online:run_online", params=OnlineSpec, exclusive_for=timed_live,
