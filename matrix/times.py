@@ -88,27 +88,26 @@ class KindStats:
         if name is not None and name in self.names:
             return self.names[name][0]
         found = KINDS.get(kind) if kind in KINDS else None
-        if found is not None and found.typical_for is not None and (typical := _typical(found, params)):
+        typical = _typical(found, params) if found is not None else None
+        if typical and found.typical_for is not None:
             return typical * self.ratios.get(kind, [1.0])[0]
         if kind in self.means:
             return self.means[kind][0]
-        if found is not None and (typical := _typical(found, params)):
+        if typical:
             return typical
         known = sorted(mean for mean, _ in self.means.values())
         return known[len(known) // 2] if known else DEFAULT_ESTIMATE_S
 
     def measured(self, kind: str) -> bool:
         """Whether the kind's estimates rest on what its jobs took on this store."""
-        found = KINDS.get(kind) if kind in KINDS else None
-        return kind in (self.ratios if found is not None and found.typical_for is not None else self.means)
+        return kind in (self.ratios if _guessing_by_params(kind) is not None else self.means)
 
     def add(self, kind: str, seconds: float, name: str | None = None,
             params: Mapping[str, Any] | None = None) -> None:
         """Count a finished job; with its `params`, also how its kind's guess compared."""
         _add_to(self.means, kind, seconds)
-        found = KINDS.get(kind) if kind in KINDS else None
-        if params is not None and found is not None and found.typical_for is not None \
-                and (typical := _typical(found, params)) and seconds > 0:
+        found = _guessing_by_params(kind)
+        if params is not None and found is not None and (typical := _typical(found, params)) and seconds > 0:
             _add_to(self.ratios, kind, seconds / typical)
         if name is not None:
             self.names.pop(name, None)                # re-inserted last: the oldest names go first
@@ -122,6 +121,12 @@ class KindStats:
                                           "ratios": self.ratios})
         except OSError:
             pass  # estimates are a nicety; a read-only store still runs
+
+
+def _guessing_by_params(kind: str) -> JobKind | None:
+    """The registered kind, where it guesses its jobs' times by their params (`typical_for`)."""
+    found = KINDS.get(kind) if kind in KINDS else None
+    return found if found is not None and found.typical_for is not None else None
 
 
 def _typical(kind: JobKind, params: Mapping[str, Any] | None) -> float | None:

@@ -12,7 +12,7 @@ from pydantic import Field
 
 from matrix.kinds import register_kind
 from pilotlab.specs.base import Spec
-from pilotlab.specs.timing import NOT_HERE_S, gpu_resources, not_applicable_here
+from pilotlab.specs.timing import gpu_resources, guess_here
 
 
 class OfflineSpec(Spec):
@@ -26,11 +26,5 @@ class OfflineSpec(Spec):
 
 # What an offline job typically takes, for the scheduler (matrix.times): a test set of a few hundred frames
 OFFLINE_S = 1.0
-
-
-def typical_seconds(params) -> float:
-    return NOT_HERE_S if not_applicable_here(params) else OFFLINE_S
-
-
 register_kind("offline", "pilotlab.jobs.offline:run_offline", params=OfflineSpec, resources_for=gpu_resources,
-              typical_for=typical_seconds)
+              typical_for=guess_here(lambda params: OFFLINE_S))

@@ -18,7 +18,7 @@ from pydantic import Field, field_validator, model_validator
 from matrix.kinds import register_kind
 from pilotlab.circuits.registry import lap_scale
 from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, InWorld, Spec
-from pilotlab.specs.timing import NOT_HERE_S, gpu_resources, not_applicable_here, timing_resources
+from pilotlab.specs.timing import gpu_resources, guess_here, timing_resources
 
 
 # the timing modes that charge the brain's time to the lap (pilotlab.online.drive explains all four)
@@ -168,8 +168,6 @@ SETUP_S, LAP_S, BISECTION_LAPS, SEARCH_SHARE = 2.5, 1.2, 7, 0.6
 
 
 def typical_seconds(params) -> float:
-    if not_applicable_here(params):
-        return NOT_HERE_S
     settings = LapSettings.model_validate({k: params[k] for k in ("laps", "repetitions", "starts", "tolerance")
                                            if k in params})
     searched = 0 if settings.tolerance is None else SEARCH_SHARE * (len(settings.tolerance.fixed_ms) + BISECTION_LAPS)
@@ -177,4 +175,4 @@ def typical_seconds(params) -> float:
 
 
 register_kind("online", "pilotlab.jobs.online:run_online", params=OnlineSpec, exclusive_for=timed_live,
-              resources_for=lap_resources, typical_for=typical_seconds)
+              resources_for=lap_resources, typical_for=guess_here(typical_seconds))

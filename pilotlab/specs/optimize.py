@@ -14,7 +14,7 @@ from pydantic import Field
 from matrix.fingerprint import module_closure
 from matrix.kinds import register_kind
 from pilotlab.specs.base import Spec
-from pilotlab.specs.timing import NOT_HERE_S, not_applicable_here
+from pilotlab.specs.timing import guess_here
 from pilotlab.strategies import STRATEGIES
 
 
@@ -49,12 +49,10 @@ BASE_S, CALIBRATION_S, EPOCH_S = 3.0, 2.0, 3.5
 
 
 def typical_seconds(params) -> float:
-    if not_applicable_here(params):
-        return NOT_HERE_S
     options = params.get("options") or {}
     epochs = sum(value for name, value in options.items() if name.endswith("epochs") and isinstance(value, int))
     return BASE_S + (CALIBRATION_S if options.get("calibration_frames") else 0.0) + EPOCH_S * epochs
 
 
 register_kind("optimize", "pilotlab.jobs.optimize:run_optimize", params=OptimizeSpec,
-              code_for=own_strategy, code_exclude=strategy_modules, typical_for=typical_seconds)
+              code_for=own_strategy, code_exclude=strategy_modules, typical_for=guess_here(typical_seconds))

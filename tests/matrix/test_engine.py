@@ -8,7 +8,7 @@ import pytest
 
 from matrix import engine
 from matrix.errors import MatrixError
-from matrix.execute import run_local
+from matrix.execute import Schedule, run_local
 from matrix.fingerprint import clear_caches
 from matrix.jobs import Job
 from matrix.kinds import KINDS
@@ -306,7 +306,6 @@ def test_executor_settings_that_make_no_sense_are_errors(arguments, message):
 
 
 def test_a_dependency_under_two_roles_makes_its_dependent_ready_once():
-    from matrix.execute import Schedule
     shared = Job("source", "shared", {"value": 1})
     both = Job("source", "both", {"value": 2}, deps={"timing": shared, "reference": shared})
     schedule = Schedule([shared, both])
@@ -318,7 +317,6 @@ def test_a_dependency_under_two_roles_makes_its_dependent_ready_once():
 
 
 def test_a_kind_exclusive_for_some_params_runs_those_jobs_alone_and_the_others_beside_work():
-    from matrix.execute import Schedule
     from matrix.kinds import register_kind
     kind = register_kind("lap_toy", lambda ctx: {}, exclusive_for=lambda params: params["clock"] == "host")
     try:
@@ -332,129 +330,108 @@ def test_a_kind_exclusive_for_some_params_runs_those_jobs_alone_and_the_others_b
         KINDS._entries.pop("lap_toy")
 
 
-def test_the_critical_path_starts_first_and_a_long_job_nothing_needs_does_not_hold_it_up():
+@pytest.fixture
+def alone_toy():
+    """A kind whose jobs run alone (as timings do), registered for one test."""
+    from matrix.kinds import register_kind
+    register_kind("alone_toy", lambda ctx: {}, exclusive=True)
+    yield "alone_toy"
+    KINDS._entries.pop("alone_toy")
+
+
+def test_the_critical_path_starts_first_and_a_long_job_nothing_needs_does_not_hold_it_up(alone_toy):
     """The study's first minutes: a reference lap (nothing but the report needs it) was ready when the
     training (run alone, every later job waits on it) was, started beside the last recording, and
     the training waited two minutes for it."""
-    from matrix.execute import Schedule
-    from matrix.kinds import register_kind
-    register_kind("alone_toy", lambda ctx: {}, exclusive=True)
-    try:
-        reference_lap = Job("source", "reference lap", {"value": 1})
-        recording = Job("source", "recording", {"value": 2})
-        training = Job("alone_toy", "training", {}, deps={"data": recording})
-        evaluation = Job("power", "evaluation", {"power": 2}, deps={"source": training})
-        schedule = Schedule([reference_lap, recording, training, evaluation])
-        assert schedule.take(False, 0, 2) == recording        # the longest chain first, not plan order
-        assert schedule.take(False, 1, 2) == reference_lap    # nothing ready outranks it yet
-        schedule = Schedule([reference_lap, recording, training, evaluation])
-        schedule.take(False, 0, 2)
-        schedule.done(recording.key)
-        assert schedule.take(False, 1, 2) is None             # the training outranks the lap: both wait
-        assert schedule.take(False, 0, 2) == training         # the host is idle: the training runs alone
-        assert schedule.take(True, 1, 2) is None
-    finally:
-        KINDS._entries.pop("alone_toy")
+    reference_lap = Job("source", "reference lap", {"value": 1})
+    recording = Job("source", "recording", {"value": 2})
+    training = Job("alone_toy", "training", {}, deps={"data": recording})
+    evaluation = Job("power", "evaluation", {"power": 2}, deps={"source": training})
+    schedule = Schedule([reference_lap, recording, training, evaluation])
+    assert schedule.take(False, 0, 2) == recording        # the longest chain first, not plan order
+    assert schedule.take(False, 1, 2) == reference_lap    # nothing ready outranks it yet
+    schedule = Schedule([reference_lap, recording, training, evaluation])
+    schedule.take(False, 0, 2)
+    schedule.done(recording.key)
+    assert schedule.take(False, 1, 2) is None             # the training outranks the lap: both wait
+    assert schedule.take(False, 0, 2) == training         # the host is idle: the training runs alone
+    assert schedule.take(True, 1, 2) is None
 
 
-def test_an_exclusive_job_waiting_for_the_host_lets_only_work_that_ends_before_it_start():
+def test_an_exclusive_job_waiting_for_the_host_lets_only_work_that_ends_before_it_start(alone_toy):
     """Backfilling: the quickstart's timings waited for the last fine-tune while the other core idled,
     and the reference laps, which nothing needs, ran last. A job the waiting timing outranks starts
     beside the running one only if it is expected to end first (the timing then starts no later)."""
     import time
-    from matrix.execute import Schedule
-    from matrix.kinds import register_kind
-    register_kind("alone_toy", lambda ctx: {}, exclusive=True)
-    try:
-        fine_tune, recording = Job("source", "fine-tune", {"value": 1}), Job("source", "recording", {"value": 2})
-        timing = Job("alone_toy", "timing", {}, deps={"data": recording})
-        trainings = [Job("power", f"training {i}", {"power": i}, deps={"source": timing}) for i in (2, 3)]
-        fits, too_long = Job("source", "reference lap", {"value": 3}), Job("source", "search", {"value": 4})
-        seconds = {fine_tune.key: 60.0, recording.key: 40.0, timing.key: 3.0, fits.key: 20.0, too_long.key: 50.0,
-                   **{t.key: 100.0 for t in trainings}}
-        schedule = Schedule([fine_tune, recording, timing, *trainings, fits, too_long], lambda job: seconds[job.key])
-        assert schedule.take(False, 0, 3) == recording          # 143 s of work wait on it
-        assert schedule.take(False, 1, 3) == fine_tune          # then the longest (the timing is 40 s away)
-        schedule.done(recording.key)                            # the timing is ready: it waits for the host
-        schedule.started[fine_tune.key] = time.monotonic() - 30   # 30 s of the fine-tune's 60 are left
-        assert schedule.take(False, 1, 3) == fits               # 20 s ends before; the 50 s search would not
-        assert schedule.take(False, 2, 3) is None
-        schedule.done(fits.key)
-        schedule.started[fine_tune.key] -= 60                   # past its estimate: nothing is known to fit
-        assert schedule.take(False, 1, 3) is None
-        schedule.done(fine_tune.key)
-        assert schedule.take(False, 0, 3) == timing             # an idle host: the timing runs alone
-        assert schedule.take(True, 1, 3) is None
-    finally:
-        KINDS._entries.pop("alone_toy")
+    fine_tune, recording = Job("source", "fine-tune", {"value": 1}), Job("source", "recording", {"value": 2})
+    timing = Job("alone_toy", "timing", {}, deps={"data": recording})
+    trainings = [Job("power", f"training {i}", {"power": i}, deps={"source": timing}) for i in (2, 3)]
+    fits, too_long = Job("source", "reference lap", {"value": 3}), Job("source", "search", {"value": 4})
+    seconds = {fine_tune.key: 60.0, recording.key: 40.0, timing.key: 3.0, fits.key: 20.0, too_long.key: 50.0,
+               **{t.key: 100.0 for t in trainings}}
+    schedule = Schedule([fine_tune, recording, timing, *trainings, fits, too_long], lambda job: seconds[job.key])
+    assert schedule.take(False, 0, 3) == recording          # 143 s of work wait on it
+    assert schedule.take(False, 1, 3) == fine_tune          # then the longest (the timing is 40 s away)
+    schedule.done(recording.key)                            # the timing is ready: it waits for the host
+    schedule.started[fine_tune.key] = time.monotonic() - 30   # 30 s of the fine-tune's 60 are left
+    assert schedule.take(False, 1, 3) == fits               # 20 s ends before; the 50 s search would not
+    assert schedule.take(False, 2, 3) is None
+    schedule.done(fits.key)
+    schedule.started[fine_tune.key] -= 60                   # past its estimate: nothing is known to fit
+    assert schedule.take(False, 1, 3) is None
+    schedule.done(fine_tune.key)
+    assert schedule.take(False, 0, 3) == timing             # an idle host: the timing runs alone
+    assert schedule.take(True, 1, 3) is None
 
 
-def test_a_job_that_runs_alone_is_waited_for_once_its_last_dependencies_run():
+def test_a_job_that_runs_alone_is_waited_for_once_its_last_dependencies_run(alone_toy):
     """The study's training (it runs alone) needed four recordings' frames; when the first of the last
     two ended, a 76 s reference lap took the free core, and the training waited for it. From the moment
     every dependency it still needs is running, only work that ends before them starts."""
     import time
-    from matrix.execute import Schedule
-    from matrix.kinds import register_kind
-    register_kind("alone_toy", lambda ctx: {}, exclusive=True)
-    try:
-        frames = [Job("source", f"frames {i}", {"value": i}) for i in (1, 2)]
-        training = Job("alone_toy", "training", {}, deps={"a": frames[0], "b": frames[1]})
-        evaluation = Job("power", "evaluation", {"power": 2}, deps={"source": training})
-        lap, quick = Job("source", "reference lap", {"value": 3}), Job("source", "quick", {"value": 4})
-        seconds = {frames[0].key: 5.0, frames[1].key: 5.0, training.key: 100.0, evaluation.key: 50.0,
-                   lap.key: 76.0, quick.key: 1.0}
-        schedule = Schedule([*frames, training, evaluation, lap, quick], lambda job: seconds[job.key])
-        assert [schedule.take(False, n, 2) for n in (0, 1)] == frames
-        schedule.done(frames[0].key)
-        assert schedule.take(False, 1, 2) == quick             # it ends before the other frames job
-        schedule.done(quick.key)
-        assert schedule.take(False, 1, 2) is None              # the lap would hold the training up
-        schedule.done(frames[1].key)
-        assert schedule.take(False, 0, 2) == training
-        assert schedule.take(True, 1, 2) is None
-        schedule.done(training.key)
-        assert {schedule.take(False, 0, 2), schedule.take(False, 1, 2)} == {evaluation, lap}
-    finally:
-        KINDS._entries.pop("alone_toy")
+    frames = [Job("source", f"frames {i}", {"value": i}) for i in (1, 2)]
+    training = Job("alone_toy", "training", {}, deps={"a": frames[0], "b": frames[1]})
+    evaluation = Job("power", "evaluation", {"power": 2}, deps={"source": training})
+    lap, quick = Job("source", "reference lap", {"value": 3}), Job("source", "quick", {"value": 4})
+    seconds = {frames[0].key: 5.0, frames[1].key: 5.0, training.key: 100.0, evaluation.key: 50.0,
+               lap.key: 76.0, quick.key: 1.0}
+    schedule = Schedule([*frames, training, evaluation, lap, quick], lambda job: seconds[job.key])
+    assert [schedule.take(False, n, 2) for n in (0, 1)] == frames
+    schedule.done(frames[0].key)
+    assert schedule.take(False, 1, 2) == quick             # it ends before the other frames job
+    schedule.done(quick.key)
+    assert schedule.take(False, 1, 2) is None              # the lap would hold the training up
+    schedule.done(frames[1].key)
+    assert schedule.take(False, 0, 2) == training
+    assert schedule.take(True, 1, 2) is None
+    schedule.done(training.key)
+    assert {schedule.take(False, 0, 2), schedule.take(False, 1, 2)} == {evaluation, lap}
 
 
-def test_a_free_core_is_not_kept_long_for_a_job_that_is_not_ready():
+def test_a_free_core_is_not_kept_long_for_a_job_that_is_not_ready(alone_toy):
     """A timing waits for its fine-tune, a minute from its end: a 100 s lap takes the free core (the
     timing waits 40 s more; the core would have idled 60)."""
-    from matrix.execute import Schedule
-    from matrix.kinds import register_kind
-    register_kind("alone_toy", lambda ctx: {}, exclusive=True)
-    try:
-        fine_tune, other = Job("source", "fine-tune", {"value": 1}), Job("source", "other", {"value": 2})
-        timing = Job("alone_toy", "timing", {}, deps={"model": fine_tune})
-        evaluation = Job("power", "evaluation", {"power": 2}, deps={"source": timing})
-        lap = Job("source", "lap", {"value": 3})
-        seconds = {fine_tune.key: 60.0, other.key: 1.0, timing.key: 3.0, evaluation.key: 120.0, lap.key: 100.0}
-        schedule = Schedule([fine_tune, other, timing, evaluation, lap], lambda job: seconds[job.key])
-        assert schedule.take(False, 0, 2) == fine_tune and schedule.take(False, 1, 2) == lap
-    finally:
-        KINDS._entries.pop("alone_toy")
+    fine_tune, other = Job("source", "fine-tune", {"value": 1}), Job("source", "other", {"value": 2})
+    timing = Job("alone_toy", "timing", {}, deps={"model": fine_tune})
+    evaluation = Job("power", "evaluation", {"power": 2}, deps={"source": timing})
+    lap = Job("source", "lap", {"value": 3})
+    seconds = {fine_tune.key: 60.0, other.key: 1.0, timing.key: 3.0, evaluation.key: 120.0, lap.key: 100.0}
+    schedule = Schedule([fine_tune, other, timing, evaluation, lap], lambda job: seconds[job.key])
+    assert schedule.take(False, 0, 2) == fine_tune and schedule.take(False, 1, 2) == lap
 
 
-def test_without_estimates_nothing_is_backfilled():
+def test_without_estimates_nothing_is_backfilled(alone_toy):
     """Ranked by chains of jobs, not seconds, nothing says what would end before the running jobs."""
-    from matrix.execute import Schedule
-    from matrix.kinds import register_kind
-    register_kind("alone_toy", lambda ctx: {}, exclusive=True)
-    try:
-        fine_tune, recording = Job("source", "fine-tune", {"value": 1}), Job("source", "recording", {"value": 2})
-        timing = Job("alone_toy", "timing", {}, deps={"data": recording})
-        training = Job("power", "training", {"power": 2}, deps={"source": timing})
-        lap = Job("source", "reference lap", {"value": 3})
-        schedule = Schedule([fine_tune, recording, timing, training, lap])
-        assert schedule.take(False, 0, 3) == recording and schedule.take(False, 1, 3) == fine_tune
-        schedule.done(recording.key)
-        assert schedule.take(False, 1, 3) is None               # the lap waits with the timing
-        schedule.done(fine_tune.key)
-        assert schedule.take(False, 0, 3) == timing
-    finally:
-        KINDS._entries.pop("alone_toy")
+    fine_tune, recording = Job("source", "fine-tune", {"value": 1}), Job("source", "recording", {"value": 2})
+    timing = Job("alone_toy", "timing", {}, deps={"data": recording})
+    training = Job("power", "training", {"power": 2}, deps={"source": timing})
+    lap = Job("source", "reference lap", {"value": 3})
+    schedule = Schedule([fine_tune, recording, timing, training, lap])
+    assert schedule.take(False, 0, 3) == recording and schedule.take(False, 1, 3) == fine_tune
+    schedule.done(recording.key)
+    assert schedule.take(False, 1, 3) is None               # the lap waits with the timing
+    schedule.done(fine_tune.key)
+    assert schedule.take(False, 0, 3) == timing
 
 
 @pytest.mark.parametrize("freeze_from, frozen", [(10_000, False), (1, True)])
