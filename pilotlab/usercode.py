@@ -13,8 +13,8 @@ a name the file does not define (with "did you mean" and what it does define).
 
 `source_hash` is the sha256 of the file's code (its text without comments, docstrings and blank lines) and
 of the user's own modules it imports (those found
-beside it, followed transitively; `import x`, `from x import y`, `from .x import y`, at any depth of
-the file), so editing any of them changes the key of the jobs that run the code. Nothing is imported
+beside it, or in its package for a file in one, followed transitively; `import x`, `from x import y`,
+`from .x import y`, `from ..x import y`, at any depth of the file), so editing any of them changes the key of the jobs that run the code. Nothing is imported
 to compute it: planning never runs user code.
 """
 from __future__ import annotations
@@ -205,8 +205,8 @@ def source_files(spec: str, base: Path) -> list[Path]:
     """The file `spec` names (for a module: its file), then the user's modules it imports, transitively
     (sorted). An installed module (found on sys.path, not in `base`) is taken alone: it is not the user's to edit."""
     code = parse(spec, base)
-    if code.file is not None:
-        first, roots = code.file, []
+    if code.file is not None:   # a file in a package imports as part of it: from the folder above the top package
+        first, roots = code.file, [] if (package := _in_package(code.file)) is None else [package[0]]
     else:
         first, root = _module_file(code, Path(base))
         if root != Path(base).resolve():
@@ -253,31 +253,39 @@ def _candidates(folder: Path, module: str) -> list[Path]:
     return [path.with_suffix(".py"), path / "__init__.py"]
 
 
-def _imported_names(tree: ast.AST) -> list[str]:
-    """Dotted names a module imports: `import a.b` gives a.b; `from a import b` gives a and a.b
-    (b may be a module); `from . import b` (level 1) gives b. Deeper relative imports are left out."""
-    names: list[str] = []
+def _imported_names(tree: ast.AST) -> list[tuple[int, str]]:
+    """(level, dotted name) of what a module imports: `import a.b` gives (0, a.b); `from a import b` gives
+    (0, a) and (0, a.b) (b may be a module); `from ..x import b` (level 2) gives (2, x) and (2, x.b), and
+    `from . import b` (1, b): relative to the folder `level - 1` above the file's own."""
+    names: list[tuple[int, str]] = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            names += [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.level <= 1:
+            names += [(0, alias.name) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
             prefix = f"{node.module}." if node.module else ""
-            names += [node.module] if node.module else []
-            names += [prefix + alias.name for alias in node.names if alias.name != "*"]
+            names += [(node.level, node.module)] if node.module else []
+            names += [(node.level, prefix + alias.name) for alias in node.names if alias.name != "*"]
     return names
 
 
 def _local_imports(file: Path, roots: list[Path]) -> list[Path]:
-    """Files under `roots` that `file` imports (and the packages' __init__.py on the way); a file
-    that does not parse imports nothing here (loading it will say why)."""
+    """Files under `roots` that `file` imports (and the packages' __init__.py on the way), its relative
+    imports resolved against its own folder; a file that does not parse imports nothing here (loading
+    it will say why)."""
     try:
         tree = ast.parse(file.read_bytes(), str(file))   # bytes: decoded by the file's coding line
     except (SyntaxError, UnicodeDecodeError, ValueError):
         return []
     found = []
-    for name in _imported_names(tree):
+    for level, name in _imported_names(tree):
         parts = name.split(".")
-        for root in roots:
+        for root in roots if level == 0 else _relative_root(file, level):
             for depth in range(1, len(parts) + 1):
                 found += [c.resolve() for c in _candidates(root, ".".join(parts[:depth])) if c.is_file()]
     return list(dict.fromkeys(found))
+
+
+def _relative_root(file: Path, level: int) -> list[Path]:
+    """The folder a relative import of `level` dots in `file` resolves against ([] above the filesystem's root)."""
+    folders = [file.parent, *file.parent.parents]
+    return folders[level - 1:level]

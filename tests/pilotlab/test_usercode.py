@@ -140,3 +140,24 @@ def test_a_module_of_a_package_with_relative_imports_loads_by_its_name_or_its_fi
     by_file = load_object(f"{tmp_path / package / 'mine1.py'}:Net", tmp_path / "elsewhere")
     assert by_file is by_name and by_file.gain == 2.0
     assert [f.name for f in source_files(f"{package}.mine1:Net", tmp_path)] == ["mine1.py", "__init__.py", "common.py"]
+
+
+def test_the_source_hash_follows_imports_two_levels_up_and_through_the_top_package(tmp_path):
+    """Outside test: a network in pkg/nets/net.py saying `from ..layers import Block` and `from pkg.scale
+    import gain` loads (as part of its package) but neither file was in its source hash (relative imports
+    deeper than one dot were left out, absolute ones were looked for beside the file only): editing them
+    reran nothing."""
+    write(tmp_path, "pkg/__init__.py", "")
+    write(tmp_path, "pkg/nets/__init__.py", "")
+    write(tmp_path, "pkg/layers.py", "class Block:\n    width = 8\n")
+    write(tmp_path, "pkg/scale.py", "def gain():\n    return 2.0\n")
+    write(tmp_path, "pkg/nets/net.py", "from ..layers import Block\nfrom pkg.scale import gain\n\n\n"
+                                       "class Net(Block):\n    pass\n")
+    spec = "pkg/nets/net.py:Net"
+    assert {f.name for f in source_files(spec, tmp_path)} >= {"net.py", "layers.py", "scale.py"}
+    first = source_hash(spec, tmp_path)
+    write(tmp_path, "pkg/layers.py", "class Block:\n    width = 16\n")
+    second = source_hash(spec, tmp_path)
+    write(tmp_path, "pkg/scale.py", "def gain():\n    return 3.0\n")
+    assert len({first, second, source_hash(spec, tmp_path)}) == 3
+    assert load_object(f"{tmp_path / 'pkg' / 'nets' / 'net.py'}:Net", tmp_path).width == 16
