@@ -140,23 +140,48 @@ def fit(model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfi
     if val is not None:
         val.check_finite("validation data")
     torch.manual_seed(config.seed)
-    with _channels_last_weights(model):
+    with _channels_last_convolutions(model, train.inputs(np.arange(min(2, len(train))), config.frames)):
         history = _fit_epochs(model, train, ranges, config, val, on_epoch, on_batch)
     model.eval()
     return history
 
 
 @contextmanager
-def _channels_last_weights(model: nn.Module) -> Iterator[None]:
-    """The convolutions' weights channels-last (NHWC) while fitting, the input NCHW: torch then runs every
-    convolution channels-last, ~1.6× faster to train on a CPU (PilotNet, a batch of 64 on 2 cores: 87
-    against 142 ms a step, torch 2.13), while the input's BatchNorm stays on the NCHW layout it is fast on.
-    The weights go back to the standard layout afterwards, for export and quantization."""
-    model.to(memory_format=torch.channels_last)
+def _channels_last_convolutions(model: nn.Module, sample: torch.Tensor) -> Iterator[None]:
+    """The 2-D convolutions' weights channels-last (NHWC) while fitting, the input NCHW: torch then runs
+    those convolutions channels-last, ~1.6× faster a training step on 2 threads (PilotNet, a batch of
+    64, torch 2.13: tests/pilotlab/test_training_benchmark.py), while the input's BatchNorm stays on
+    the NCHW layout it is fast on. Their outputs are channels-last too, which a network of the user's
+    may not take (`x.view(n, -1)` after a convolution cannot view them): one forward pass of `sample`
+    (eval mode, no gradient: nothing learns) tries it first, and the model trains in its own layout
+    if that fails. The weights go back to the standard layout afterwards, for export and quantization."""
+    tensors = [t for conv in model.modules() if isinstance(conv, nn.Conv2d)
+               for t in (*conv.parameters(), *conv.buffers()) if t.dim() == 4]   # pruning's masks, too
     try:
+        _set_layout(tensors, torch.channels_last)
+        if tensors and not _runs(model, sample):
+            _set_layout(tensors, torch.contiguous_format)
         yield
     finally:
-        model.to(memory_format=torch.contiguous_format)
+        _set_layout(tensors, torch.contiguous_format)
+
+
+def _set_layout(tensors: list[torch.Tensor], layout: torch.memory_format) -> None:
+    for tensor in tensors:
+        tensor.data = tensor.data.contiguous(memory_format=layout)   # the same Parameter: the optimizer keeps it
+
+
+def _runs(model: nn.Module, sample: torch.Tensor) -> bool:
+    was_training = model.training
+    model.eval()
+    try:
+        with torch.no_grad():
+            model(sample)
+        return True
+    except Exception:   # any error: the layout does not suit this network (in its own, fit says what fails)
+        return False
+    finally:
+        model.train(was_training)
 
 
 def _fit_epochs(model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfig, val: FrameSet | None,

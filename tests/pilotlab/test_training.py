@@ -125,3 +125,46 @@ def test_a_network_that_cannot_train_says_why_not_to_lower_the_learning_rate(net
     data = stripe_frameset(recordings=2, per_recording=16)
     with pytest.raises(PilotlabError, match=message.replace("(", r"\(").replace(")", r"\)")):
         fit(network(), data, LabelRanges((0, 1), (-1, 1)), FitConfig(epochs=1, batch_size=8, lr=1e-3))
+
+
+class ViewsItsFeatures(torch.nn.Module):
+    """A network of the user's as many are written: `.view(n, -1)` after the convolutions, which cannot
+    view channels-last activations."""
+
+    def __init__(self):
+        super().__init__()
+        self.conv = torch.nn.Conv2d(3, 4, 5, stride=4)
+        self.head = torch.nn.Linear(4 * 16 * 49, 2)
+
+    def forward(self, images):
+        features = torch.relu(self.conv(images))
+        return self.head(features.view(features.size(0), -1))
+
+
+class Volumetric(torch.nn.Module):
+    """A 3-D convolution (5-D weights, which have no channels-last layout) beside a 2-D one."""
+
+    def __init__(self):
+        super().__init__()
+        self.conv2d = torch.nn.Conv2d(3, 3, 3, stride=4)
+        self.conv3d = torch.nn.Conv3d(1, 2, 3, stride=2)
+        self.head = torch.nn.LazyLinear(2)
+
+    def forward(self, images):
+        volume = self.conv3d(self.conv2d(images).unsqueeze(1))
+        return self.head(volume.flatten(1))
+
+
+@pytest.mark.parametrize("network", [ViewsItsFeatures, Volumetric, lambda: build_model("pilotnet")])
+def test_fit_trains_networks_that_do_not_take_channels_last_and_leaves_every_weight_in_the_standard_layout(network):
+    """Review finding: converting the whole model to channels-last while fitting broke a user's `.view(n, -1)`
+    ("view size is not compatible") and any 5-D weight ("required rank 4 tensor"); the weights also
+    have to come back in the standard layout for export."""
+    data = stripe_frameset(recordings=2, per_recording=8)
+    ranges = LabelRanges.covering(data.labels)
+    torch.manual_seed(0)
+    model = network()
+    model(data.inputs(np.arange(2)))    # a lazy layer takes its shape
+    history = fit(model, data, ranges, FitConfig(epochs=1, batch_size=8, lr=1e-3))
+    assert len(history) == 1 and np.isfinite(history[0]["train_loss"])
+    assert all(t.is_contiguous() for t in [*model.parameters(), *model.buffers()])
