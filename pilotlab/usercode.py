@@ -11,11 +11,11 @@ Whatever goes wrong is a `UserCodeError` of one line that names the file and lin
 a syntax error, an exception while the file is imported (the line in the user's file it came from),
 a name the file does not define (with "did you mean" and what it does define).
 
-`source_hash` is the sha256 of the file's code (its text without comments, docstrings and blank lines) and
-of the user's own modules it imports (those found
-beside it, or in its package for a file in one, followed transitively; `import x`, `from x import y`,
-`from .x import y`, `from ..x import y`, at any depth of the file), so editing any of them changes the key of the jobs that run the code. Nothing is imported
-to compute it: planning never runs user code.
+`source_hash` is the sha256 of the file's code (its text without comments, docstrings and blank
+lines) and of the user's own modules it imports (those found beside it, or in its package for a file
+in one, followed transitively; `import x`, `from x import y`, `from .x import y`, `from ..x import y`,
+at any depth of the file), so editing any of them changes the key of the jobs that run the code.
+Nothing is imported to compute it: planning never runs user code.
 """
 from __future__ import annotations
 
@@ -235,8 +235,16 @@ def source_hash(spec: str, base: Path) -> str:
     digest = hashlib.sha256()
     for file in files:
         digest.update(f"# {file.relative_to(root).as_posix()}\n".encode())
-        digest.update(source_code_text(file.read_bytes()).encode())   # read by its coding line, as Python does
+        digest.update(source_code_text(_read(file)).encode())   # read by its coding line, as Python does
     return digest.hexdigest()
+
+
+def _read(file: Path) -> bytes:
+    try:
+        return file.read_bytes()
+    except OSError as error:
+        raise UserCodeError(f"{file}: cannot read it ({error.strerror or error}); it is your code or a module "
+                            "it imports, and goes into the job's key: make it readable") from None
 
 
 def _module_file(code: UserCode, base: Path) -> tuple[Path, Path]:
@@ -274,7 +282,7 @@ def _local_imports(file: Path, roots: list[Path]) -> list[Path]:
     it will say why)."""
     try:
         tree = ast.parse(file.read_bytes(), str(file))   # bytes: decoded by the file's coding line
-    except (SyntaxError, UnicodeDecodeError, ValueError):
+    except (SyntaxError, UnicodeDecodeError, ValueError, OSError):   # (an unreadable one: source_hash says)
         return []
     found = []
     for level, name in _imported_names(tree):

@@ -161,3 +161,16 @@ def test_the_source_hash_follows_imports_two_levels_up_and_through_the_top_packa
     write(tmp_path, "pkg/scale.py", "def gain():\n    return 3.0\n")
     assert len({first, second, source_hash(spec, tmp_path)}) == 3
     assert load_object(f"{tmp_path / 'pkg' / 'nets' / 'net.py'}:Net", tmp_path).width == 16
+
+
+def test_an_unreadable_module_the_file_imports_is_a_one_line_error(brains, monkeypatch):
+    """Review: an OSError reading a module the file imports ended planning in a traceback."""
+    helpers, read = (brains / "brains" / "helpers.py").resolve(), Path.read_bytes
+
+    def refuse(path):
+        if path == helpers:
+            raise PermissionError(13, "Permission denied")
+        return read(path)
+    monkeypatch.setattr(Path, "read_bytes", refuse)
+    with pytest.raises(UserCodeError, match="helpers.py: cannot read it"):
+        source_hash("brains/mine.py:MyBrain", brains)
