@@ -126,7 +126,8 @@ class FrameSet:
         index = np.asarray(index)
         if frames == 1:
             batch = np.asarray(self.frames[index])
-            return torch.from_numpy(batch).permute(0, 3, 1, 2).to(torch.float32, memory_format=torch.contiguous_format).div_(255.0)
+            nchw = torch.from_numpy(batch).permute(0, 3, 1, 2)
+            return nchw.to(torch.float32, memory_format=torch.contiguous_format).div_(255.0)
         stacked = np.asarray(self.frames[self.stack_index(index, frames)])     # [B, F, H, W, 3]
         tensor = torch.from_numpy(stacked).permute(0, 1, 4, 2, 3).float().div_(255.0)
         return tensor.reshape(len(index), 3 * frames, *tensor.shape[-2:])
