@@ -33,6 +33,7 @@ from pydantic import Field
 
 from matrix.kinds import NotApplicable
 from matrix.runs import cores
+from pilotlab.cpuinfo import cpu_model
 from pilotlab.errors import PilotlabError
 from pilotlab.specs.base import Spec
 
@@ -149,26 +150,6 @@ def apply_profile(profile: HardwareProfile) -> None:
     import torch
     check_available(profile)
     torch.set_num_threads(profile.cpu_threads)
-
-
-@cache
-def cpu_model() -> str:
-    cpuinfo = Path("/proc/cpuinfo")
-    if cpuinfo.exists():
-        for line in cpuinfo.read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    return platform.processor() or platform.machine()
-
-
-@cache
-def cpu_flags() -> frozenset[str]:
-    cpuinfo = Path("/proc/cpuinfo")
-    if cpuinfo.exists():
-        for line in cpuinfo.read_text().splitlines():
-            if line.startswith("flags"):
-                return frozenset(line.split(":", 1)[1].split())
-    return frozenset()
 
 
 # Device files a GPU driver creates (NVIDIA, NVIDIA Jetson, AMD ROCm, WSL2): without any of them

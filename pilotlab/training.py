@@ -4,6 +4,13 @@
 dict per epoch. It augments batches as `FitConfig.augment` says, stops early when the validation loss
 has not improved for `patience` epochs (restoring the best weights), and reports progress through
 callbacks, so the engine (or `FitProgress`, a rich bar) can show it.
+
+`precision` "bf16" trains in mixed precision: the forward pass runs under torch.autocast (convolutions
+and matrix products in bfloat16), while the weights, their gradients, Adam's state and the loss stay
+float32, and validation is float32. Where the CPU computes bf16 natively (AVX512-BF16, AMX) a PilotNet
+step takes 0.4× the time (tests/pilotlab/test_training_benchmark.py); elsewhere torch emulates bf16,
+slower than fp32, so "auto" (the train job's default) is bf16 only there. Every history row says
+which precision trained it.
 """
 from __future__ import annotations
 
@@ -22,6 +29,9 @@ from torch import nn
 from pilotlab.data.augment import AugmentConfig, augment_batch, epoch_order
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.errors import PilotlabError
+from pilotlab.cpuinfo import native_cpu_dtype
+
+PRECISIONS = ("auto", "fp32", "bf16")
 
 
 @dataclass(frozen=True)
@@ -35,6 +45,7 @@ class FitConfig:
     frames: int = 1                  # consecutive frames per input (temporal models)
     patience: int | None = None      # early stopping on validation loss (None: never stop early)
     augment: AugmentConfig = field(default_factory=AugmentConfig)
+    precision: str = "fp32"          # fp32, bf16 (mixed) or auto (see the module docstring)
 
     def as_dict(self) -> dict:
         return {**{f.name: getattr(self, f.name) for f in fields(self)}, "augment": self.augment.as_dict()}
@@ -42,6 +53,15 @@ class FitConfig:
 
 EpochCallback = Callable[[dict], None]
 BatchCallback = Callable[[int, int, int, float], None]   # (epoch, batch, batches, loss)
+
+
+def fit_precision(requested: str) -> str:
+    """The precision a fit trains in: "auto" is "bf16" where this CPU computes bf16 natively, else "fp32"."""
+    if requested not in PRECISIONS:
+        raise PilotlabError(f"precision {requested!r} is not one of {', '.join(PRECISIONS)}")
+    if requested == "auto":
+        return "bf16" if native_cpu_dtype("bfloat16") else "fp32"
+    return requested
 
 
 def evaluate(model: nn.Module, data: FrameSet, ranges: LabelRanges, *, frames: int = 1,
@@ -73,11 +93,13 @@ def mean_predictor_mse(train: FrameSet, val: FrameSet, ranges: LabelRanges) -> d
 class _Epochs:
     """One model's training state: runs an epoch over a given order of frames."""
 
-    def __init__(self, model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfig):
+    def __init__(self, model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfig,
+                 precision: str = "fp32"):
         if not any(p.requires_grad for p in model.parameters()):
             raise PilotlabError(f"the network ({type(model).__name__}) has no trainable parameters, so there is "
                                 "nothing to train; give it layers with weights, or use it as it is (train: false)")
         self.model, self.train, self.config = model, train, config
+        self.bf16 = precision == "bf16"
         self.optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
         self.generator = torch.Generator().manual_seed(config.seed)
         self.labels = torch.from_numpy(np.asarray(train.labels, np.float32).copy())   # physical
@@ -106,7 +128,9 @@ class _Epochs:
         inputs, labels = augment_batch(self.train.inputs(index, self.config.frames), self.labels[index],
                                        self.config.augment, self.generator)
         self.optimizer.zero_grad()
-        loss = nn.functional.mse_loss(self.model(inputs), (labels - self.lo) / self.span)
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.bf16):
+            outputs = self.model(inputs)
+        loss = nn.functional.mse_loss(outputs.float(), (labels - self.lo) / self.span)
         loss.backward()
         self.optimizer.step()
         return loss.item()
@@ -140,8 +164,12 @@ def fit(model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfi
     if val is not None:
         val.check_finite("validation data")
     torch.manual_seed(config.seed)
-    with _channels_last_convolutions(model, train.inputs(np.arange(min(2, len(train))), config.frames)):
-        history = _fit_epochs(model, train, ranges, config, val, on_epoch, on_batch)
+    sample = train.inputs(np.arange(min(2, len(train))), config.frames)
+    precision = fit_precision(config.precision)
+    if precision == "bf16" and config.precision == "auto" and not _runs(model, sample, bf16=True):
+        precision = "fp32"   # a network of the user's that autocast breaks (a dtype it mixes itself)
+    with _channels_last_convolutions(model, sample):
+        history = _fit_epochs(model, train, ranges, config, precision, val, on_epoch, on_batch)
     model.eval()
     return history
 
@@ -171,28 +199,30 @@ def _set_layout(tensors: list[torch.Tensor], layout: torch.memory_format) -> Non
         tensor.data = tensor.data.contiguous(memory_format=layout)   # the same Parameter: the optimizer keeps it
 
 
-def _runs(model: nn.Module, sample: torch.Tensor) -> bool:
+def _runs(model: nn.Module, sample: torch.Tensor, bf16: bool = False) -> bool:
+    """Whether one forward pass of `sample` goes through (eval mode, no gradient: nothing learns); with
+    `bf16`, under autocast and to a finite output."""
     was_training = model.training
     model.eval()
     try:
-        with torch.no_grad():
-            model(sample)
-        return True
-    except Exception:   # any error: the layout does not suit this network (in its own, fit says what fails)
+        with torch.no_grad(), torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+            output = model(sample)
+        return not bf16 or bool(torch.isfinite(output.float()).all())
+    except Exception:   # any error: the layout (or autocast) does not suit this network (fit says what fails)
         return False
     finally:
         model.train(was_training)
 
 
-def _fit_epochs(model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfig, val: FrameSet | None,
-                on_epoch: EpochCallback | None, on_batch: BatchCallback | None) -> list[dict]:
-    epochs, best, history = _Epochs(model, train, ranges, config), _Best(), []
+def _fit_epochs(model: nn.Module, train: FrameSet, ranges: LabelRanges, config: FitConfig, precision: str,
+                val: FrameSet | None, on_epoch: EpochCallback | None, on_batch: BatchCallback | None) -> list[dict]:
+    epochs, best, history = _Epochs(model, train, ranges, config, precision), _Best(), []
     w_limit = max(abs(ranges.w[0]), abs(ranges.w[1]))
     for epoch in range(1, config.epochs + 1):
         started = time.perf_counter()
         order = epoch_order(np.asarray(train.labels)[:, 1], w_limit, config.augment,
                             np.random.default_rng(config.seed + epoch))
-        row = {"epoch": epoch, "train_loss": epochs.run(epoch, order, on_batch)}
+        row = {"epoch": epoch, "train_loss": epochs.run(epoch, order, on_batch), "precision": precision}
         if val is not None and len(val):
             scores = evaluate(model, val, ranges, frames=config.frames)
             if not math.isfinite(scores["mse"]):

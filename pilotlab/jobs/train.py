@@ -69,8 +69,8 @@ def progress_callbacks(ctx: JobContext, epochs: int):
         ctx.progress(epoch - 1 + batch / batches, epochs, f"epoch {epoch}/{epochs} loss {loss:.4f}")
 
     def on_epoch(row: dict) -> None:
-        ctx.log.info("epoch %d: %s", row["epoch"], ", ".join(f"{k} {v:.5g}" for k, v in row.items()
-                                                               if k not in ("epoch", "best")))
+        ctx.log.info("epoch %d: %s", row["epoch"], ", ".join(
+            f"{k} {v:.5g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items() if k not in ("epoch", "best")))
     return on_batch, on_epoch
 
 
@@ -105,7 +105,8 @@ def make_model(ctx: JobContext, p: TrainSpec, preprocess: dict) -> tuple[torch.n
         shape = (3, int(preprocess.get("height", 66)), int(preprocess.get("width", 200)))
         model, arch, config, origin = user.user_model(p, dict(ctx.inputs), shape, where)
     fit_config = FitConfig(epochs=p.epochs, batch_size=p.batch_size, lr=p.lr, seed=p.seed,
-                           frames=input_frames(config), patience=p.patience, augment=p.augment)
+                           frames=input_frames(config), patience=p.patience, augment=p.augment,
+                           precision=p.precision)
     return model, arch, config, fit_config, origin
 
 
@@ -113,7 +114,8 @@ def summarise(model, history: list[dict], data: FrameSet, train: FrameSet, val: 
               ranges: LabelRanges, fit_config: FitConfig, seconds: float) -> dict[str, Any]:
     trained = {"train_loss": history[-1]["train_loss"], "epochs_run": len(history),
                "best_epoch": next((r["epoch"] for r in history if r.get("best")), len(history)),
-               "stopped_early": len(history) < fit_config.epochs} if history else {"epochs_run": 0}
+               "stopped_early": len(history) < fit_config.epochs,
+               "precision": history[0]["precision"]} if history else {"epochs_run": 0}
     return {**validation_scores(model, train, val, ranges, fit_config.frames), **trained,
             "params": sum(t.numel() for t in model.parameters()), "train_frames": len(train),
             "val_frames": len(val), "recordings": int(len(np.unique(data.recording))),

@@ -48,7 +48,8 @@ from pydantic import (BaseModel, ConfigDict, Field, StrictBool, ValidationError,
 
 from pilotlab.columns import BY_NAME
 from pilotlab.errors import PilotlabError
-from pilotlab.hardware import cpu_model, gpu_name
+from pilotlab.cpuinfo import cpu_model
+from pilotlab.hardware import gpu_name
 from matrix.errors import did_you_mean
 
 Kind = Literal["offline", "online"]

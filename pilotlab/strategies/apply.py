@@ -76,6 +76,12 @@ class StrategySource:
         return LabelRanges.from_dict(self.checkpoint["labels"])
 
     @property
+    def training_precision(self) -> str:
+        """The precision the model was trained in, as its recipe asked (pilotlab.training; "auto" for a
+        checkpoint that does not say)."""
+        return (self.checkpoint.get("training") or {}).get("precision", "auto")
+
+    @property
     def input_shape(self) -> tuple:
         config = self.checkpoint.get("config", {})
         channels = config.get("channels", 3) * int(config.get("frames", 1))  # temporal models stack frames

@@ -21,14 +21,18 @@ from pilotlab.training import FitConfig, fit
 
 
 def finetune(model: nn.Module, source: StrategySource, *, epochs: int, lr: float,
-             batch_size: int, distill: float = 0.0) -> list[dict]:
+             batch_size: int, distill: float = 0.0, fake_quant: bool = False) -> list[dict]:
     """Fine-tune in place on the training frames with the shared loop; [] when epochs == 0.
 
     `distill` > 0 is knowledge distillation from the trained baseline: the loss is
     (1 - distill) · MSE(labels) + distill · MSE(the baseline's outputs), its outputs the soft targets.
     With an MSE loss that is, gradient for gradient, MSE against the blended target
     (1 - distill) · label + distill · baseline output, so the fine-tune trains on frames relabelled so
-    (fine-tuning augments nothing, so the baseline's output on each frame is computed once)."""
+    (fine-tuning augments nothing, so the baseline's output on each frame is computed once).
+
+    It trains in the precision the model was trained in (pilotlab.training: bf16 mixed precision where
+    the CPU has it), except with `fake_quant` (QAT): its fake quantization emulates int8 arithmetic,
+    which a bfloat16 forward pass would round again, so QAT fine-tunes in fp32."""
     if epochs <= 0:
         return []
     source.log.info("fine-tuning %d epoch(s) on %d frames%s", epochs, len(source.calibration),
@@ -36,7 +40,8 @@ def finetune(model: nn.Module, source: StrategySource, *, epochs: int, lr: float
 
     def on_epoch(row: dict) -> None:
         source.progress(row["epoch"], epochs, f"fine-tune epoch {row['epoch']}/{epochs}")
-    config = FitConfig(epochs=epochs, batch_size=batch_size, lr=lr, frames=source.frames)
+    config = FitConfig(epochs=epochs, batch_size=batch_size, lr=lr, frames=source.frames,
+                       precision="fp32" if fake_quant else source.training_precision)
     data = soft_targets(source, distill) if distill else source.calibration
     return fit(model, data, source.labels, config, on_epoch=on_epoch)
 

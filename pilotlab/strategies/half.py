@@ -12,13 +12,11 @@ from __future__ import annotations
 import torch
 
 from matrix.kinds import NotApplicable
-from pilotlab.hardware import check_available, cpu_flags
+from pilotlab.cpuinfo import NATIVE_CPU_FLAGS, native_cpu_dtype
+from pilotlab.hardware import check_available
 from pilotlab.strategies.configs.half import HalfConfig
 from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.saving import save_torchscript
-
-NATIVE_CPU_FLAGS = {"bfloat16": {"avx512_bf16", "amx_bf16"}, "float16": {"avx512_fp16", "amx_fp16"}}
-
 
 def bf16(config: HalfConfig, source: StrategySource) -> dict:
     return save_half(config, source, torch.bfloat16)
@@ -46,7 +44,7 @@ def save_half(config: HalfConfig, source: StrategySource, dtype: torch.dtype) ->
 def native_support(dtype: torch.dtype, device: str) -> bool:
     if device == "cuda":
         return dtype == torch.float16 or torch.cuda.is_bf16_supported()
-    return bool(NATIVE_CPU_FLAGS[dtype_name(dtype)] & cpu_flags())
+    return native_cpu_dtype(dtype_name(dtype))
 
 
 def dtype_name(dtype: torch.dtype) -> str:

@@ -66,14 +66,14 @@ def quantization_aware(model: nn.Module, source: StrategySource, config, history
     fine-tune, bake and convert to LiteRT int8."""
     quant = add_fake_quant(model)
     calibrate(model, quant, source.calibration_batches(config.calibration_frames))
-    history = history + tune(model, source, config, config.qat_epochs)
+    history = history + tune(model, source, config, config.qat_epochs, fake_quant=True)
     remove_hooks(quant)
     return save(model, source, "int8", config.calibration_frames, history)
 
 
-def tune(model: nn.Module, source: StrategySource, config, epochs: int) -> list[dict]:
+def tune(model: nn.Module, source: StrategySource, config, epochs: int, fake_quant: bool = False) -> list[dict]:
     return finetune(model, source, epochs=epochs, lr=config.lr, batch_size=config.batch_size,
-                    distill=config.distill)
+                    distill=config.distill, fake_quant=fake_quant)
 
 
 def save(model: nn.Module, source: StrategySource, mode: str, calibration_frames: int, history: list[dict]) -> dict:

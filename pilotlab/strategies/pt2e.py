@@ -47,7 +47,7 @@ def quantization_aware_finetune(model: nn.Module, source: StrategySource, config
         freeze_zeros(prepared)
     trainable = TrainEvalSwitch(prepared)
     history = finetune(trainable, source, epochs=config.finetune_epochs, lr=config.lr,
-                       batch_size=config.batch_size)
+                       batch_size=config.batch_size, fake_quant=True)
     trainable.eval()
     save_quantized(convert_pt2e(prepared), source)
     return history

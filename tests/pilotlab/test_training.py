@@ -6,6 +6,7 @@ import torch
 from pilotlab.data.augment import AugmentConfig
 from pilotlab.data.frames import LabelRanges
 from pilotlab.data.split import split_validation
+from pilotlab.errors import PilotlabError
 from pilotlab.models import build_model, make_config
 from pilotlab.training import FitConfig, FitProgress, evaluate, fit, mean_predictor_mse
 from tests.pilotlab.synthetic import stripe_frameset
@@ -168,3 +169,60 @@ def test_fit_trains_networks_that_do_not_take_channels_last_and_leaves_every_wei
     history = fit(model, data, ranges, FitConfig(epochs=1, batch_size=8, lr=1e-3))
     assert len(history) == 1 and np.isfinite(history[0]["train_loss"])
     assert all(t.is_contiguous() for t in [*model.parameters(), *model.buffers()])
+
+
+def test_bf16_mixed_precision_learns_as_well_and_keeps_float32_weights():
+    """precision bf16: the forward pass under autocast, the weights (and what is saved) float32, and it learns.
+    On this tiny task (72 frames, 6 epochs) bf16 ends 1.5-4.7x fp32's validation loss over seeds 0-4 (printed);
+    on recorded driving data it was as good (quickstart test MSE 0.00218 against 0.00217, study 0.00329
+    against 0.00410), which is why `precision: fp32` exists and the report states the precision."""
+    data = stripe_frameset(recordings=4, per_recording=24)
+    train, val = split(data)
+    ranges = LabelRanges.covering(data.labels)
+    losses = {}
+    for precision in ("fp32", "bf16"):
+        torch.manual_seed(0)
+        model = build_model("pilotnet")
+        history = fit(model, train, ranges, FitConfig(epochs=6, batch_size=8, lr=1e-3, precision=precision), val=val)
+        assert {row["precision"] for row in history} == {precision}
+        assert all(t.dtype == torch.float32 for t in model.state_dict().values() if t.is_floating_point())
+        losses[precision] = evaluate(model, val, ranges)["mse"]
+    print(losses)
+    assert losses["bf16"] < 0.25 * mean_predictor_mse(train, val, ranges)["mse"]
+
+
+@pytest.mark.parametrize("native", [True, False])
+def test_auto_precision_is_bf16_only_where_the_cpu_computes_it_natively(monkeypatch, native):
+    import pilotlab.training as training
+    monkeypatch.setattr(training, "native_cpu_dtype", lambda dtype: native and dtype == "bfloat16")
+    assert training.fit_precision("auto") == ("bf16" if native else "fp32")
+    assert training.fit_precision("fp32") == "fp32" and training.fit_precision("bf16") == "bf16"
+    with pytest.raises(PilotlabError, match="not one of auto, fp32, bf16"):
+        training.fit_precision("fp16")
+
+
+class Float32Head(torch.nn.Module):
+    """A network of the user's that autocast breaks: its head insists on float32 features."""
+
+    def __init__(self):
+        super().__init__()
+        self.conv = torch.nn.Conv2d(3, 4, 5, stride=4)
+        self.head = torch.nn.Linear(4 * 16 * 49, 2)
+
+    def forward(self, images):
+        features = torch.relu(self.conv(images)).flatten(1)
+        if features.dtype != torch.float32:
+            raise TypeError(f"features are {features.dtype}, the head takes float32")
+        return self.head(features)
+
+
+def test_auto_precision_trains_in_fp32_a_network_autocast_breaks(monkeypatch):
+    import pilotlab.training as training
+    monkeypatch.setattr(training, "native_cpu_dtype", lambda dtype: True)
+    data = stripe_frameset(recordings=2, per_recording=8)
+    ranges = LabelRanges.covering(data.labels)
+    torch.manual_seed(0)
+    history = fit(Float32Head(), data, ranges, FitConfig(epochs=1, batch_size=8, lr=1e-3, precision="auto"))
+    assert history[0]["precision"] == "fp32" and np.isfinite(history[0]["train_loss"])
+    with pytest.raises(TypeError, match="the head takes float32"):   # asked for explicitly, it is not hidden
+        fit(Float32Head(), data, ranges, FitConfig(epochs=1, batch_size=8, lr=1e-3, precision="bf16"))

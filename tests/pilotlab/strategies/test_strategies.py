@@ -194,7 +194,7 @@ def test_cluster_leaves_at_most_k_distinct_weights_per_layer(artifacts):
 
 def test_half_precision_is_not_applicable_without_native_support(trained, tmp_path):
     from matrix.kinds import NotApplicable
-    from pilotlab.hardware import cpu_flags
+    from pilotlab.cpuinfo import cpu_flags
     from pilotlab.strategies.apply import StrategySource, apply_strategy
     if {"avx512_bf16", "amx_bf16"} & cpu_flags():
         pytest.skip("this CPU computes bf16 natively")
