@@ -30,6 +30,7 @@ from pilotlab.data.frames import LabelRanges
 from pilotlab.data.preprocess import PreprocessConfig, preprocess
 from pilotlab.errors import PilotlabError
 from pilotlab.specs.base import build_config
+from pilotlab.sim.camera import CameraSpec
 from pilotlab.sim.expert import Expert, ExpertConfig
 from pilotlab.sim.explicit import ExplicitBrain, ExplicitBrainConfig
 
@@ -145,11 +146,18 @@ class NetworkBrain:
 
 
 class ExplicitReference:
-    """The OpenCV red-line follower (pilotlab.sim.explicit), timed as a brain."""
+    """The OpenCV red-line follower (pilotlab.sim.explicit), timed as a brain. In a closed loop it is
+    given its `view`: the rows of the camera frame its bands look at (the lower half, when they are
+    all below the horizon), at half resolution, rendered directly (pilotlab.sim.view), a sixth of the
+    full 640×480 frame's pixels; it reads the full frame when given one."""
     needs_camera = True
 
     def __init__(self, config: ExplicitBrainConfig):
         self.name, self.brain, self.last_inference_s = "explicit", ExplicitBrain(config), 0.0
+        top = 0.5 if self.brain.top_row >= 0.5 else 0.0
+        camera = CameraSpec()   # the default frame, 640×480
+        self.view = PreprocessConfig(crop_top=top, crop_bottom=1.0, width=camera.width // 2,
+                                     height=round(camera.height * (1 - top) / 2), interpolation="fast_area")
 
     def reset(self, circuit: Circuit) -> None:
         self.brain.reset()
@@ -159,7 +167,8 @@ class ExplicitReference:
 
     def act(self, image: np.ndarray | None, info: dict[str, Any]) -> tuple[float, float]:
         started = time.perf_counter()
-        command = self.brain.act(image)
+        shown = (self.view.crop_top, self.view.crop_bottom) if info.get("view") == self.view else (0.0, 1.0)
+        command = self.brain.act(image, shown)
         self.last_inference_s = time.perf_counter() - started
         return command
 

@@ -4,7 +4,9 @@ The classic BehaviorMetrics baseline: threshold red in HSV, find the line's cent
 below the horizon, steer with a PD controller on the nearest band that sees the line, and slow down
 when the bands further ahead say a curve is coming. When the line is lost it keeps turning, slowly,
 the way it last saw it. It reads a full camera frame (horizon across the middle); rows are fractions
-of the height, so any frame size works.
+of the height, so any frame size works, and a crop of the frame too (`act(image, shown=(top, bottom))`:
+in a closed loop it is given only the rows below its highest band, at half resolution, which the
+simulator renders at a sixth of the full frame's cost: pilotlab.online.brains.ExplicitReference).
 """
 from __future__ import annotations
 
@@ -70,10 +72,12 @@ def white_mask(image: np.ndarray) -> np.ndarray:
 LINE_COLOURS = {"red": red_mask, "white": white_mask}
 
 
-def line_offset(mask: np.ndarray, rows: tuple[float, float]) -> float | None:
-    """Mean column of the red pixels in a band of rows, as -1 (left edge) .. 1 (right edge)."""
+def line_offset(mask: np.ndarray, rows: tuple[float, float], shown: tuple[float, float] = (0.0, 1.0)) -> float | None:
+    """Mean column of the red pixels in a band of rows, as -1 (left edge) .. 1 (right edge). `rows` are
+    fractions of the camera frame's height; `shown`, the rows of the frame the mask covers."""
     height, width = mask.shape
-    band = mask[int(rows[0] * height):max(int(rows[1] * height), int(rows[0] * height) + 1)]
+    top, bottom = ((r - shown[0]) / (shown[1] - shown[0]) for r in rows)
+    band = mask[max(int(top * height), 0):max(int(bottom * height), int(top * height) + 1)]
     columns = np.nonzero(band)[1]
     if len(columns) == 0:
         return None
@@ -88,19 +92,26 @@ class ExplicitBrain:
     def reset(self) -> None:
         self._last_offset, self._last_band = 0.0, None
 
-    def act(self, image: np.ndarray) -> tuple[float, float]:
+    @property
+    def top_row(self) -> float:
+        """The highest row any band looks at (a fraction of the frame's height)."""
+        config = self.config
+        return min(rows[0] for rows in (config.near_rows, config.low_rows, config.mid_rows, config.far_rows))
+
+    def act(self, image: np.ndarray, shown: tuple[float, float] = (0.0, 1.0)) -> tuple[float, float]:
+        """The command for a camera frame, or for rows `shown` of it (fractions of its height: a crop)."""
         config = self.config
         mask = LINE_COLOURS[config.line](image)
-        band, offset = "near", line_offset(mask, config.near_rows)
+        band, offset = "near", line_offset(mask, config.near_rows, shown)
         if offset is None:
-            band, offset = "low", line_offset(mask, config.low_rows)
+            band, offset = "low", line_offset(mask, config.low_rows, shown)
         if offset is None:  # line lost: turn towards where it was last seen
             self._last_band = None
             return config.lost_speed, -float(np.sign(self._last_offset)) * config.lost_turn
         change = offset - self._last_offset if band == self._last_band else 0.0
         w = float(np.clip(-config.kp * offset - config.kd * change, -config.max_turn, config.max_turn))
         self._last_offset, self._last_band = offset, band
-        ahead = [line_offset(mask, rows) for rows in (config.mid_rows, config.far_rows)]
+        ahead = [line_offset(mask, rows, shown) for rows in (config.mid_rows, config.far_rows)]
         curve = max([abs(offset)] + [1.0 if a is None else abs(a) for a in ahead])
         v = float(np.clip(config.max_speed - config.slow_down * curve, config.min_speed, config.max_speed))
         return v, w

@@ -119,3 +119,31 @@ def test_in_the_loop_the_network_is_given_its_view_and_uses_it_as_is(pilotnet_ar
     assert trajectories[0].meta["termination"] == "timeout" and media["camera_frames"]
     import cv2
     assert cv2.imread(str(tmp_path / media["camera_frames"][0])).shape == (480, 640, 3)
+
+
+def test_the_explicit_brain_steers_the_same_on_its_view_as_on_the_full_frame():
+    """In the loop the explicit brain is given the lower half at half resolution (its view); on the same
+    frames it decides as on the full frame (to a pixel of half resolution), and in a lap it drives the same."""
+    from pilotlab.online.drive import drive
+    from pilotlab.online.evaluate import OnlineSpec, make_env
+    from pilotlab.online.metrics import position_deviation_mae_m
+    brain = ExplicitReference(REFERENCE_BRAINS.get("explicit").config_cls())
+    assert (brain.view.crop_top, brain.view.width, brain.view.height) == (0.5, 320, 120)
+    for column in (120, 301, 333, 500):       # a grey frame, a red stripe below the horizon
+        image = np.full((480, 640, 3), 100, np.uint8)
+        image[240:, column - 8:column + 8] = (205, 30, 30)
+        brain.reset(None)
+        full = brain.act(image, {"view": None})
+        brain.reset(None)
+        half = brain.act(image[240::2, ::2], {"view": brain.view})
+        # a pixel at half resolution is 0.006 of the offset: kp (2) times it in w, slow_down (10) in v
+        assert half[0] == pytest.approx(full[0], abs=0.1) and half[1] == pytest.approx(full[1], abs=0.02)
+    spec = OnlineSpec(circuit="simple_circuit", timing="replay", brain="explicit", fixed_inference_ms=0.0)
+    laps = {}
+    for view in (None, brain.view):
+        with make_env(spec, camera=True, view=view) as env:
+            brain.reset(env.circuit)
+            laps[view is None] = drive(env, brain, spec)
+    assert all(lap.termination == "lap_completed" for lap in laps.values())
+    assert laps[True].t[-1] == pytest.approx(laps[False].t[-1], abs=1.0)    # 59.1 and 59.0 s measured
+    assert position_deviation_mae_m(laps[True]) == pytest.approx(position_deviation_mae_m(laps[False]), abs=0.01)
