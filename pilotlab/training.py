@@ -17,6 +17,7 @@ from __future__ import annotations
 import copy
 import math
 import time
+import typing
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field, fields
@@ -26,12 +27,13 @@ import torch
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from torch import nn
 
+from pilotlab.cpuinfo import native_cpu_dtype
 from pilotlab.data.augment import AugmentConfig, augment_batch, epoch_order
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.errors import PilotlabError
-from pilotlab.cpuinfo import native_cpu_dtype
+from pilotlab.specs.train import Precision
 
-PRECISIONS = ("auto", "fp32", "bf16")
+PRECISIONS = typing.get_args(Precision)
 
 
 @dataclass(frozen=True)
@@ -45,7 +47,7 @@ class FitConfig:
     frames: int = 1                  # consecutive frames per input (temporal models)
     patience: int | None = None      # early stopping on validation loss (None: never stop early)
     augment: AugmentConfig = field(default_factory=AugmentConfig)
-    precision: str = "fp32"          # fp32, bf16 (mixed) or auto (see the module docstring)
+    precision: Precision = "fp32"    # fp32, bf16 (mixed) or auto (see the module docstring)
 
     def as_dict(self) -> dict:
         return {**{f.name: getattr(self, f.name) for f in fields(self)}, "augment": self.augment.as_dict()}

@@ -69,8 +69,9 @@ def progress_callbacks(ctx: JobContext, epochs: int):
         ctx.progress(epoch - 1 + batch / batches, epochs, f"epoch {epoch}/{epochs} loss {loss:.4f}")
 
     def on_epoch(row: dict) -> None:
-        ctx.log.info("epoch %d: %s", row["epoch"], ", ".join(
-            f"{k} {v:.5g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items() if k not in ("epoch", "best")))
+        shown = (f"{k} {v:.5g}" if isinstance(v, float) else f"{k} {v}"   # "precision bf16"
+                 for k, v in row.items() if k not in ("epoch", "best"))
+        ctx.log.info("epoch %d: %s", row["epoch"], ", ".join(shown))
     return on_batch, on_epoch
 
 

@@ -28,6 +28,9 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 
 
+Precision = Literal["auto", "fp32", "bf16"]   # of the training and fine-tunes: pilotlab.training
+
+
 class AugmentConfig(Spec):
     """Training-time augmentation (pilotlab.data.augment)."""
     version: int = 1
@@ -75,7 +78,7 @@ class TrainSpec(Spec):
         "auto", description='normalisation ranges {"v": [lo, hi], "w": [lo, hi]}, or "auto"')
     seed: int = Field(0, ge=0, lt=2**32)
     augment: AugmentConfig = AugmentConfig()
-    precision: Literal["auto", "fp32", "bf16"] = Field(
+    precision: Precision = Field(
         "auto", description="bf16: mixed precision (bfloat16 forward pass, float32 weights and loss), ~2.4x "
                             "faster a step where the CPU has AVX512-BF16 or AMX; auto: bf16 there, else fp32. "
                             "The strategies' fine-tunes follow it (QAT's stay fp32)")

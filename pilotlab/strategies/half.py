@@ -18,6 +18,7 @@ from pilotlab.strategies.configs.half import HalfConfig
 from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.saving import save_torchscript
 
+
 def bf16(config: HalfConfig, source: StrategySource) -> dict:
     return save_half(config, source, torch.bfloat16)
 
