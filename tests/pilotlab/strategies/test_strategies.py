@@ -211,3 +211,14 @@ def test_cuda_targets_without_a_gpu_are_not_applicable(trained, tmp_path, strate
         pytest.skip("this host has a GPU")
     with pytest.raises(NotApplicable, match="CUDA|GPU|TensorRT|cuda"):
         apply_strategy(strategy, {}, StrategySource(trained / "model.pt", tmp_path, hardware=BUILTIN["cuda"]))
+
+
+def test_fine_tunes_train_in_the_models_precision_and_qat_in_fp32(artifacts):
+    """prune_quant fine-tunes twice: the pruned float network in the model's precision (auto: bf16 where this
+    CPU has it), then with fake quantization, always fp32 (it emulates int8 arithmetic)."""
+    from pilotlab.training import fit_precision
+    history = artifacts["prune_quant"][1]["finetune"]
+    pruning, qat = history[:len(history) // 2], history[len(history) // 2:]
+    assert pruning and {row["precision"] for row in pruning} == {fit_precision("auto")}
+    assert qat and {row["precision"] for row in qat} == {"fp32"}
+    assert {row["precision"] for row in artifacts["qat"][1]["finetune"]} == {"fp32"}
