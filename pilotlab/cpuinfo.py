@@ -11,22 +11,22 @@ from pathlib import Path
 
 @cache
 def cpu_model() -> str:
-    cpuinfo = Path("/proc/cpuinfo")
-    if cpuinfo.exists():
-        for line in cpuinfo.read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    return platform.processor() or platform.machine()
+    return _cpuinfo_field("model name") or platform.processor() or platform.machine()
 
 
 @cache
 def cpu_flags() -> frozenset[str]:
+    return frozenset((_cpuinfo_field("flags") or "").split())
+
+
+def _cpuinfo_field(key: str) -> str | None:
+    """The first value of `key` in /proc/cpuinfo (None where it, or the file, is missing)."""
     cpuinfo = Path("/proc/cpuinfo")
     if cpuinfo.exists():
         for line in cpuinfo.read_text().splitlines():
-            if line.startswith("flags"):
-                return frozenset(line.split(":", 1)[1].split())
-    return frozenset()
+            if line.startswith(key):
+                return line.split(":", 1)[1].strip()
+    return None
 
 
 # CPU flags of native 16-bit float arithmetic: without one torch emulates it, slower than fp32
