@@ -90,7 +90,7 @@ BEHAVIORMETRICS = (
 
 # The latency tolerance search of a lap cell (pilotlab.online.tolerance).
 TOLERANCE = (
-    Column("latency_tolerance_ms", "ms", "largest injected latency (5 ms steps, 0-1000 ms) at which the lap is "
+    Column("latency_tolerance_ms", "ms", "largest injected latency (10 ms steps, 0-1000 ms) at which the lap is "
            "still completed", "higher"),
 )
 

@@ -11,6 +11,7 @@ The recipe's `online:` section and `pilotlab drive` share the lap settings below
 """
 from __future__ import annotations
 
+import math
 from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
@@ -57,11 +58,23 @@ class DriveSettings(Spec):
 
 class ToleranceSpec(Spec):
     """The latency tolerance search of a lap cell (pilotlab.online.tolerance)."""
-    fixed_ms: list[float] = Field([0.0, 50.0, 100.0, 200.0], description="injected latencies whose laps' deviation "
-                                                                         "is reported (they also bracket the search)")
+    # 50 ms is not among them: its lap was a whole lap of every cell (most keep 100 ms), and the search's
+    # own laps put points between 0 and 100 where a cell's tolerance is there
+    fixed_ms: list[float] = Field([0.0, 100.0, 200.0], description="injected latencies whose laps' deviation "
+                                                                  "is reported (they also bracket the search)")
     max_ms: float = Field(1000.0, gt=0, le=60_000, description="the largest injected latency searched")
-    # finer than 0.1 ms means nothing (physics steps are 8.3 ms) and a tiny step overflowed the grid check
-    step_ms: float = Field(5.0, ge=0.1, description="the search's resolution (at least 0.1 ms)")
+    # 10 ms: the tolerance found for one network moved by 5-10 ms between the seeds of its latency draws
+    # (study2022, 4 seeds, 2026-11-28), so a finer grid buys laps, not knowledge. Finer than 0.1 ms means
+    # nothing (physics steps are 8.3 ms) and a tiny step overflowed the grid check.
+    step_ms: float = Field(10.0, ge=0.1, description="the search's resolution (at least 0.1 ms)")
+
+    @property
+    def bisection_laps(self) -> float:
+        """About how many laps the bisection drives: log2 of the widest bracket of the fixed latencies
+        over the step."""
+        edges = sorted({0.0, *self.fixed_ms})
+        widest = max((b - a for a, b in zip(edges, edges[1:])), default=self.max_ms)
+        return math.log2(max(widest / self.step_ms, 1.0))
 
     @model_validator(mode="after")
     def _fixed_on_the_grid(self):
@@ -160,17 +173,25 @@ def lap_resources(params) -> dict[str, float]:
 
 
 # What a lap cell typically takes, for the scheduler of a store that has not run it (matrix.times), as
-# measured in the study's cold run on the 2-core development machine: a network's lap of simple_circuit
-# (replayed timing) 1.2 s of driving after 2.5 s of setting up, other circuits by their length (Montreal
-# 3.3 times); a tolerance search drives a lap per fixed latency and about seven more to bisect, of which
-# the lost ones end where the car leaves the road: 11.5 s a simple_circuit cell in all, 32.7 s Montreal's.
-SETUP_S, LAP_S, BISECTION_LAPS, SEARCH_SHARE = 2.5, 1.2, 7, 0.6
+# measured in the study's cold run on the 2-core development machine (2026-11-28): a network's lap of
+# simple_circuit (replayed timing, driving on its view) 0.65 s after 0.5 s of setting up, other
+# circuits by their length (Montreal 3.3 times); a tolerance search drives a lap per fixed latency above
+# 0 and the bisection's, each 0.9 of the plain lap on average: the completed ones take longer (the car
+# slows as latency grows: up to twice the plain lap's simulated time), the lost ones end where the car
+# leaves the road.
+SETUP_S, LAP_S, SEARCH_SHARE = 0.5, 0.65, 0.9
+
+
+def search_laps(tolerance: ToleranceSpec) -> float:
+    """Plain laps' worth of driving a tolerance search adds to its cell."""
+    fixed = len({ms for ms in tolerance.fixed_ms if ms > 0})
+    return SEARCH_SHARE * (fixed + tolerance.bisection_laps)
 
 
 def typical_seconds(params) -> float:
     settings = LapSettings.model_validate({k: params[k] for k in ("laps", "repetitions", "starts", "tolerance")
                                            if k in params})
-    searched = 0 if settings.tolerance is None else SEARCH_SHARE * (len(settings.tolerance.fixed_ms) + BISECTION_LAPS)
+    searched = 0 if settings.tolerance is None else search_laps(settings.tolerance)
     return SETUP_S + LAP_S * lap_scale(str(params.get("circuit", ""))) * settings.laps * settings.runs * (1 + searched)
 
 

@@ -1,4 +1,5 @@
 """The driving domain's planner: recipes -> jobs shared wherever inputs are equal; recipe errors."""
+import math
 import time
 from collections import Counter
 from pathlib import Path
@@ -246,8 +247,8 @@ def test_shipped_recipes_plan(tmp_path, monkeypatch):
 
 def test_a_cold_store_guesses_a_lap_with_a_tolerance_search_as_several_laps(tmp_path):
     """The scheduler's first guesses (matrix.times): a lap cell with its latency-tolerance search drives a
-    lap per fixed latency and about seven to bisect, the lost ones cut short; a training's time follows
-    its epochs."""
+    lap per fixed latency above 0 and log2(widest bracket / step) to bisect, each 0.9 of a plain lap (the
+    completed ones longer, the lost ones cut short); a training's time follows its epochs."""
     laps = [job for job in engine.plan_jobs(load_recipe(ROOT / "recipes/study2022.yaml", DOMAIN), DOMAIN)
             if job.kind == "online"]
     searched = [job.params for job in laps if job.params["tolerance"] is not None]
@@ -255,7 +256,10 @@ def test_a_cold_store_guesses_a_lap_with_a_tolerance_search_as_several_laps(tmp_
     online, plain = KINDS.get("online"), dict(searched[0], tolerance=None)
     from pilotlab.specs.online import SETUP_S as setup   # setting up the simulator, whatever the laps
     ratio = (online.typical(searched[0]) - setup) / (online.typical(plain) - setup)
-    assert abs(ratio - (1 + 0.6 * (len(searched[0]["tolerance"]["fixed_ms"]) + 7))) < 1e-9   # lost laps end early
+    from pilotlab.specs.online import ToleranceSpec
+    tolerance = ToleranceSpec.model_validate(searched[0]["tolerance"])   # the fixed laps above 0 and log2(100/10)
+    assert tolerance.bisection_laps == pytest.approx(math.log2(10))       # to bisect, lost laps cut short
+    assert ratio == pytest.approx(1 + 0.9 * (2 + math.log2(10)))
     assert abs(online.typical(dict(plain, laps=3)) - setup - 3 * (online.typical(plain) - setup)) < 1e-9
     # a lap of Montreal is about three of simple_circuit (by BehaviorMetrics' timeouts); a user's circuit, one
     simple, montreal = (online.typical(dict(plain, circuit=name)) - setup for name in ("simple_circuit", "montreal"))
@@ -266,7 +270,7 @@ def test_a_cold_store_guesses_a_lap_with_a_tolerance_search_as_several_laps(tmp_
     # 84 were priced as work: "about 4:21:22 left" for a 20-minute run); with a GPU it is work
     cuda = [job for job in laps if job.params["hardware"]["device"] == "cuda"]
     no_gpu, gpu = dict(cuda[0].params, host={"gpu": None}), dict(cuda[0].params, host={"gpu": "NVIDIA H200"})
-    assert online.typical(no_gpu) == 0.1 and online.typical(gpu) > 10
+    assert online.typical(no_gpu) == 0.1 and online.typical(gpu) > 1
     for kind in ("timing", "offline", "optimize"):
         params = {"hardware": {"name": "cuda", "device": "cuda"}, "options": {}}
         assert KINDS.get(kind).typical(dict(params, host={"gpu": None})) == 0.1
@@ -349,7 +353,7 @@ def test_scaled_latencies_and_the_tolerance_search(tmp_path):
     timing = cells(jobs, "timing")
     for lap in network_laps(jobs):
         assert lap.params["latency_scale_to_ms"] == 124
-        assert lap.params["tolerance"] == {"fixed_ms": [0.0, 50.0, 100.0, 200.0], "max_ms": 1000.0, "step_ms": 5.0}
+        assert lap.params["tolerance"] == {"fixed_ms": [0.0, 100.0, 200.0], "max_ms": 1000.0, "step_ms": 10.0}
         base = (lap.labels["model"], "baseline", lap.labels["hardware"])
         assert lap.deps["scale_reference"] is timing[base]
     references = [job for job in jobs if job.kind == "online" and job.params["brain"] != "network"]

@@ -26,14 +26,14 @@ class Threshold:
         return LapOutcome(ms, ms <= self.limit, {"position_deviation_mae_m": 0.1 + ms / 1000})
 
 
-@pytest.mark.parametrize("limit, expected, at_least", [(137.0, 135.0, False), (60.0, 60.0, False), (0.0, 0.0, False),
+@pytest.mark.parametrize("limit, expected, at_least", [(137.0, 130.0, False), (60.0, 60.0, False), (0.0, 0.0, False),
                                                        (-1.0, None, False), (2000.0, 1000.0, True),
-                                                       (997.0, 995.0, False)])
+                                                       (997.0, 990.0, False)])
 def test_the_search_finds_the_largest_completed_latency_on_the_grid(limit, expected, at_least):
     lap = Threshold(limit)
     found = tolerance_search(lap, ToleranceSpec())
     assert found["latency_tolerance_ms"] == expected and found["tolerance_at_least"] is at_least
-    assert len(set(lap.driven)) == len(lap.driven) <= 4 + 8      # fixed latencies, then bisection to 5 ms
+    assert len(set(lap.driven)) == len(lap.driven) <= 3 + 7      # fixed latencies, then bisection to 10 ms
     assert [lap["injected_ms"] for lap in found["tolerance_laps"]] == sorted(lap.driven)
 
 
