@@ -95,6 +95,7 @@ class HistoryPoint(BaseModel):
     epoch: int
     train_loss: float
     val_loss: float | None = None
+    precision: str | None = None          # fp32 or bf16 (mixed); None in results older than the setting
 
 
 class Spread(_Frozen):

@@ -261,11 +261,18 @@ def draw_training(data: ReportData) -> Figure | None:
         losses = [p.train_loss for p in points] + [p.val_loss for p in validated]
         if min(losses) > 0 and max(losses) / min(losses) > 20:
             ax.set_yscale("log")
-        ax.set(title=model, xlabel="epoch", ylabel="MSE loss (normalised)")
+        ax.set(title=model + _precision_note(points), xlabel="epoch", ylabel="MSE loss (normalised)")
         ax.grid(alpha=0.3)
         ax.legend(frameon=False)
     figure.suptitle("Training curves")
     return figure
+
+
+def _precision_note(points) -> str:
+    """The title's note on how the epochs were trained (models.<name>.precision): " (bf16 mixed precision)"."""
+    precisions = sorted({p.precision for p in points if p.precision})
+    names = {"bf16": "bf16 mixed precision", "fp32": "fp32"}
+    return f" ({', '.join(names.get(p, p) for p in precisions)})" if precisions else ""
 
 
 def draw_world_shift(data: ReportData):

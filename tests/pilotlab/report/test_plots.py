@@ -50,3 +50,12 @@ def test_a_name_the_font_cannot_draw_warns_nothing(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")      # the glyph warnings were printed without --verbose
         assert set(save_plots(data, tmp_path)) == {"pareto", "ratios"}
+
+
+def test_the_training_curves_say_which_precision_trained_the_model():
+    history = [{"epoch": e, "train_loss": 0.2 / e, "val_loss": 0.25 / e, "precision": "bf16"} for e in (1, 2)]
+    data = ReportData.from_dict(small_dict([offline_row("baseline", mse=0.07)], histories={"pilotnet": history}))
+    assert [ax.get_title() for ax in draw_training(data).axes if ax.get_visible()] == ["pilotnet (bf16 mixed precision)"]
+    older = [{k: v for k, v in point.items() if k != "precision"} for point in history]   # results before the setting
+    data = ReportData.from_dict(small_dict([offline_row("baseline", mse=0.07)], histories={"pilotnet": older}))
+    assert [ax.get_title() for ax in draw_training(data).axes if ax.get_visible()] == ["pilotnet"]
