@@ -1,7 +1,9 @@
 """The names of every metric a job result may carry, with units and meaning.
 
 Job results, `results.csv` and the report tables all use these names, so they are defined once here.
-A value that could not be measured is absent (or None), never 0.
+A value that could not be measured is absent (or None), never 0. Sizes and memory in "MB" are MB of
+2^20 bytes (MiB): the study's tables count so (its TF Lite baseline, 64.917... "MB", is bytes / 2^20),
+and ours stay comparable with them.
 """
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ class Column:
 
 
 OFFLINE = (
-    Column("size_mb", "MB", "artifact size on disk", "lower"),
+    Column("size_mb", "MB", "artifact size on disk (MB of 2^20 bytes, as the study's)", "lower"),
     Column("size_gz_mb", "MB", "artifact size gzip-compressed (what pruning's zeros and clustering's shared "
            "values save in storage and download; TF-MOT's measure)", "lower"),
     Column("params", "", "number of parameters (non-zero for pruned models: see nonzero_params)"),

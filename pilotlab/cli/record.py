@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
             task, completed=done, total=total, frames=frames), assets=assets)
     print(f"{summary.path}: {summary.frames} frames, {summary.commands} commands, {summary.sim_seconds:.1f} s "
           f"simulated in {summary.wall_seconds:.1f} s, {summary.distance_m:.0f} m at {summary.average_speed:.1f} m/s, "
-          f"{summary.bytes / 1e6:.1f} MB ({describe_end(summary.termination, spec.laps)})")
+          f"{summary.bytes / 2**20:.1f} MB ({describe_end(summary.termination, spec.laps)})")
     if summary.interrupted:
         print("interrupted: the bag holds what was recorded so far and is complete and readable")
         return 130
