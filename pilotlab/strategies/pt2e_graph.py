@@ -38,9 +38,14 @@ def save_quantized(converted: torch.fx.GraphModule, source: StrategySource) -> N
                                     "weights": "int8 per channel", "activations": "uint8 per tensor"}))
 
 
+WEIGHTED_OPS = ("Conv", "Gemm", "MatMul")
+
+
 def check_quantized(path: Path) -> None:
-    """An int8 artifact whose ONNX graph holds no QuantizeLinear/DequantizeLinear node would run in
-    float while its row says int8 (a torch/torchao pair whose export drops the quantize ops): an error."""
+    """An int8 artifact must run its layers in int8: an ONNX graph without a QuantizeLinear/
+    DequantizeLinear node would run in float while its row says int8 (a torch/torchao pair whose export
+    drops the quantize ops), and so would a layer whose weight is a float tensor (a pattern the quantizer
+    did not match): either is an error, naming what is in float."""
     import onnx
     graph = onnx.load(str(path), load_external_data=False).graph
     if not any(node.op_type in ("QuantizeLinear", "DequantizeLinear") for node in graph.node):
@@ -48,6 +53,25 @@ def check_quantized(path: Path) -> None:
         raise PilotlabError(f"{path}: the quantized network was exported without a single quantize or dequantize "
                             f"op, so it would run in float (torch {torch.__version__}, torchao {torchao.__version__}); "
                             "pilotlab's int8 PT2E flow is made for the torch and torchao its pyproject.toml pins")
+    if floats := float_weight_layers(graph):
+        raise PilotlabError(f"{path}: layer(s) {', '.join(floats)} take float weights, not int8 ones through a "
+                            "DequantizeLinear: the quantizer left them unquantized, so the artifact is not the int8 "
+                            "network its row would say; use a strategy that keeps layers in float on purpose "
+                            "(onnxruntime_int8 keeps the first convolution) or report it as a bug")
+
+
+def float_weight_layers(graph) -> list[str]:
+    """The Conv/Gemm/MatMul nodes whose weight (input 1) is not an int8 or uint8 initializer dequantized."""
+    import onnx
+    integers = {onnx.TensorProto.INT8, onnx.TensorProto.UINT8}
+    initializers = {tensor.name: tensor.data_type for tensor in graph.initializer}
+    producers = {output: node for node in graph.node for output in node.output}
+
+    def int8_weight(name: str) -> bool:
+        node = producers.get(name)
+        return node is not None and node.op_type == "DequantizeLinear" and initializers.get(node.input[0]) in integers
+    return [node.name or node.op_type for node in graph.node
+            if node.op_type in WEIGHTED_OPS and len(node.input) > 1 and not int8_weight(node.input[1])]
 
 
 def freeze_zeros(model: nn.Module) -> None:

@@ -178,6 +178,25 @@ def test_an_int8_export_without_quantize_ops_is_an_error(artifacts):
         check_quantized(artifacts["onnxruntime"][0] / "model.onnx")
 
 
+def test_an_int8_export_with_a_layer_left_in_float_is_an_error(artifacts, tmp_path):
+    """Q/DQ ops alone do not make an int8 network: a convolution whose weight is a float tensor runs in
+    float. prune_quant's graph with its first convolution's weight swapped for the float one."""
+    import onnx
+    from onnx import numpy_helper
+    from pilotlab.errors import PilotlabError
+    from pilotlab.strategies.pt2e_graph import check_quantized
+    model = onnx.load(str(artifacts["prune_quant"][0] / "model.onnx"))
+    conv = next(node for node in model.graph.node if node.op_type == "Conv")
+    dequantize = next(node for node in model.graph.node if conv.input[1] in node.output)
+    weight = next(t for t in model.graph.initializer if t.name == dequantize.input[0])
+    model.graph.initializer.append(numpy_helper.from_array(
+        numpy_helper.to_array(weight).astype(np.float32), name="float_weight"))
+    conv.input[1] = "float_weight"
+    onnx.save(model, str(tmp_path / "model.onnx"))
+    with pytest.raises(PilotlabError, match=f"layer\\(s\\) {conv.name} take float weights"):
+        check_quantized(tmp_path / "model.onnx")
+
+
 def test_structured_prune_really_shrinks_the_network(artifacts):
     result = artifacts["structured_prune"][1]
     assert result["params"] < 0.6 * result["params_before"]
