@@ -61,17 +61,15 @@ def check_quantized(path: Path) -> None:
 
 
 def float_weight_layers(graph) -> list[str]:
-    """The Conv/Gemm/MatMul nodes whose weight (input 1) is not an int8 or uint8 initializer dequantized."""
+    """The Conv/Gemm/MatMul nodes whose weight (input 1) is a float constant: a float initializer or
+    Constant node, not an int8 one through DequantizeLinear (a MatMul of two activations has no weight)."""
     import onnx
-    integers = {onnx.TensorProto.INT8, onnx.TensorProto.UINT8}
-    initializers = {tensor.name: tensor.data_type for tensor in graph.initializer}
-    producers = {output: node for node in graph.node for output in node.output}
-
-    def int8_weight(name: str) -> bool:
-        node = producers.get(name)
-        return node is not None and node.op_type == "DequantizeLinear" and initializers.get(node.input[0]) in integers
+    floats = {onnx.TensorProto.FLOAT, onnx.TensorProto.FLOAT16, onnx.TensorProto.DOUBLE, onnx.TensorProto.BFLOAT16}
+    constants = {tensor.name for tensor in graph.initializer if tensor.data_type in floats}
+    constants |= {output for node in graph.node if node.op_type == "Constant" for output in node.output
+                  if any(a.t.data_type in floats for a in node.attribute if a.name == "value")}
     return [node.name or node.op_type for node in graph.node
-            if node.op_type in WEIGHTED_OPS and len(node.input) > 1 and not int8_weight(node.input[1])]
+            if node.op_type in WEIGHTED_OPS and len(node.input) > 1 and node.input[1] in constants]
 
 
 def freeze_zeros(model: nn.Module) -> None:

@@ -197,6 +197,19 @@ def test_an_int8_export_with_a_layer_left_in_float_is_an_error(artifacts, tmp_pa
         check_quantized(tmp_path / "model.onnx")
 
 
+
+def test_a_matmul_of_two_activations_has_no_weight_to_quantize():
+    """Only constant operands are weights: a user network's activation x activation MatMul is not
+    reported as a float layer; a Gemm with a float initializer is."""
+    from onnx import TensorProto, helper, numpy_helper
+    from pilotlab.strategies.pt2e_graph import float_weight_layers
+    inputs = [helper.make_tensor_value_info(name, TensorProto.FLOAT, [2, 2]) for name in ("x", "y")]
+    graph = helper.make_graph([helper.make_node("MatMul", ["x", "y"], ["xy"], name="attention"),
+                               helper.make_node("Gemm", ["xy", "w"], ["out"], name="head")], "g", inputs,
+                              [helper.make_tensor_value_info("out", TensorProto.FLOAT, [2, 2])],
+                              initializer=[numpy_helper.from_array(np.eye(2, dtype=np.float32), name="w")])
+    assert float_weight_layers(graph) == ["head"]
+
 def test_structured_prune_really_shrinks_the_network(artifacts):
     result = artifacts["structured_prune"][1]
     assert result["params"] < 0.6 * result["params_before"]
