@@ -271,8 +271,8 @@ def draw_training(data: ReportData) -> Figure | None:
 def _precision_note(points) -> str:
     """The title's note on how the epochs were trained (models.<name>.precision): " (bf16 mixed precision)"."""
     precisions = sorted({p.precision for p in points if p.precision})
-    names = {"bf16": "bf16 mixed precision", "fp32": "fp32"}
-    return f" ({', '.join(names.get(p, p) for p in precisions)})" if precisions else ""
+    named = ("bf16 mixed precision" if p == "bf16" else p for p in precisions)
+    return f" ({', '.join(named)})" if precisions else ""
 
 
 def draw_world_shift(data: ReportData):

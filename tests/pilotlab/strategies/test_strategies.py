@@ -197,7 +197,6 @@ def test_an_int8_export_with_a_layer_left_in_float_is_an_error(artifacts, tmp_pa
         check_quantized(tmp_path / "model.onnx")
 
 
-
 def test_a_matmul_of_two_activations_has_no_weight_to_quantize():
     """Only constant operands are weights: a user network's activation x activation MatMul is not
     reported as a float layer; a Gemm with a float initializer is."""
@@ -209,6 +208,7 @@ def test_a_matmul_of_two_activations_has_no_weight_to_quantize():
                               [helper.make_tensor_value_info("out", TensorProto.FLOAT, [2, 2])],
                               initializer=[numpy_helper.from_array(np.eye(2, dtype=np.float32), name="w")])
     assert float_weight_layers(graph) == ["head"]
+
 
 def test_structured_prune_really_shrinks_the_network(artifacts):
     result = artifacts["structured_prune"][1]
