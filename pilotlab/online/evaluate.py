@@ -109,7 +109,7 @@ def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: Progres
         # cost 2-4× more and made its laps differ from the plain one in the rendering)
         view = getattr(brain, "view", None)
         means |= cell_tolerance(make_env(spec, camera=brain.needs_camera, view=view, assets=assets), brain, spec,
-                                tolerance, trajectories[0], checkpoints, latency_ms, progress)
+                                tolerance, trajectories[0], checkpoints, latency_ms, progress, runs[0])
     save_npz(trajectories, out / "trajectory.npz")
     save_csv(trajectories, out / "trajectory.csv")
     title = picture_title(brain.name, spec, means, len(trajectories))

@@ -10,12 +10,13 @@ the lap is still completed, and the deviation of the laps at a few fixed injecte
 
 The search is cheap by construction:
 - coarse then fine: the laps at the fixed latencies (needed for the deviation anyway) bracket the
-  tolerance, then bisection on the `step_ms` grid inside the bracket (log2(bracket / step) laps);
+  tolerance, then a search on the `step_ms` grid inside the bracket that drives its next lap `probe`
+  of the way up (bisection at 0.5; above it, since a lost lap costs a fraction of a completed one);
 - shared laps: a latency is never driven twice, and the plain lap (0 ms injected) is the cell's
   first run, already driven;
 - early stop: a lap that leaves the road ends there (the env's stop rule), so lost laps cost a
   fraction of a lap; only completed ones cost a full lap.
-Bisection assumes that a lap completed at some latency is completed at every smaller one; the laps at
+The search assumes that a lap completed at some latency is completed at every smaller one; the laps at
 the fixed latencies are reported, so a cell where that does not hold shows it.
 """
 from __future__ import annotations
@@ -63,6 +64,12 @@ def _bracket(laps: _Laps, settings: ToleranceSpec) -> tuple[float | None, float 
     return completed, lost
 
 
+def _probe(low: float, high: float, settings: ToleranceSpec) -> float:
+    """The grid point `probe` of the way from low to high, strictly between them."""
+    steps = round((high - low) / settings.step_ms)
+    return low + settings.step_ms * min(steps - 1, max(1, round(steps * settings.probe)))
+
+
 def tolerance_search(lap: LapFn, settings: ToleranceSpec = ToleranceSpec(),
                      known: dict[float, LapOutcome] | None = None) -> dict[str, Any]:
     """Drive `lap(injected_ms)` as needed; `known`: outcomes already driven (the plain lap at 0 ms).
@@ -74,7 +81,7 @@ def tolerance_search(lap: LapFn, settings: ToleranceSpec = ToleranceSpec(),
         high = None if laps.completed(settings.max_ms) else settings.max_ms
         low = settings.max_ms if high is None else low
     while low is not None and high is not None and high - low > settings.step_ms + 1e-9:
-        middle = low + settings.step_ms * max(1, round((high - low) / 2 / settings.step_ms))
+        middle = _probe(low, high, settings)
         low, high = (middle, high) if laps.completed(middle) else (low, middle)
     outcomes = [laps.outcomes[ms].as_dict() for ms in sorted(laps.outcomes)]
     return {"latency_tolerance_ms": low, "tolerance_at_least": low is not None and high is None,
@@ -82,14 +89,20 @@ def tolerance_search(lap: LapFn, settings: ToleranceSpec = ToleranceSpec(),
             "tolerance_laps_driven": len(laps.outcomes) - len(known or {})}
 
 
-def lap_outcome(trajectory, injected_ms: float, checkpoints=None) -> LapOutcome:
+SCORES = ("percentage_completed", "position_deviation_mae_m", "bm_position_deviation_mae", "bm_percentage_completed")
+
+
+def lap_outcome(trajectory, injected_ms: float, checkpoints=None, scored: dict[str, Any] | None = None) -> LapOutcome:
     """The lap's completion and our deviation; BehaviorMetrics' too when `checkpoints` are given (the
-    bisection's laps skip them: only their completion counts)."""
+    search's other laps skip them: only their completion counts). `scored`: this trajectory's metrics,
+    already computed (the cell's first run: BehaviorMetrics' deviation is a tenth of a Montreal cell)."""
     from pilotlab.online.bm_metrics import bm_position_deviation_mae, bm_percentage_completed
     from pilotlab.online.metrics import lap_completed, percentage_completed, position_deviation_mae_m
-    metrics = {"termination": trajectory.termination, "sim_seconds": round(float(trajectory.t[-1]), 3),
-               "percentage_completed": percentage_completed(trajectory),
-               "position_deviation_mae_m": position_deviation_mae_m(trajectory)}
+    metrics = {"termination": trajectory.termination, "sim_seconds": round(float(trajectory.t[-1]), 3)}
+    if scored is not None:
+        return LapOutcome(injected_ms, lap_completed(trajectory), metrics | {k: scored.get(k) for k in SCORES})
+    metrics |= {"percentage_completed": percentage_completed(trajectory),
+                "position_deviation_mae_m": position_deviation_mae_m(trajectory)}
     if checkpoints is not None:
         metrics |= {"bm_position_deviation_mae": bm_position_deviation_mae(trajectory, checkpoints),
                     "bm_percentage_completed": bm_percentage_completed(trajectory, checkpoints)}
@@ -97,9 +110,11 @@ def lap_outcome(trajectory, injected_ms: float, checkpoints=None) -> LapOutcome:
 
 
 def cell_tolerance(env, brain, spec, settings: ToleranceSpec, first, checkpoints, latency_ms=None,
-                   progress: Callable[[float, float, str], None] | None = None) -> dict[str, Any]:
+                   progress: Callable[[float, float, str], None] | None = None,
+                   first_scored: dict[str, Any] | None = None) -> dict[str, Any]:
     """The tolerance search of one lap cell in `env` (closed at the end): the laps from `first`'s
-    start and seed (`first` is the cell's first run, driven with nothing more injected: the 0 ms lap)."""
+    start and seed (`first` is the cell's first run, driven with nothing more injected: the 0 ms lap;
+    `first_scored`, its metrics if already computed)."""
     from pilotlab.online.drive import drive
     start, seed = first.meta["start_m"], spec.seed
 
@@ -111,6 +126,6 @@ def cell_tolerance(env, brain, spec, settings: ToleranceSpec, first, checkpoints
         return lap_outcome(trajectory, injected_ms, checkpoints if injected_ms in settings.fixed_ms else None)
 
     try:
-        return tolerance_search(lap, settings, known={0.0: lap_outcome(first, 0.0, checkpoints)})
+        return tolerance_search(lap, settings, known={0.0: lap_outcome(first, 0.0, checkpoints, first_scored)})
     finally:
         env.close()

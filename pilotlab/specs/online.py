@@ -67,6 +67,13 @@ class ToleranceSpec(Spec):
     # (study2022, 4 seeds, 2026-11-28), so a finer grid buys laps, not knowledge. Finer than 0.1 ms means
     # nothing (physics steps are 8.3 ms) and a tiny step overflowed the grid check.
     step_ms: float = Field(10.0, ge=0.1, description="the search's resolution (at least 0.1 ms)")
+    # Past 0.5 because the two answers cost differently: a lost lap ends where the car leaves the road
+    # (a fifth of a lap, typically), a completed one is a whole lap, slower than the plain one. The study's
+    # 49 searched cells, their recorded laps replayed through the search (2026-11-28; a lap not driven costs
+    # as its neighbours did): 0.5 (bisection) 22,905 simulated seconds, 0.6 21,056, 0.65 22,058, 0.7 20,966,
+    # 0.75 21,256, 0.8 20,980; the same tolerances.
+    probe: float = Field(0.7, ge=0.5, lt=1.0, description="where in the bracket the next lap is driven (0.5: "
+                                                          "bisection; higher: fewer of the dear completed laps)")
 
     @property
     def bisection_laps(self) -> float:

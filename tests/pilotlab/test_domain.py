@@ -353,7 +353,8 @@ def test_scaled_latencies_and_the_tolerance_search(tmp_path):
     timing = cells(jobs, "timing")
     for lap in network_laps(jobs):
         assert lap.params["latency_scale_to_ms"] == 124
-        assert lap.params["tolerance"] == {"fixed_ms": [0.0, 100.0, 200.0], "max_ms": 1000.0, "step_ms": 10.0}
+        assert lap.params["tolerance"] == {"fixed_ms": [0.0, 100.0, 200.0], "max_ms": 1000.0, "step_ms": 10.0,
+                                               "probe": 0.7}
         base = (lap.labels["model"], "baseline", lap.labels["hardware"])
         assert lap.deps["scale_reference"] is timing[base]
     references = [job for job in jobs if job.kind == "online" and job.params["brain"] != "network"]

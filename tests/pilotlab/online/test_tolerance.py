@@ -37,6 +37,21 @@ def test_the_search_finds_the_largest_completed_latency_on_the_grid(limit, expec
     assert [lap["injected_ms"] for lap in found["tolerance_laps"]] == sorted(lap.driven)
 
 
+def test_probing_high_in_the_bracket_finds_the_same_tolerance_with_fewer_completed_laps():
+    """A completed lap is a whole (slower) lap, a lost one ends early: probing 0.7 of the way up the
+    bracket completes fewer laps than bisecting, and finds the same tolerances."""
+    completed = {}
+    for probe in (0.5, 0.7):
+        laps, found = [], []
+        for limit in range(0, 1000, 7):
+            lap = Threshold(float(limit))
+            found.append(tolerance_search(lap, ToleranceSpec(probe=probe))["latency_tolerance_ms"])
+            laps += [ms for ms in lap.driven if ms <= limit]
+        completed[probe] = (len(laps), found)
+    assert completed[0.7][1] == completed[0.5][1]
+    assert completed[0.7][0] < completed[0.5][0]
+
+
 def test_known_laps_are_not_driven_again():
     lap = Threshold(137.0)
     found = tolerance_search(lap, known={0.0: LapOutcome(0.0, True)})
@@ -72,6 +87,8 @@ def test_the_expert_tolerates_latency_up_to_a_limit_it_finds(track, tmp_path):
     assert found["lap_completed"] and tolerance is not None and 0 < tolerance < 600
     assert laps[tolerance]["lap_completed"] and not laps[tolerance + 10]["lap_completed"]
     assert laps[0.0]["position_deviation_mae_m"] == found["position_deviation_mae_m"]   # the plain lap, shared
+    assert laps[0.0]["bm_position_deviation_mae"] == found["bm_position_deviation_mae"]  # with its scores
+    assert laps[100.0]["bm_position_deviation_mae"] is not None                         # a fixed latency's
     assert not laps[tolerance + 10]["termination"] == "lap_completed"
 
 
