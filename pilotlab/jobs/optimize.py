@@ -29,12 +29,19 @@ WORKER_THREADS = worker_share()
 
 def run_optimize(ctx: JobContext) -> dict:
     spec: OptimizeSpec = ctx.spec
+    source = strategy_source(ctx, profile_from_dict(spec.hardware) if spec.hardware else BUILTIN["cpu"])
+    if "prepared" in ctx.deps:    # the network a prepare job made for this strategy and others
+        source.prepared = (ctx.dep("prepared").artifacts, ctx.dep("prepared").result)
+    return apply_strategy(spec.strategy, spec.options, source)
+
+
+def strategy_source(ctx: JobContext, hardware) -> StrategySource:
+    """What a strategy (or a preparation) starts from: the `model` dep's checkpoint and the `calibration`
+    deps' training frames, on this worker's share of the cores."""
     if torch.get_num_threads() != WORKER_THREADS:   # only then: setting even the same count changed results
         torch.set_num_threads(WORKER_THREADS)
-    hardware = profile_from_dict(spec.hardware) if spec.hardware else BUILTIN["cpu"]
     calibration = ctx.dep_group("calibration") if "calibration" in ctx.deps else ()
-    source = StrategySource(checkpoint_path=ctx.dep("model").artifacts / "model.pt", out=ctx.out,
-                            calibration_dirs=tuple(dep.artifacts for dep in calibration),
-                            hardware=hardware, log=ctx.log,
-                            progress=lambda done, total=None, what=None: ctx.progress(done, total, what))
-    return apply_strategy(spec.strategy, spec.options, source)
+    return StrategySource(checkpoint_path=ctx.dep("model").artifacts / "model.pt", out=ctx.out,
+                          calibration_dirs=tuple(dep.artifacts for dep in calibration),
+                          hardware=hardware, log=ctx.log,
+                          progress=lambda done, total=None, what=None: ctx.progress(done, total, what))

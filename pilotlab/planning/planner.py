@@ -1,6 +1,8 @@
 """The planner: a validated recipe -> jobs, shared wherever their inputs are equal.
 
     record (per recording) -> frames (per recording) -> train (per model)
+        [-> prepare (per model × preparation: a network pruned and fine-tuned once, for every strategy
+            that converts it)]
         -> optimize (per model × strategy) -> timing (per model × strategy × hardware, fed training frames)
            -> offline (per model × strategy × hardware × test set: MSE, size, beside the timing's figures)
            -> online  (per model × strategy × hardware × circuit × direction: replaying the timing's latencies)
@@ -28,6 +30,7 @@ from pilotlab.specs.base import Spec
 from pilotlab.specs.frames import FramesSpec, PreprocessConfig
 from pilotlab.specs.offline import OfflineSpec
 from pilotlab.specs.optimize import OptimizeSpec
+from pilotlab.specs.prepare import PrepareSpec
 from pilotlab.specs.record import RecordSettings, RecordSpec
 from pilotlab.specs.timing import TimingSpec
 
@@ -216,10 +219,33 @@ class Planner:
             train = self.train(model)
             suffix = f" for {device}" if device else ""
             params = self.params_once(("optimize", strategy, device), lambda: optimize_spec(base, options, device))
+            deps = {"model": train, "calibration": train.deps["frames"]}
+            if prepared := self.prepared(model, base, options):
+                deps["prepared"] = prepared
             self.optimized[model, strategy, device] = Job(
-                "optimize", f"optimize {model}/{strategy}{suffix}", params,
-                deps={"model": train, "calibration": train.deps["frames"]})
+                "optimize", f"optimize {model}/{strategy}{suffix}", params, deps=deps)
         return self.optimized[model, strategy, device]
+
+    def prepared(self, model: str, base: str, options: dict[str, Any]) -> Job | None:
+        """The prepare job of the network strategy `base` converts, one per model and preparation options,
+        whichever strategies share it (pilotlab.strategies.configs.prepare); None for a strategy that
+        prepares none, or whose packages are missing here (it is not applicable: nothing to prepare)."""
+        from pilotlab.strategies import STRATEGIES, make_strategy_config, preparation_for
+        if not STRATEGIES.get(base).prepared_by or STRATEGIES.get(base).missing:
+            return None
+        entry, config = preparation_for(base, make_strategy_config(base, options))
+        spec = PrepareSpec(preparation=entry.name, options=entry.options(config))
+        return self.remembered(("prepare", model, spec.model_dump_json()), lambda: self._prepare(model, spec))
+
+    def _prepare(self, model: str, spec: PrepareSpec) -> Job:
+        """Named by its options that differ from the preparation's defaults: "prepare pilotnet/channel_pruning
+        (amount 0.65, finetune_epochs 12, distill 0.5)"."""
+        from pilotlab.strategies import PREPARATIONS
+        entry, train = PREPARATIONS.get(spec.preparation), self.train(model)
+        defaults = entry.options(entry.config_cls())
+        shown = ", ".join(f"{name} {value:g}" for name, value in spec.options.items() if value != defaults.get(name))
+        return job("prepare", f"prepare {model}/{spec.preparation}" + (f" ({shown})" if shown else ""), spec,
+                   deps={"model": train, "calibration": train.deps["frames"]})
 
     def strategy(self, name: str) -> tuple[str, dict[str, Any]]:
         """(registered strategy, its full options) for a strategy name of the recipe (aliases via `use:`)."""

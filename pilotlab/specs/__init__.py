@@ -10,10 +10,11 @@ one place. Planning imports this package, so nothing here imports torch, OpenCV 
     record       RecordSettings (recipe + CLI), RecordSpec (the record job)
     frames       PreprocessConfig, FramesSpec
     train        AugmentConfig, TrainSettings (recipe models:), TrainSpec
+    prepare      PrepareSpec (a network pruned and fine-tuned once for the strategies that convert it)
     optimize     OptimizeSpec
     timing       OfflineSettings (recipe offline:, but `data`), TimingSpec
     offline      OfflineSpec
     online       DriveSettings, LapSettings (recipe online: + `pilotlab drive`), OnlineSpec
 """
-KIND_MODULES = tuple(f"pilotlab.specs.{kind}" for kind in ("record", "frames", "train", "optimize", "timing",
-                                                             "offline", "online"))
+KIND_MODULES = tuple(f"pilotlab.specs.{kind}" for kind in ("record", "frames", "train", "prepare", "optimize",
+                                                             "timing", "offline", "online"))

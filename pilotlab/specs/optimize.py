@@ -15,7 +15,7 @@ from matrix.fingerprint import module_closure
 from matrix.kinds import register_kind
 from pilotlab.specs.base import Spec
 from pilotlab.specs.timing import guess_here
-from pilotlab.strategies import STRATEGIES
+from pilotlab.strategies import PREPARATIONS, STRATEGIES
 
 
 class OptimizeSpec(Spec):
@@ -48,9 +48,20 @@ def own_strategy(params) -> list[str]:
 BASE_S, CALIBRATION_S, EPOCH_S = 3.0, 2.0, 3.5
 
 
+def prepared_options(strategy: str | None) -> dict:
+    """The options of the network a strategy's prepare job makes for it ({} when it prepares none)."""
+    entry = STRATEGIES.get(strategy) if strategy in STRATEGIES else None
+    if entry is None or not entry.prepared_by:
+        return {}
+    preparation = PREPARATIONS.get(entry.prepared_by)
+    return preparation.options(preparation.config_cls())
+
+
 def typical_seconds(params) -> float:
-    options = params.get("options") or {}
-    epochs = sum(value for name, value in options.items() if name.endswith("epochs") and isinstance(value, int))
+    """The epochs of a shared preparation are its prepare job's (pilotlab.specs.prepare), not this job's."""
+    options, prepared = params.get("options") or {}, prepared_options(params.get("strategy"))
+    epochs = sum(value for name, value in options.items()
+                 if name.endswith("epochs") and isinstance(value, int) and name not in prepared)
     return BASE_S + (CALIBRATION_S if options.get("calibration_frames") else 0.0) + EPOCH_S * epochs
 
 

@@ -9,7 +9,8 @@ source)`, which imports its handler's module; the artifact it writes is loaded w
 """
 from matrix.fingerprint import module_closure
 from pilotlab.strategies import configs  # noqa: F401  (each config module registers its strategies)
-from pilotlab.strategies.registry import STRATEGIES, full_options, make_strategy_config, register_strategy  # noqa: F401
+from pilotlab.strategies.registry import (PREPARATIONS, STRATEGIES, full_options, make_strategy_config,  # noqa: F401
+                                         preparation_for, register_strategy)
 
 SHARED = ("pilotlab.strategies.registry", "pilotlab.strategies.apply", "pilotlab.strategies.artifact",
           "pilotlab.strategies.saving", "pilotlab.strategies.common", "pilotlab.strategies.fold", "pilotlab.strategies.edge",

@@ -39,6 +39,7 @@ class StrategySource:
     calibration_dirs: tuple[Path, ...] = ()
     hardware: HardwareProfile = BUILTIN["cpu"]
     strategy: str = ""               # the strategy being applied (set by apply_strategy)
+    prepared: tuple[Path, dict] | None = None   # the prepare job's folder and figures (strategies/prepared.py)
     log: logging.Logger = field(default_factory=lambda: logging.getLogger("pilotlab.strategies"))
     progress: Callable[..., None] = lambda *args, **kwargs: None
 

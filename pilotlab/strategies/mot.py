@@ -47,18 +47,17 @@ from pilotlab.strategies.common import finetune
 from pilotlab.strategies.configs.mot import (CqatConfig, PcqatConfig, PqatConfig, PruneLiteRTConfig,
                                              PruneLiteRTInt8Config, QatLiteRTConfig)
 from pilotlab.strategies.litert_convert import save_tflite
-from pilotlab.strategies.mot_torch import (add_clusters, add_fake_quant, add_masks, bake, calibrate, fold,
-                                           magnitude_masks, remove_hooks, weight_figures)
+from pilotlab.strategies.mot_torch import add_clusters, add_fake_quant, bake, calibrate, fold, remove_hooks, weight_figures
+from pilotlab.strategies.prepared import prepared_network
 from pilotlab.strategies.apply import StrategySource
 
 
 def pruned(config: PruneLiteRTConfig, source: StrategySource) -> tuple[nn.Module, list[dict]]:
-    """The folded network with its smallest weights masked and fine-tuned; the masks stay on
-    (parametrizations) so that a later step (QAT) keeps the zeros too."""
-    model = fold(source.load_model())
-    add_masks(model, magnitude_masks(model, config.sparsity))
-    history = tune(model, source, config, config.finetune_epochs)
-    return model, history
+    """The folded network with its smallest weights masked and fine-tuned (the magnitude_pruning
+    preparation, shared by the strategies that start from it); the masks stay on (parametrizations) so
+    that a later step (QAT) keeps the zeros too."""
+    model, figures = prepared_network(config, source)
+    return model, figures["finetune"]
 
 
 def quantization_aware(model: nn.Module, source: StrategySource, config, history: list[dict]) -> dict:

@@ -54,6 +54,7 @@ from typing import Any
 from matrix.kinds import NotApplicable
 from matrix.registry import Registry
 from pilotlab.specs.base import build_config
+from pilotlab.strategies.configs.prepare import PREPARATIONS, PreparationEntry
 
 
 Handler = Callable[[Any, Any], dict]   # (config, pilotlab.strategies.apply.StrategySource) -> its figures
@@ -68,6 +69,7 @@ class StrategyEntry:
     takes_onnx: bool = False         # it works on the ONNX graph, so it runs on a user's onnx: model too
     requires: tuple[str, ...] = ()   # optional packages its handler imports (checked before it is imported)
     extra: str = ""                  # the pip extra that installs them
+    prepared_by: str = ""            # the preparation whose network it converts (configs/prepare.py), if any
 
     @property
     def module(self) -> str:
@@ -94,10 +96,15 @@ class StrategyEntry:
     def options(self) -> list[str]:
         return [f.name for f in dataclasses.fields(self.config_cls) if f.name != "version"]
 
+    @property
+    def missing(self) -> list[str]:
+        """The packages the handler needs that are not installed here (found without importing them)."""
+        return [name for name in self.requires if importlib.util.find_spec(name) is None]
+
     def check_installed(self) -> None:
         """NotApplicable unless every package the handler needs is installed here (found without
         importing it: its handler module imports them at its top, and is then never imported)."""
-        if absent := [name for name in self.requires if importlib.util.find_spec(name) is None]:
+        if absent := self.missing:
             install = f" (pip install -e '.[{self.extra}]')" if self.extra else ""
             raise NotApplicable(f"{self.name} needs {', '.join(absent)}, not installed here{install}")
 
@@ -106,17 +113,33 @@ STRATEGIES: Registry[StrategyEntry] = Registry("strategy")
 
 
 def register_strategy(name: str, config_cls: type, handler: str | Handler, *, hardware_dependent: bool = False,
-                      takes_onnx: bool = False, requires: tuple[str, ...] = (), extra: str = "") -> StrategyEntry:
+                      takes_onnx: bool = False, requires: tuple[str, ...] = (), extra: str = "",
+                      prepared_by: str = "") -> StrategyEntry:
     """Register strategy `name`: its config class and its handler, "package.module:function" (or the
-    function itself)."""
+    function itself); `prepared_by`: the preparation (pilotlab.strategies.configs.prepare) whose network
+    the handler converts, its options among the config's."""
     if not (dataclasses.is_dataclass(config_cls) and config_cls.__dataclass_params__.frozen):
         raise TypeError(f"strategy {name!r}: its config must be a frozen dataclass")
     if "version" not in {f.name for f in dataclasses.fields(config_cls)}:
         raise TypeError(f"strategy {name!r}: its config needs a `version` field")
     if isinstance(handler, str) and not all(handler.partition(":")[::2]):
         raise TypeError(f"strategy {name!r}: its handler {handler!r} is not \"package.module:function\"")
+    if prepared_by:
+        fields = {f.name for f in dataclasses.fields(config_cls)}
+        if missing := [f.name for f in dataclasses.fields(PREPARATIONS.get(prepared_by).config_cls) if f.name not in fields]:
+            raise TypeError(f"strategy {name!r}: prepared by {prepared_by}, its config needs the options {missing}")
     return STRATEGIES.add(name, StrategyEntry(name, config_cls, handler, hardware_dependent, takes_onnx,
-                                              tuple(requires), extra))
+                                              tuple(requires), extra, prepared_by))
+
+
+def preparation_for(name: str, config) -> tuple[PreparationEntry, Any] | None:
+    """(the preparation, its config) of strategy `name` with `config`; None for a strategy that prepares
+    no shared network."""
+    entry = STRATEGIES.get(name)
+    if not entry.prepared_by:
+        return None
+    preparation = PREPARATIONS.get(entry.prepared_by)
+    return preparation, preparation.config_from(config)
 
 
 def make_strategy_config(name: str, options: dict[str, Any] | None = None):

@@ -12,23 +12,14 @@ Config: configs/structured_prune.py.
 """
 from __future__ import annotations
 
-from pilotlab.strategies.channels import multiply_accumulates, remove_channels
-from pilotlab.strategies.common import finetune, save_float_model
+from pilotlab.strategies.common import save_float_model
+from pilotlab.strategies.prepared import prepared_network
 from pilotlab.strategies.configs.structured_prune import StructuredPruneConfig
 from pilotlab.strategies.apply import StrategySource
 
 
 def structured_prune(config: StructuredPruneConfig, source: StrategySource) -> dict:
-    model = source.load_model()
-    params_before = sum(p.numel() for p in model.parameters())
-    macs_before = multiply_accumulates(model, source.input_shape)
-    kept = remove_channels(model, config.amount, source.input_shape, config.multiple_of)
-    history = finetune(model, source, epochs=config.finetune_epochs, lr=config.lr, batch_size=config.batch_size,
-                       distill=config.distill)
-    macs = multiply_accumulates(model, source.input_shape)
-    save_float_model(model, source, config.format, extra={"kept_channels": kept, "macs": macs},
-                     same_arch=False)
-    params = sum(p.numel() for p in model.parameters())
-    return {"params": params, "nonzero_params": params, "params_before": params_before, "macs": macs,
-            "macs_before": macs_before, "kept_channels": kept, "finetune": history}
-
+    model, figures = prepared_network(config, source)
+    save_float_model(model, source, config.format, extra={"kept_channels": figures["kept_channels"],
+                                                          "macs": figures["macs"]}, same_arch=False)
+    return figures

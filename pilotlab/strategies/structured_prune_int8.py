@@ -12,33 +12,19 @@ Config: configs/structured_prune_int8.py.
 """
 from __future__ import annotations
 
-from torch import nn
-
-from pilotlab.strategies.channels import multiply_accumulates, remove_channels
-from pilotlab.strategies.common import finetune
 from pilotlab.strategies.configs.onnx_runtime import OnnxRuntimeInt8Config
 from pilotlab.strategies.configs.structured_prune_int8 import StructuredPruneInt8Config
 from pilotlab.strategies.onnx_runtime import quantize_int8
+from pilotlab.strategies.prepared import prepared_network
 from pilotlab.strategies.apply import StrategySource
 
 
 def structured_prune_int8(config: StructuredPruneInt8Config, source: StrategySource) -> dict:
-    model = source.load_model()
-    params_before, macs_before = _params(model), multiply_accumulates(model, source.input_shape)
-    kept = remove_channels(model, config.amount, source.input_shape, config.multiple_of)
-    history = finetune(model, source, epochs=config.finetune_epochs, lr=config.lr, batch_size=config.batch_size,
-                       distill=config.distill)
+    model, figures = prepared_network(config, source)
     quantization = OnnxRuntimeInt8Config(calibration_frames=config.calibration_frames,
                                          calibrate_method=config.calibrate_method,
                                          float_first_conv=config.float_first_conv)
     extra = quantize_int8(model.eval(), source, quantization)
-    macs = multiply_accumulates(model, source.input_shape)
-    source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime",
-                             dtype="int8", extra={**extra, "kept_channels": kept, "macs": macs}))
-    return {"params": _params(model), "params_before": params_before, "macs": macs, "macs_before": macs_before,
-            "kept_channels": kept, "calibration_frames": min(config.calibration_frames, len(source.calibration)),
-            "finetune": history}
-
-
-def _params(model: nn.Module) -> int:
-    return sum(p.numel() for p in model.parameters())
+    source.write(source.meta(format="onnx", file="model.onnx", runtime="onnxruntime", dtype="int8",
+                             extra={**extra, "kept_channels": figures["kept_channels"], "macs": figures["macs"]}))
+    return {**figures, "calibration_frames": min(config.calibration_frames, len(source.calibration))}

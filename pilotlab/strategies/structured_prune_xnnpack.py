@@ -17,25 +17,11 @@ from __future__ import annotations
 
 import dataclasses
 
-from torch import nn
-
 from pilotlab.strategies.artifact import read_meta
-from pilotlab.strategies.channels import multiply_accumulates, remove_channels
-from pilotlab.strategies.common import finetune
 from pilotlab.strategies.configs.structured_prune_xnnpack import StructuredPruneXnnpackConfig
 from pilotlab.strategies.litert_convert import save_tflite
+from pilotlab.strategies.prepared import prepared_network
 from pilotlab.strategies.apply import StrategySource
-
-
-def _pruned(config: StructuredPruneXnnpackConfig, source: StrategySource) -> tuple[nn.Module, dict]:
-    model = source.load_model()
-    macs_before = multiply_accumulates(model, source.input_shape)
-    kept = remove_channels(model, config.amount, source.input_shape, config.multiple_of)
-    history = finetune(model, source, epochs=config.finetune_epochs, lr=config.lr, batch_size=config.batch_size,
-                       distill=config.distill)
-    figures = {"kept_channels": kept, "macs": multiply_accumulates(model, source.input_shape),
-               "macs_before": macs_before, "finetune": history}
-    return model.eval(), figures
 
 
 def _record_pruning(source: StrategySource, figures: dict) -> None:
@@ -46,7 +32,7 @@ def _record_pruning(source: StrategySource, figures: dict) -> None:
 
 
 def structured_prune_litert_int8(config: StructuredPruneXnnpackConfig, source: StrategySource) -> dict:
-    model, figures = _pruned(config, source)
-    result = save_tflite(model, source, "int8", config.calibration_frames)
+    model, figures = prepared_network(config, source)
+    result = save_tflite(model.eval(), source, "int8", config.calibration_frames)
     _record_pruning(source, figures)
     return {**result, **figures}

@@ -77,14 +77,14 @@ def check_clusters(clusters: int) -> None:
 
 _HANDLERS = "pilotlab.strategies.mot"
 register_strategy("prune_litert", PruneLiteRTConfig, f"{_HANDLERS}:prune_litert",
-                  requires=LITERT_CONVERTER, extra=EXTRA)
+                  requires=LITERT_CONVERTER, extra=EXTRA, prepared_by="magnitude_pruning")
 register_strategy("prune_litert_int8", PruneLiteRTInt8Config, f"{_HANDLERS}:prune_litert_int8",
-                  requires=LITERT_CONVERTER, extra=EXTRA)
+                  requires=LITERT_CONVERTER, extra=EXTRA, prepared_by="magnitude_pruning")
 register_strategy("qat_litert_int8", QatLiteRTConfig, f"{_HANDLERS}:qat_litert_int8",
                   requires=LITERT_CONVERTER, extra=EXTRA)
 register_strategy("pqat_litert_int8", PqatConfig, f"{_HANDLERS}:pqat_litert_int8",
-                  requires=LITERT_CONVERTER, extra=EXTRA)
+                  requires=LITERT_CONVERTER, extra=EXTRA, prepared_by="magnitude_pruning")
 register_strategy("cqat_litert_int8", CqatConfig, f"{_HANDLERS}:cqat_litert_int8",
                   requires=LITERT_CONVERTER, extra=EXTRA)
 register_strategy("pcqat_litert_int8", PcqatConfig, f"{_HANDLERS}:pcqat_litert_int8",
-                  requires=LITERT_CONVERTER, extra=EXTRA)
+                  requires=LITERT_CONVERTER, extra=EXTRA, prepared_by="magnitude_pruning")

@@ -25,4 +25,5 @@ class StructuredPruneConfig:
         check_multiple(self.multiple_of)
 
 
-register_strategy("structured_prune", StructuredPruneConfig, "pilotlab.strategies.structured_prune:structured_prune")
+register_strategy("structured_prune", StructuredPruneConfig, "pilotlab.strategies.structured_prune:structured_prune",
+                  prepared_by="channel_pruning")

@@ -27,4 +27,4 @@ class StructuredPruneInt8Config:
 
 
 register_strategy("structured_prune_int8", StructuredPruneInt8Config,
-                  "pilotlab.strategies.structured_prune_int8:structured_prune_int8")
+                  "pilotlab.strategies.structured_prune_int8:structured_prune_int8", prepared_by="channel_pruning")

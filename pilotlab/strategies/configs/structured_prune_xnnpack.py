@@ -27,4 +27,4 @@ class StructuredPruneXnnpackConfig:
 
 register_strategy("structured_prune_litert_int8", StructuredPruneXnnpackConfig,
                   "pilotlab.strategies.structured_prune_xnnpack:structured_prune_litert_int8",
-                  requires=LITERT_CONVERTER, extra=EXTRA)
+                  requires=LITERT_CONVERTER, extra=EXTRA, prepared_by="channel_pruning")

@@ -47,7 +47,8 @@ def test_plan_imports_no_heavy_library(tmp_path):
     process, modules = pilotlab(tmp_path, "plan", str(recipe), "--json", "--store", str(tmp_path / "store"))
     assert process.returncode == 0, process.stderr
     jobs = json.loads(process.stdout)
-    assert {job["kind"] for job in jobs} == {"record", "frames", "train", "optimize", "timing", "offline", "online"}
+    assert {job["kind"] for job in jobs} == {"record", "frames", "train", "prepare", "optimize", "timing", "offline",
+                                            "online"}
     assert {"pilotlab.strategies.configs.pt2e", "pilotlab.models.configs", "pilotlab.specs.online"} <= modules
     assert modules & HEAVY == set()
     assert modules & HANDLERS == set()       # named by string, imported when a strategy is applied

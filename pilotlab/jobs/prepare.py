@@ -1,0 +1,19 @@
+"""The `prepare` job's handler (params: pilotlab.specs.prepare.PrepareSpec): shape and fine-tune a network
+once for the strategies that convert it (pilotlab.strategies.prepared)."""
+from __future__ import annotations
+
+from matrix.kinds import JobContext
+from pilotlab.hardware import BUILTIN
+from pilotlab.jobs.optimize import strategy_source
+from pilotlab.specs.prepare import PrepareSpec
+from pilotlab.strategies.prepared import PREPARATIONS, prepare, save_prepared
+from pilotlab.specs.base import build_config
+
+
+def run_prepare(ctx: JobContext) -> dict:
+    spec: PrepareSpec = ctx.spec
+    entry = PREPARATIONS.get(spec.preparation)
+    config = build_config(entry.config_cls, spec.options, f"preparations.{spec.preparation}")
+    model, figures = prepare(entry, config, strategy_source(ctx, BUILTIN["cpu"]))
+    save_prepared(model, ctx.out)
+    return {"preparation": spec.preparation, "options": entry.options(config), **figures}

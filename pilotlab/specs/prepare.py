@@ -1,0 +1,36 @@
+"""The `prepare` job: a network shaped and fine-tuned once on the torch side, for every strategy that
+converts it (pilotlab.strategies.configs.prepare): structured_prune_int8 and structured_prune_litert_int8
+with the same options fine-tune one network, not two.
+
+deps: `model` (the train job) and `calibration` (its training frames), as the optimize jobs that load it.
+result: the preparation's figures (kept_channels, macs, params..., finetune: the history).
+artifacts: network.pt, the fine-tuned state dict (pilotlab.strategies.prepared).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import Field
+
+from matrix.fingerprint import module_closure
+from matrix.kinds import register_kind
+from pilotlab.specs.base import Spec
+from pilotlab.specs.optimize import BASE_S, EPOCH_S
+
+
+class PrepareSpec(Spec):
+    preparation: str = Field(description="a registered preparation (channel_pruning, magnitude_pruning)")
+    options: dict[str, Any] = Field({}, description="its config's fields, read from the strategies that use it")
+
+
+def preparation_code(params) -> list[str]:
+    """The preparations' run-side module and what it imports within pilotlab (the fine-tuning loop)."""
+    return list(dict.fromkeys(module_closure("pilotlab.strategies.prepared", "pilotlab")))
+
+
+def typical_seconds(params) -> float:
+    return BASE_S + EPOCH_S * int((params.get("options") or {}).get("finetune_epochs", 0))
+
+
+register_kind("prepare", "pilotlab.jobs.prepare:run_prepare", params=PrepareSpec, code_for=preparation_code,
+              typical_for=typical_seconds)
