@@ -140,23 +140,33 @@ def apply_strategy(name: str, options: dict[str, Any] | None, source: StrategySo
 def run_handler(entry: StrategyEntry, config, source: StrategySource) -> dict[str, Any]:
     """The strategy's own figures. On a model the user brought, a strategy that cannot work on it is not
     applicable (an ONNX graph for a PyTorch strategy; a network it cannot trace or rewrite), never a crash."""
-    if source.imported == "onnx" and not entry.takes_onnx:
-        raise NotApplicable(f"{entry.name} works on a PyTorch network, not on {source.origin} (strategies for ONNX "
-                            "graphs: " + ", ".join(n for n, e in STRATEGIES.items() if e.takes_onnx) + ")")
+    check_takes(entry.name, source, entry.takes_onnx)
     entry.check_installed()
-    handler = entry.handler
+    return on_user_model(entry.name, source, lambda: entry.handler(config, source) or {}, entry.takes_onnx)
+
+
+def check_takes(name: str, source: StrategySource, takes_onnx: bool = False) -> None:
+    """NotApplicable for a user's ONNX graph where `name` works on a PyTorch network."""
+    if source.imported == "onnx" and not takes_onnx:
+        raise NotApplicable(f"{name} works on a PyTorch network, not on {source.origin} (strategies for ONNX "
+                            "graphs: " + ", ".join(n for n, e in STRATEGIES.items() if e.takes_onnx) + ")")
+
+
+def on_user_model(name: str, source: StrategySource, call: Callable[[], Any], takes_onnx: bool = False) -> Any:
+    """`call()` (strategy or preparation `name` at work on `source`); on a model the user brought, an error
+    is that it cannot work on that model: NotApplicable, with the first line of the error."""
     if source.imported is None:
-        return handler(config, source) or {}
+        return call()
     try:
-        return handler(config, source) or {}
+        return call()
     except (MatrixError, KeyboardInterrupt, MemoryError):
         raise
     except Exception as error:  # noqa: BLE001 — the user's network is outside what the strategy handles
         first = str(error).strip().splitlines()[0][:300] if str(error).strip() else ""
         hint = ""
         if source.imported == "torchscript":   # an ONNX strategy starts from the program's ONNX export
-            hint = (" (its ONNX export, which this strategy starts from, failed)" if entry.takes_onnx else
+            hint = (" (its ONNX export, which this strategy starts from, failed)" if takes_onnx else
                     " (it rewrites nn.Module layers, which a TorchScript program does not expose; give `network:`, "
                     "the class, to run it)")
-        raise NotApplicable(f"{entry.name} cannot work on {source.origin}{hint}: {type(error).__name__}"
+        raise NotApplicable(f"{name} cannot work on {source.origin}{hint}: {type(error).__name__}"
                             + (f": {first}" if first else "")) from error

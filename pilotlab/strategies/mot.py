@@ -47,7 +47,8 @@ from pilotlab.strategies.common import finetune
 from pilotlab.strategies.configs.mot import (CqatConfig, PcqatConfig, PqatConfig, PruneLiteRTConfig,
                                              PruneLiteRTInt8Config, QatLiteRTConfig)
 from pilotlab.strategies.litert_convert import save_tflite
-from pilotlab.strategies.mot_torch import add_clusters, add_fake_quant, bake, calibrate, fold, remove_hooks, weight_figures
+from pilotlab.strategies.mot_torch import (add_clusters, add_fake_quant, bake, calibrate, fold, remove_hooks,
+                                           weight_figures)
 from pilotlab.strategies.prepared import prepared_network
 from pilotlab.strategies.apply import StrategySource
 

@@ -126,7 +126,8 @@ def register_strategy(name: str, config_cls: type, handler: str | Handler, *, ha
         raise TypeError(f"strategy {name!r}: its handler {handler!r} is not \"package.module:function\"")
     if prepared_by:
         fields = {f.name for f in dataclasses.fields(config_cls)}
-        if missing := [f.name for f in dataclasses.fields(PREPARATIONS.get(prepared_by).config_cls) if f.name not in fields]:
+        needed = [f.name for f in dataclasses.fields(PREPARATIONS.get(prepared_by).config_cls)]
+        if missing := [name for name in needed if name not in fields]:
             raise TypeError(f"strategy {name!r}: prepared by {prepared_by}, its config needs the options {missing}")
     return STRATEGIES.add(name, StrategyEntry(name, config_cls, handler, hardware_dependent, takes_onnx,
                                               tuple(requires), extra, prepared_by))

@@ -9,6 +9,7 @@ import pytest
 import torch
 
 import pilotlab.jobs.optimize  # noqa: F401  (registers the kinds)
+import pilotlab.jobs.prepare  # noqa: F401
 import pilotlab.jobs.train  # noqa: F401
 from matrix.kinds import KINDS, NotApplicable
 from pilotlab import offline
@@ -140,6 +141,14 @@ def test_strategies_run_on_user_models_or_say_why_not(tmp_path, dls, frames):
     with pytest.raises(NotApplicable, match="structured_prune removes channels from a PyTorch network's layers; a "
                                             "TorchScript model is run as it is"):   # read "needs two layers" (it has 5)
         optimize(scripted, "structured_prune")
+
+    def prepare(model):   # the network structured_prune's rows convert, pruned once for them all in a run
+        return run(tmp_path, "prepare", f"prepare {model.name}/channel_pruning", {"preparation": "channel_pruning"},
+                   deps={"model": model, "calibration": frames_deps})
+    with pytest.raises(NotApplicable, match="structured_prune removes channels from a PyTorch network's layers"):
+        prepare(scripted)
+    with pytest.raises(NotApplicable, match="channel_pruning works on a PyTorch network, not on the ONNX graph"):
+        prepare(graph)
     pooled = torch.nn.Sequential(torch.nn.Conv2d(3, 4, 5, stride=2), torch.nn.AdaptiveAvgPool2d((1, 8)),
                                  torch.nn.Flatten(), torch.nn.Linear(32, 2)).eval()
     torch.jit.trace(pooled, torch.rand(1, 3, 66, 200)).save(tmp_path / "pooled.pt")   # 98 is no multiple of 8
