@@ -8,7 +8,8 @@ from pilotlab.jobs.optimize import strategy_source
 from pilotlab.specs.base import build_config
 from pilotlab.specs.prepare import PrepareSpec
 from pilotlab.strategies.apply import check_takes, on_user_model
-from pilotlab.strategies.prepared import PREPARATIONS, prepare, save_prepared
+from pilotlab.strategies.configs.prepare import PREPARATIONS
+from pilotlab.strategies.prepared import prepare, save_prepared
 
 
 def run_prepare(ctx: JobContext) -> dict:
@@ -19,4 +20,4 @@ def run_prepare(ctx: JobContext) -> dict:
     check_takes(spec.preparation, source)     # a user's ONNX graph, or a network it cannot rewrite: n/a
     model, figures = on_user_model(spec.preparation, source, lambda: prepare(entry, config, source))
     save_prepared(model, ctx.out)
-    return {"preparation": spec.preparation, "options": entry.options(config), **figures}
+    return {"preparation": spec.preparation, "options": entry.options_of(config), **figures}

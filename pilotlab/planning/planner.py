@@ -234,7 +234,7 @@ class Planner:
         if not STRATEGIES.get(base).prepared_by or STRATEGIES.get(base).missing:
             return None
         entry, config = preparation_for(base, make_strategy_config(base, options))
-        spec = PrepareSpec(preparation=entry.name, options=entry.options(config))
+        spec = PrepareSpec(preparation=entry.name, options=entry.options_of(config))
         return self.remembered(("prepare", model, spec.model_dump_json()), lambda: self._prepare(model, spec))
 
     def _prepare(self, model: str, spec: PrepareSpec) -> Job:
@@ -242,7 +242,7 @@ class Planner:
         (amount 0.65, finetune_epochs 12, distill 0.5)"."""
         from pilotlab.strategies import PREPARATIONS
         entry, train = PREPARATIONS.get(spec.preparation), self.train(model)
-        defaults = entry.options(entry.config_cls())
+        defaults = entry.options_of(entry.config_cls())
         shown = ", ".join(f"{name} {value:g}" for name, value in spec.options.items() if value != defaults.get(name))
         return job("prepare", f"prepare {model}/{spec.preparation}" + (f" ({shown})" if shown else ""), spec,
                    deps={"model": train, "calibration": train.deps["frames"]})

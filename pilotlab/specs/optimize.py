@@ -54,7 +54,7 @@ def prepared_options(strategy: str | None) -> dict:
     if entry is None or not entry.prepared_by:
         return {}
     preparation = PREPARATIONS.get(entry.prepared_by)
-    return preparation.options(preparation.config_cls())
+    return preparation.options_of(preparation.config_cls())
 
 
 def typical_seconds(params) -> float:

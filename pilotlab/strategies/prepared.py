@@ -22,7 +22,7 @@ from torch import nn
 from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.channels import multiply_accumulates, remove_channels
 from pilotlab.strategies.common import finetune
-from pilotlab.strategies.configs.prepare import PREPARATIONS, ChannelPruning, MagnitudePruning, PreparationEntry
+from pilotlab.strategies.configs.prepare import ChannelPruning, MagnitudePruning, PreparationEntry
 from pilotlab.strategies.mot_torch import add_masks, fold, magnitude_masks
 from pilotlab.strategies.registry import preparation_for
 

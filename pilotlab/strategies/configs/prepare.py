@@ -60,7 +60,8 @@ class PreparationEntry:
         names = [f.name for f in dataclasses.fields(self.config_cls) if f.name != "version"]
         return self.config_cls(**{name: getattr(strategy_config, name) for name in names})
 
-    def options(self, config) -> dict[str, Any]:
+    def options_of(self, config) -> dict[str, Any]:
+        """Its options as a job's params carry them (version left out: the code's own, as a strategy's)."""
         return {f.name: getattr(config, f.name) for f in dataclasses.fields(config) if f.name != "version"}
 
 
