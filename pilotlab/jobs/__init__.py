@@ -1,2 +1,2 @@
-"""pilotlab's job kinds: one thin handler per module (record, frames, train, optimize, timing,
-offline, online), registered with `matrix.kinds.job_kind`."""
+"""pilotlab's job kinds: one thin handler per module (record, frames, train, prepare, optimize,
+timing, offline, online), registered with `matrix.kinds.job_kind`."""
