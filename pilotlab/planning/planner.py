@@ -242,8 +242,8 @@ class Planner:
         (amount 0.65, finetune_epochs 12, distill 0.5)"."""
         from pilotlab.strategies import PREPARATIONS
         entry, train = PREPARATIONS.get(spec.preparation), self.train(model)
-        defaults = entry.options_of(entry.config_cls())
-        shown = ", ".join(f"{name} {value:g}" for name, value in spec.options.items() if value != defaults.get(name))
+        shown = ", ".join(f"{name} {value:g}" for name, value in spec.options.items()
+                          if value != entry.defaults.get(name))
         return job("prepare", f"prepare {model}/{spec.preparation}" + (f" ({shown})" if shown else ""), spec,
                    deps={"model": train, "calibration": train.deps["frames"]})
 

@@ -51,10 +51,7 @@ BASE_S, CALIBRATION_S, EPOCH_S = 3.0, 2.0, 3.5
 def prepared_options(strategy: str | None) -> dict:
     """The options of the network a strategy's prepare job makes for it ({} when it prepares none)."""
     entry = STRATEGIES.get(strategy) if strategy in STRATEGIES else None
-    if entry is None or not entry.prepared_by:
-        return {}
-    preparation = PREPARATIONS.get(entry.prepared_by)
-    return preparation.options_of(preparation.config_cls())
+    return PREPARATIONS.get(entry.prepared_by).defaults if entry is not None and entry.prepared_by else {}
 
 
 def typical_seconds(params) -> float:

@@ -60,6 +60,10 @@ class PreparationEntry:
         names = [f.name for f in dataclasses.fields(self.config_cls) if f.name != "version"]
         return self.config_cls(**{name: getattr(strategy_config, name) for name in names})
 
+    @property
+    def defaults(self) -> dict[str, Any]:
+        return self.options_of(self.config_cls())
+
     def options_of(self, config) -> dict[str, Any]:
         """Its options as a job's params carry them (version left out: the code's own, as a strategy's)."""
         return {f.name: getattr(config, f.name) for f in dataclasses.fields(config) if f.name != "version"}
