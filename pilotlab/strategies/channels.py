@@ -122,13 +122,15 @@ def replace(model: nn.Module, name: str, new: nn.Module) -> None:
     setattr(model.get_submodule(parent) if parent else model, child, new)
 
 
-def check_same_function(model: nn.Module, masked: nn.Module, input_shape: tuple) -> None:
+def check_same_function(model: nn.Module, masked: nn.Module, input_shape: tuple, rewrite: str = "") -> None:
+    """NotApplicable unless the rewritten `model` computes what `masked` (the weights zeroed) does."""
     batch = example_batch(input_shape, 4)
     with torch.no_grad():
         expected, actual = masked.eval()(batch), model.eval()(batch)
     if not torch.allclose(expected, actual, rtol=1e-3, atol=1e-5):
-        raise NotApplicable("structured_prune: removing channels changed the network's function "
-                            "(an activation between layers does not map 0 to 0?)")
+        what = f"{rewrite}: the rewritten layers" if rewrite else "structured_prune: removing channels"
+        raise NotApplicable(f"{what} changed the network's function (an activation between layers does not "
+                            "map 0 to 0, or a layer is used outside the chain?)")
 
 
 def multiply_accumulates(model: nn.Module, input_shape: tuple) -> int:

@@ -25,6 +25,7 @@ from pilotlab.strategies.common import finetune
 from pilotlab.strategies.configs.prepare import ChannelPruning, MagnitudePruning, PreparationEntry
 from pilotlab.strategies.mot_torch import add_masks, fold, magnitude_masks
 from pilotlab.strategies.registry import preparation_for
+from pilotlab.strategies.stem import subsample_stem
 
 WEIGHTS = "network.pt"
 
@@ -33,11 +34,12 @@ def channel_pruning(config: ChannelPruning, source: StrategySource) -> tuple[nn.
     model = source.load_model()
     params_before = sum(p.numel() for p in model.parameters())
     macs_before = multiply_accumulates(model, source.input_shape)
+    stem = {"stem_taps": subsample_stem(model, source.input_shape, config.subsample_stem)} if config.subsample_stem else {}
     kept = remove_channels(model, config.amount, source.input_shape, config.multiple_of)
     params = sum(p.numel() for p in model.parameters())
     return model, {"params": params, "nonzero_params": params, "params_before": params_before,
                    "macs": multiply_accumulates(model, source.input_shape), "macs_before": macs_before,
-                   "kept_channels": kept}
+                   "kept_channels": kept, **stem}
 
 
 def magnitude_pruning(config: MagnitudePruning, source: StrategySource) -> tuple[nn.Module, dict]:

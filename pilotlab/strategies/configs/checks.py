@@ -19,3 +19,9 @@ def check_distill(distill: float) -> None:
 def check_multiple(multiple_of: int) -> None:
     if multiple_of < 1:
         raise PilotlabError(f"multiple_of: {multiple_of} must be an integer ≥ 1")
+
+
+def check_subsample(subsample_stem: int) -> None:
+    if subsample_stem < 0:
+        raise PilotlabError(f"subsample_stem: {subsample_stem} must be an integer ≥ 0 (how many of the first "
+                            "convolutions run at twice their stride; 0: none)")

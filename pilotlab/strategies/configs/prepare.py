@@ -23,10 +23,12 @@ from matrix.registry import Registry
 
 @dataclass(frozen=True)
 class ChannelPruning:
-    """Whole channels and neurons removed (pilotlab.strategies.channels), then fine-tuned."""
+    """Whole channels and neurons removed (pilotlab.strategies.channels), the stem subsampled if asked
+    (pilotlab.strategies.stem), then fine-tuned."""
     version: int = 1
     amount: float = 0.3
     multiple_of: int = 8
+    subsample_stem: int = 0
     finetune_epochs: int = 4
     lr: float = 1e-3
     batch_size: int = 64

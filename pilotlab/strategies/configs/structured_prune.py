@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from pilotlab.strategies.configs.checks import check_distill, check_fraction, check_multiple
+from pilotlab.strategies.configs.checks import check_distill, check_fraction, check_multiple, check_subsample
 from pilotlab.strategies.registry import register_strategy
 
 
@@ -17,12 +17,14 @@ class StructuredPruneConfig:
     batch_size: int = 64
     format: Literal["torchscript", "onnx"] = "torchscript"   # the shapes change: no checkpoint
     multiple_of: int = 8             # round kept counts to a multiple of this: whole SIMD blocks (1: exact)
+    subsample_stem: int = 0          # the first N convs at twice their stride, each next at its even taps (stem.py)
     distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs (0-1)
 
     def __post_init__(self) -> None:
         check_distill(self.distill)
         check_fraction("amount", self.amount)
         check_multiple(self.multiple_of)
+        check_subsample(self.subsample_stem)
 
 
 register_strategy("structured_prune", StructuredPruneConfig, "pilotlab.strategies.structured_prune:structured_prune",

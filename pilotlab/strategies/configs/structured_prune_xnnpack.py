@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pilotlab.strategies.configs.checks import check_distill, check_fraction, check_multiple
+from pilotlab.strategies.configs.checks import check_distill, check_fraction, check_multiple, check_subsample
 from pilotlab.strategies.edge import EXTRA, LITERT_CONVERTER
 from pilotlab.strategies.registry import register_strategy
 
@@ -13,6 +13,7 @@ class StructuredPruneXnnpackConfig:
     version: int = 1
     amount: float = 0.3              # fraction of each layer's channels / neurons removed
     multiple_of: int = 8             # kept counts rounded to whole 8-wide SIMD blocks
+    subsample_stem: int = 0          # the first N convs at twice their stride, each next at its even taps (stem.py)
     finetune_epochs: int = 4         # in fp32, before quantization (as structured_prune_int8)
     lr: float = 1e-3
     batch_size: int = 64
@@ -23,6 +24,7 @@ class StructuredPruneXnnpackConfig:
         check_distill(self.distill)
         check_fraction("amount", self.amount)
         check_multiple(self.multiple_of)
+        check_subsample(self.subsample_stem)
 
 
 register_strategy("structured_prune_litert_int8", StructuredPruneXnnpackConfig,

@@ -1,6 +1,7 @@
-"""Benchmark: batch-1 latency of the TF-MOT rows on LiteRT (pilotlab/strategies/mot.py) as ratios to
-fp32 eager (the baseline), all from one run, with litert and litert_int8 beside them for reference;
-plus each artifact's raw and gzip-compressed size.
+"""Benchmark: batch-1 latency of issue 24's strategies as ratios to fp32 eager (the baseline), all from one
+run: the TF-MOT rows on LiteRT (pilotlab/strategies/mot.py), with litert and litert_int8 beside them for
+reference, and the pruned networks with their stem subsampled (pilotlab/strategies/stem.py) on ONNX Runtime
+fp32 and int8 and on LiteRT int8; plus each artifact's raw and gzip-compressed size.
 
 The strategies are built without fine-tuning (the masks, clusters and int8 grids are in the weights
 all the same; timings do not depend on what the weights learnt). Variants are interleaved (each
@@ -32,6 +33,11 @@ OPTIONS = {"baseline": {}, "litert": {}, "litert_int8": {"calibration_frames": 6
            "prune_litert": {"finetune_epochs": 0}, "prune_litert_int8": {"finetune_epochs": 0, "calibration_frames": 64},
            "qat_litert_int8": {"qat_epochs": 0, "calibration_frames": 64}, "pqat_litert_int8": NO_TRAINING,
            "cqat_litert_int8": NO_TRAINING, "pcqat_litert_int8": {**NO_TRAINING, "cluster_epochs": 0}}
+STEM = {"amount": 0.65, "subsample_stem": 2, "finetune_epochs": 0}       # the study recipe's, untrained
+VARIANTS = {**{name: (name, options) for name, options in OPTIONS.items()},
+            "stem2 onnx fp32": ("structured_prune", {**STEM, "format": "onnx"}),
+            "stem2 onnx int8": ("structured_prune_int8", {**STEM, "calibration_frames": 64}),
+            "stem2 litert int8": ("structured_prune_litert_int8", {**STEM, "calibration_frames": 64})}
 TIMING = TimingSettings(warmup_runs=20, warmup_seconds=0.1, min_runs=200, max_seconds=0.6, block_seconds=0.1,
                         min_blocks=3, stable_within=0.0)
 
@@ -51,14 +57,16 @@ def test_benchmark_the_tfmot_strategies(trained, tmp_path):
     frames = tmp_path / "frames"
     random_frames(128, seed=3).save(frames)
     built = {}
-    for name, options in OPTIONS.items():
+    for name, (strategy, options) in VARIANTS.items():
+        folder = tmp_path / name.replace(" ", "_")
         try:
-            built[name] = apply_strategy(name, options, StrategySource(trained / "model.pt", tmp_path / name, (frames,)))
+            built[name] = {**apply_strategy(strategy, options, StrategySource(trained / "model.pt", folder, (frames,))),
+                           "folder": folder}
         except NotApplicable as reason:
             print(f"{name}: not applicable: {reason}")
     profile = make_profile("cpu1")
     apply_profile(profile)
-    predictors = {name: load_predictor(tmp_path / name, profile) for name in built}
+    predictors = {name: load_predictor(built[name]["folder"], profile) for name in built}
     one = sample_batch(random_frames(8, seed=4), 1, 1)
     rounds = []
     for _ in range(ROUNDS):
