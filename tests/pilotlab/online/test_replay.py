@@ -74,8 +74,19 @@ def test_a_latency_file_gives_the_most_specific_rows(tmp_path):
 
 def test_scaling_gives_the_reference_its_target_median():
     from pilotlab.online.latency import scale_to
-    scaled, factor = scale_to(np.array([1.0, 1.5]), np.array([2.0, 2.0, 3.0]), 124.0)
-    assert factor == pytest.approx(62.0) and list(scaled) == pytest.approx([62.0, 93.0])
+    scaled, factor, stalls = scale_to(np.array([1.0, 1.5]), np.array([2.0, 2.0, 3.0]), 124.0)
+    assert factor == pytest.approx(62.0) and list(scaled) == pytest.approx([62.0, 93.0]) and stalls == 0
+
+
+def test_a_host_stall_is_not_scaled_into_a_freeze():
+    """A call the host stalled (8.6 ms among ~0.95 ms ones) adds its own delay on the slower device, not
+    ×127 of it: scaled whole it would stop the car for a second."""
+    from pilotlab.online.latency import scale_to
+    samples = np.array([0.9, 1.0, 1.0, 1.0, 1.1, 2.9, 8.6])                          # median 1.0
+    scaled, factor, stalls = scale_to(samples, np.array([1.0]), 124.0)
+    assert factor == 124.0 and stalls == 1
+    assert list(scaled[:6]) == pytest.approx([111.6, 124.0, 124.0, 124.0, 136.4, 359.6])   # 2.9 < 3× median: work
+    assert scaled[6] == pytest.approx(124.0 + 7.6)                                     # median's work + the stall
 
 
 def test_a_timing_source_takes_the_file_over_the_timing_job_and_scales(tmp_path):
@@ -88,7 +99,7 @@ def test_a_timing_source_takes_the_file_over_the_timing_job_and_scales(tmp_path)
     assert said["replayed_latency_ms"] == 2.0 and "latency_scale" not in said
     scaled, said = TimingSource(timing=timing, scale_to_ms=124.0, reference=(tmp_path, {"latency_samples": "base.npy"})
                                 ).samples()
-    assert list(scaled) == [62.0, 62.0, 124.0] and said["latency_scale"] == 31.0
+    assert list(scaled) == [62.0, 62.0, 124.0] and said["latency_scale"] == 31.0 and said["replayed_stalls"] == 0
     path = tmp_path / "device.csv"
     path.write_text("strategy,latency_ms\nbaseline,30\nqat,10\n")
     samples, said = TimingSource(timing=timing, latency_file=path, strategy="qat").samples()

@@ -11,6 +11,7 @@ from torch import nn
 
 from matrix.kinds import NotApplicable
 from pilotlab.errors import PilotlabError
+from pilotlab.export import export_artifact
 from pilotlab.models.registry import build_model
 from pilotlab.predictor import load_predictor
 from pilotlab.strategies.apply import StrategySource, apply_strategy
@@ -85,17 +86,20 @@ def test_any_image_size_keeps_its_shape():
             torch.testing.assert_close(model(images), reference(images), rtol=1e-4, atol=1e-5)
 
 
-def test_structured_prune_with_it_runs_as_an_onnx_file(trained, frames, test_frames, tmp_path):
+def test_its_onnx_file_runs_with_onnx_runtime_alone_through_the_export(trained, frames, tmp_path, monkeypatch):
     options = {"finetune_epochs": 0, "format": "onnx", "subsample_stem": 2}
-    source = StrategySource(trained / "model.pt", tmp_path / "stem", (frames,))
-    result = apply_strategy("structured_prune", options, source)
+    result = apply_strategy("structured_prune", options, StrategySource(trained / "model.pt", tmp_path / "stem", (frames,)))
     plain = apply_strategy("structured_prune", {"finetune_epochs": 0, "format": "onnx"},
                            StrategySource(trained / "model.pt", tmp_path / "plain", (frames,)))
     assert result["stem_taps"] == [[3, 3], [3, 3]]
     assert result["macs"] < 0.6 * plain["macs"]
-    from pilotlab.data.frames import FrameSet
-    batch = np.ascontiguousarray(FrameSet.load(test_frames).inputs(np.arange(4)).numpy())
-    assert load_predictor(tmp_path / "stem", "cpu1").predict(batch).shape == (4, 2)
+    out = export_artifact(tmp_path / "stem", result, tmp_path / "deploy")
+    code = (out / "README.md").read_text().split("## Load and run")[1].split("```python")[1].split("```")[0]
+    assert "import pilotlab" not in code
+    namespace = {"images": np.random.default_rng(0).random((4, 3, 66, 200), dtype=np.float32)}
+    monkeypatch.chdir(out)
+    exec(code, namespace)               # the README's own code, as a user would paste it
+    np.testing.assert_allclose(namespace["vw"], load_predictor(out, "cpu1").predict(namespace["images"]), atol=1e-6)
 
 
 def test_a_negative_count_says_what_is_wrong(trained, tmp_path):
