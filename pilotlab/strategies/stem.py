@@ -10,7 +10,8 @@ first two layers are 5×5 convolutions at stride 2. Zeroing the second one's odd
 and 3 of its 5×5 kernel) leaves a 3×3 kernel at dilation 2 over the first one's output, which reads only
 its even rows and columns: the same function as a first convolution at stride 4 followed by a 3×3
 convolution at stride 1. Its receptive field (13×13 pixels at a stride of 4) and output shape stay the
-same; the first layer does a quarter of its work and the second 9/25 of its own. The rewrite is exact for
+same, at any input size (the even rows the second reads are exactly the rows of the first at twice its
+stride); the first layer does a quarter of its work and the second 9/25 of its own. The rewrite is exact for
 the tap-pruned network (checked against it, as channel removal is); the fine-tune that follows recovers
 what the dropped taps carried.
 
