@@ -89,7 +89,7 @@ def zero_channels(layer: nn.Module, keep: torch.Tensor) -> None:
 def shrink_outputs(layer: nn.Module, keep: torch.Tensor) -> nn.Module:
     weight = layer.weight.detach()[keep]
     bias = layer.bias.detach()[keep] if layer.bias is not None else None
-    return _rebuilt(layer, weight, bias)
+    return rebuilt(layer, weight, bias)
 
 
 def shrink_inputs(layer: nn.Module, keep: torch.Tensor, channels: int) -> nn.Module:
@@ -101,12 +101,15 @@ def shrink_inputs(layer: nn.Module, keep: torch.Tensor, channels: int) -> nn.Mod
     else:
         weight = weight[:, keep]
     bias = layer.bias.detach() if layer.bias is not None else None
-    return _rebuilt(layer, weight, bias)
+    return rebuilt(layer, weight, bias)
 
 
-def _rebuilt(layer: nn.Module, weight: torch.Tensor, bias: torch.Tensor | None) -> nn.Module:
+def rebuilt(layer: nn.Module, weight: torch.Tensor, bias: torch.Tensor | None,
+            stride: tuple[int, int] | None = None) -> nn.Module:
+    """`layer` remade around `weight` (its shape gives the channels and, for a conv, the kernel) and `bias`;
+    a conv keeps its padding and dilation, and its stride unless `stride` is given."""
     if isinstance(layer, nn.Conv2d):
-        new = nn.Conv2d(weight.shape[1], weight.shape[0], layer.kernel_size, layer.stride,
+        new = nn.Conv2d(weight.shape[1], weight.shape[0], tuple(weight.shape[2:]), stride or layer.stride,
                         layer.padding, layer.dilation, bias=bias is not None)
     else:
         new = nn.Linear(weight.shape[1], weight.shape[0], bias=bias is not None)

@@ -25,7 +25,7 @@ import torch
 from torch import nn
 
 from matrix.kinds import NotApplicable
-from pilotlab.strategies.channels import check_same_function, replace
+from pilotlab.strategies.channels import check_same_function, rebuilt, replace
 from pilotlab.strategies.common import conv_linear_layers
 
 
@@ -70,16 +70,12 @@ def _zero_odd_taps(conv: nn.Conv2d) -> None:
 
 
 def _restrided(conv: nn.Conv2d, stride: tuple[int, int]) -> nn.Conv2d:
-    new = nn.Conv2d(conv.in_channels, conv.out_channels, conv.kernel_size, stride, bias=conv.bias is not None)
-    new.load_state_dict(conv.state_dict())
-    return new
+    return rebuilt(conv, conv.weight.detach(), _bias(conv), stride)
 
 
 def _even_taps(conv: nn.Conv2d) -> nn.Conv2d:
-    weight = conv.weight.detach()[:, :, ::2, ::2]
-    new = nn.Conv2d(conv.in_channels, conv.out_channels, tuple(weight.shape[2:]), 1, bias=conv.bias is not None)
-    with torch.no_grad():
-        new.weight.copy_(weight)
-        if conv.bias is not None:
-            new.bias.copy_(conv.bias)
-    return new
+    return rebuilt(conv, conv.weight.detach()[:, :, ::2, ::2], _bias(conv), (1, 1))
+
+
+def _bias(conv: nn.Conv2d) -> torch.Tensor | None:
+    return conv.bias.detach() if conv.bias is not None else None
