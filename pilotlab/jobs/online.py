@@ -16,7 +16,9 @@ result:
     expert's perfect lap, and perfect_lap_checkpoints; in replay timing latency_source,
     replayed_latency_ms, replayed_latency_p90_ms, replayed_latency_samples (and latency_scale when
     scaled); with tolerance: latency_tolerance_ms, tolerance_at_least, tolerance_fixed_ms,
-    tolerance_laps, tolerance_laps_driven (pilotlab.online.tolerance); and the files, relative to the
+    tolerance_laps, tolerance_laps_driven (pilotlab.online.tolerance), and tolerance_hint_ms and
+    tolerance_hint_from when the search started at a neighbour cell's tolerance (the dependency
+    `tolerance_hint`: the same brain's lap on the recipe's shortest circuit); and the files, relative to the
     artifacts folder: trajectory ("trajectory.png"), trajectory_data ("trajectory.npz"), trajectory_csv
     ("trajectory.csv"), video ("camera.mp4", if asked), camera_frames (["frames/camera_012.00s.jpg", ...]).
 """
@@ -91,6 +93,17 @@ def replayed_latency(ctx: JobContext, spec: OnlineSpec, brain) -> tuple[np.ndarr
     return source.samples()
 
 
+def tolerance_hint(ctx: JobContext) -> dict[str, Any]:
+    """Where this cell's tolerance search starts: the tolerance its `tolerance_hint` dependency found
+    (the same brain on the recipe's shortest circuit: pilotlab.planning.laps), and that lap's name;
+    {} without one, or when that lap found none (lost with nothing injected)."""
+    if "tolerance_hint" not in ctx.deps:
+        return {}
+    neighbour = ctx.dep("tolerance_hint")
+    found = neighbour.result.get("latency_tolerance_ms")
+    return {} if found is None else {"tolerance_hint_ms": float(found), "tolerance_hint_from": neighbour.name}
+
+
 def run_online(ctx: JobContext) -> dict[str, Any]:
     spec: OnlineSpec = with_circuit_file(ctx.spec, ctx.inputs)
     profile = profile_from_dict(spec.hardware)
@@ -104,10 +117,11 @@ def run_online(ctx: JobContext) -> dict[str, Any]:
                  spec.timing, spec.control_hz, spec.runs)
     samples, replayed = replayed_latency(ctx, spec, brain)
     checkpoints = perfect_lap(spec.circuit, spec.direction, cache=ctx.cache / "perfect_laps")
+    hint = tolerance_hint(ctx)
     result = evaluate.evaluate_online(brain, spec, ctx.out, progress=lambda done, total, what: ctx.progress(
         done, total, what), latency_ms=samples, tolerance=spec.tolerance, checkpoints=checkpoints,
-        assets=world_assets(ctx.inputs)[0])
-    result |= replayed
+        assets=world_assets(ctx.inputs)[0], tolerance_hint_ms=hint.get("tolerance_hint_ms"))
+    result |= replayed | (hint if spec.tolerance is not None else {})
     ctx.log.info("%s: %s", strategy, ", ".join(f"{run['termination']} after {run['sim_seconds']:.1f} s"
                                                for run in result["runs"]))
     return {**result, "strategy": strategy, "hardware": profile.as_dict(), "host": host, "hostname": host_name()}

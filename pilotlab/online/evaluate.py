@@ -90,12 +90,13 @@ def media_frames(env: DrivingEnv, recorder: CameraRecorder):
 
 
 def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: ProgressFn | None = None,
-                    checkpoints=None, latency_ms=None, tolerance=None, assets=None) -> dict[str, Any]:
+                    checkpoints=None, latency_ms=None, tolerance=None, assets=None,
+                    tolerance_hint_ms: float | None = None) -> dict[str, Any]:
     """Drive, measure, and write the files; returns the result (see the module docstring). The
     BehaviorMetrics-compatible metrics are scored against `checkpoints` (default: the expert's lap on
     the same circuit and direction, `pilotlab.online.perfect_lap`); `latency_ms`: the samples the
     replay timing mode draws from; `tolerance` (a pilotlab.specs.online.ToleranceSpec): also search the cell's latency
-    tolerance (pilotlab.online.tolerance) from the first run."""
+    tolerance (pilotlab.online.tolerance) from the first run, starting at `tolerance_hint_ms` if given."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
@@ -109,7 +110,8 @@ def evaluate_online(brain: Brain, spec: OnlineSpec, out: Path, progress: Progres
         # cost 2-4× more and made its laps differ from the plain one in the rendering)
         view = getattr(brain, "view", None)
         means |= cell_tolerance(make_env(spec, camera=brain.needs_camera, view=view, assets=assets), brain, spec,
-                                tolerance, trajectories[0], checkpoints, latency_ms, progress, runs[0])
+                                tolerance, trajectories[0], checkpoints, latency_ms, progress, runs[0],
+                                tolerance_hint_ms)
     save_npz(trajectories, out / "trajectory.npz")
     save_csv(trajectories, out / "trajectory.csv")
     title = picture_title(brain.name, spec, means, len(trajectories))

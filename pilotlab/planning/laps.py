@@ -1,12 +1,19 @@
 """The closed-loop laps of a plan: each combination's laps (on its circuit, or in its BM world) in every
 direction, replaying the latencies of its timing job (or a device's latency file), and the reference
-brains' laps on every CPU profile and place the matrix drives."""
+brains' laps on every CPU profile and place the matrix drives.
+
+With a tolerance search, a brain's laps on longer circuits start their search at the tolerance its lap
+on the shortest circuit found (a `tolerance_hint` dependency: same brain, hardware and direction; the
+shortest by BehaviorMetrics' timeouts, lap_scale). The study's Montreal cells found theirs within 10 ms
+of simple_circuit's in 22 of 24, so each drives two laps of its search where the bisection drove three to
+four (pilotlab.online.tolerance). BM worlds take no hint: another camera and world, another tolerance."""
 from __future__ import annotations
 
 from typing import Any
 
 from matrix.errors import MatrixError
 from matrix.jobs import InputFile, Job, Params, input_file
+from pilotlab.circuits.registry import lap_scale
 from pilotlab.planning.worlds import world_param
 from pilotlab.specs.online import LapSettings, OnlineSpec
 
@@ -18,8 +25,45 @@ def online_jobs(planner, optimize: Job, combination: dict, hardware: str, timing
     brain, deps, inputs = planner.remembered(("replay", model, strategy, hardware),
                                              lambda: replay_inputs(planner, combination, hardware, timing))
     name, deps = f"online {model}/{strategy} on {hardware}", {"artifact": optimize, **deps}
-    return [_lap(planner, name, labels, hardware, place, direction, brain, deps, inputs)
-            for direction in planner.config.online.directions]
+    return [_hinted_lap(planner, (model, strategy, hardware), name, labels, hardware, place, direction, brain, deps,
+                        inputs) for direction in planner.config.online.directions]
+
+
+def _hinted_lap(planner, brain_key: tuple, name: str, labels: dict, hardware: str, place: tuple[str, str],
+                direction: str, brain: dict, deps: dict, inputs: dict | None = None) -> Job:
+    """The lap, built once per plan; on a circuit longer than the brain's shortest, with the lap there as its
+    `tolerance_hint` (see the module docstring)."""
+    def build() -> Job:
+        scout = scout_circuit(planner, brain_key)
+        hint = {}
+        if scout is not None and place[0] == "circuit" and place[1] != scout:
+            hint = {"tolerance_hint": _hinted_lap(planner, brain_key, name, labels, hardware, ("circuit", scout),
+                                                  direction, brain, deps, inputs)}
+        return _lap(planner, name, labels, hardware, place, direction, brain, {**deps, **hint}, inputs)
+    return planner.remembered(("lap", brain_key, place, direction), build)
+
+
+def scout_circuit(planner, brain_key: tuple) -> str | None:
+    """The shortest circuit a brain ((model, strategy, hardware), or ("reference", name, hardware)) laps when
+    there is a tolerance search and it laps more than one; else None."""
+    if planner.config.online.tolerance is None:
+        return None
+    return planner.remembered(("scouts",), lambda: _scouts(planner)).get(brain_key)
+
+
+def _scouts(planner) -> dict[tuple, str]:
+    circuits: dict[tuple, set[str]] = {}
+    for combination in planner.recipe.combinations:
+        if "circuit" in combination:
+            brain_key = (str(combination["model"]), str(combination["strategy"]), str(combination.get("hardware", "cpu")))
+            circuits.setdefault(brain_key, set()).add(str(combination["circuit"]))
+    for hardware, place in reference_cells(planner):
+        if place[0] == "circuit":
+            for reference in planner.config.online.references:
+                name = reference if isinstance(reference, str) else next(iter(reference))
+                circuits.setdefault(("reference", name, hardware), set()).add(place[1])
+    return {key: min(names, key=lambda circuit: (lap_scale(circuit), circuit))
+            for key, names in circuits.items() if len(names) > 1}
 
 
 def lap_place(combination: dict) -> tuple[str, str]:
@@ -53,17 +97,23 @@ def replay_inputs(planner, combination: dict, hardware: str, timing: Job) -> tup
 def reference_jobs(planner) -> list[Job]:
     """The reference brains (explicit, expert, the user's) on every CPU profile and circuit the matrix
     drives (they use no GPU, so a CUDA profile adds nothing)."""
-    driven = {(str(c.get("hardware", "cpu")), lap_place(c)) for c in planner.recipe.combinations
-              if "circuit" in c or "world" in c}
-    cells = {(hardware, place) for hardware, place in driven if planner.profile(hardware).device == "cpu"}
     jobs = []
     for index, reference in enumerate(planner.config.online.references):
         name, brain, inputs = reference_brain(planner, reference, index)
-        jobs += [_lap(planner, f"online {name} on {hardware}", {"model": "reference", "strategy": name,
-                                                                "hardware": hardware},
-                      hardware, place, direction, brain, {}, inputs)
-                 for hardware, place in sorted(cells) for direction in planner.config.online.directions]
+        jobs += [_hinted_lap(planner, ("reference", name, hardware), f"online {name} on {hardware}",
+                             {"model": "reference", "strategy": name, "hardware": hardware},
+                             hardware, place, direction, brain, {}, inputs)
+                 for hardware, place in reference_cells(planner) for direction in planner.config.online.directions]
     return jobs
+
+
+def reference_cells(planner) -> list[tuple[str, tuple[str, str]]]:
+    """(hardware, place) of every CPU profile and place the matrix drives, sorted."""
+    def cells():
+        driven = {(str(c.get("hardware", "cpu")), lap_place(c)) for c in planner.recipe.combinations
+                  if "circuit" in c or "world" in c}
+        return sorted((hardware, place) for hardware, place in driven if planner.profile(hardware).device == "cpu")
+    return planner.remembered(("reference cells",), cells)
 
 
 def reference_brain(planner, reference: str | dict[str, str], index: int) -> tuple[str, dict, dict]:

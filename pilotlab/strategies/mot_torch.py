@@ -66,7 +66,7 @@ class ActivationQuant:
         self.seen = False
 
     def quantize(self, x: torch.Tensor, training: bool) -> torch.Tensor:
-        low, high = float(x.detach().min()), float(x.detach().max())
+        low, high = map(float, torch.aminmax(x.detach()))     # one pass over the activation, not two
         if self.calibrating or not self.seen:
             self.low, self.high = (min(self.low, low), max(self.high, high)) if self.seen else (min(low, 0.0),
                                                                                                   max(high, 0.0))

@@ -362,6 +362,23 @@ def test_scaled_latencies_and_the_tolerance_search(tmp_path):
     assert references and all(job.params["tolerance"] is not None and not job.deps for job in references)
 
 
+def test_a_tolerance_search_on_a_longer_circuit_starts_from_the_shortest_circuits_lap(tmp_path):
+    """Each brain's Montreal lap has its simple_circuit lap (same hardware and direction) as its
+    `tolerance_hint`; the shortest circuit's lap has none, and without a tolerance search nothing does."""
+    text = RECIPE.replace("circuit: [simple_circuit]", "circuit: [montreal, simple_circuit]")
+    plain = engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
+    assert not any("tolerance_hint" in job.deps for job in plain if job.kind == "online")
+    jobs = engine.plan_jobs(recipe_at(tmp_path, text + "online: {tolerance: true, directions: [cw, ccw]}\n"), DOMAIN)
+    laps = {job.name: job for job in jobs if job.kind == "online"}
+    hinted = {name: job for name, job in laps.items() if "tolerance_hint" in job.deps}
+    assert len(hinted) == len(laps) // 2 and all(" at montreal " in name for name in hinted)
+    for name, job in hinted.items():
+        scout = job.deps["tolerance_hint"]
+        assert scout is laps[name.replace(" at montreal ", " at simple_circuit ")]
+        assert "tolerance_hint" not in scout.deps and scout.params["direction"] == job.params["direction"]
+    assert {"online explicit on cpu at montreal cw", "online expert on cpu1 at montreal ccw"} <= set(hinted)
+
+
 def test_a_hardware_latency_file_is_replayed_instead_of_this_hosts_timings(tmp_path):
     (tmp_path / "timings").mkdir()
     (tmp_path / "timings" / "jetson.csv").write_text("model,strategy,latency_ms\n,,25\n")

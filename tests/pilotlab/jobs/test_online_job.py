@@ -77,6 +77,18 @@ def test_a_network_lap_replays_the_timing_jobs_latency_scaled_and_searches_its_t
     assert result["bm_mean_inference_ms"] is None or 30.0 <= result["bm_mean_inference_ms"] <= 50.0
     assert {lap["injected_ms"] for lap in result["tolerance_laps"]} >= {0.0}
     assert "latency_tolerance_ms" in result and result["tolerance_fixed_ms"] == [0.0, 50.0]
+    assert "tolerance_hint_ms" not in result
+
+
+def test_a_lap_starts_its_tolerance_search_at_its_neighbours_tolerance(tmp_path):
+    neighbour = DepResult(key="lap-key", kind="online", params={}, result={"latency_tolerance_ms": 75.0},
+                          artifacts=tmp_path, name="online expert on cpu1 at simple_circuit cw")
+    params = {**SHORT, "timeout_s": None, "laps": 0.2, "brain": "expert", "fixed_inference_ms": 0.0,
+              "tolerance": {"fixed_ms": [0, 25], "max_ms": 100, "step_ms": 25}}
+    _, result = run(tmp_path, "online-hinted", params, deps={"tolerance_hint": neighbour})
+    assert result["tolerance_hint_ms"] == 75.0 and result["tolerance_hint_from"] == neighbour.name
+    outcomes = {lap["injected_ms"]: lap["lap_completed"] for lap in result["tolerance_laps"]}
+    assert outcomes[0.0] and outcomes[25.0] and 75.0 in outcomes and 50.0 not in outcomes   # the hint next
 
 
 def test_reference_brains_with_video_and_stills(tmp_path):

@@ -52,6 +52,32 @@ def test_probing_high_in_the_bracket_finds_the_same_tolerance_with_fewer_complet
     assert completed[0.7][0] < completed[0.5][0]
 
 
+@pytest.mark.parametrize("off_by", [-300.0, -30.0, -20.0, -10.0, 0.0, 10.0, 20.0, 30.0, 300.0])
+def test_a_hint_finds_the_same_tolerance_and_a_good_one_in_fewer_laps(off_by):
+    """Started at a neighbour cell's tolerance, the search finds what it finds without (a hint only
+    orders the laps), at any distance from the truth; within a step, in two laps after the fixed ones."""
+    for limit in [-1.0, *range(0, 1100, 7)]:
+        plain = Threshold(float(limit))
+        expected = tolerance_search(plain, ToleranceSpec())
+        hint = max(0.0, (expected["latency_tolerance_ms"] or 0.0) + off_by)
+        lap = Threshold(float(limit))
+        found = tolerance_search(lap, ToleranceSpec(), hint_ms=hint)
+        assert (found["latency_tolerance_ms"], found["tolerance_at_least"]) == \
+               (expected["latency_tolerance_ms"], expected["tolerance_at_least"])
+        assert len(set(lap.driven)) == len(lap.driven)
+        fixed = len([ms for ms in (0.0, 100.0, 200.0) if ms in lap.driven])
+        if off_by == 0.0 and 0 <= limit < 1000:
+            assert len(lap.driven) - fixed <= 2 and len(lap.driven) <= len(plain.driven)
+
+
+def test_a_hint_above_the_fixed_latencies_needs_no_lap_at_max_ms():
+    """The explicit brain keeps its lap at +200 ms: the bisection drove the max_ms lap and six more;
+    from a neighbour's 200 ms, one lap (lost at 210) decides."""
+    lap = Threshold(205.0)
+    found = tolerance_search(lap, ToleranceSpec(), hint_ms=200.0)
+    assert found["latency_tolerance_ms"] == 200.0 and lap.driven == [0.0, 100.0, 200.0, 210.0]
+
+
 def test_known_laps_are_not_driven_again():
     lap = Threshold(137.0)
     found = tolerance_search(lap, known={0.0: LapOutcome(0.0, True)})
