@@ -25,8 +25,8 @@ def online_jobs(planner, optimize: Job, combination: dict, hardware: str, timing
     brain, deps, inputs = planner.remembered(("replay", model, strategy, hardware),
                                              lambda: replay_inputs(planner, combination, hardware, timing))
     name, deps = f"online {model}/{strategy} on {hardware}", {"artifact": optimize, **deps}
-    return [_hinted_lap(planner, (model, strategy, hardware), name, labels, hardware, place, direction, brain, deps,
-                        inputs) for direction in planner.config.online.directions]
+    return [_hinted_lap(planner, ("network", model, strategy, hardware), name, labels, hardware, place, direction,
+                        brain, deps, inputs) for direction in planner.config.online.directions]
 
 
 def _hinted_lap(planner, brain_key: tuple, name: str, labels: dict, hardware: str, place: tuple[str, str],
@@ -44,8 +44,8 @@ def _hinted_lap(planner, brain_key: tuple, name: str, labels: dict, hardware: st
 
 
 def scout_circuit(planner, brain_key: tuple) -> str | None:
-    """The shortest circuit a brain ((model, strategy, hardware), or ("reference", name, hardware)) laps when
-    there is a tolerance search and it laps more than one; else None."""
+    """The shortest circuit a brain (("network", model, strategy, hardware), or ("reference", name, hardware))
+    laps when there is a tolerance search and it laps more than one; else None."""
     if planner.config.online.tolerance is None:
         return None
     return planner.remembered(("scouts",), lambda: _scouts(planner)).get(brain_key)
@@ -55,7 +55,8 @@ def _scouts(planner) -> dict[tuple, str]:
     circuits: dict[tuple, set[str]] = {}
     for combination in planner.recipe.combinations:
         if "circuit" in combination:
-            brain_key = (str(combination["model"]), str(combination["strategy"]), str(combination.get("hardware", "cpu")))
+            brain_key = ("network", str(combination["model"]), str(combination["strategy"]),
+                         str(combination.get("hardware", "cpu")))
             circuits.setdefault(brain_key, set()).add(str(combination["circuit"]))
     for hardware, place in reference_cells(planner):
         if place[0] == "circuit":
