@@ -54,7 +54,8 @@ def scout_circuit(planner, brain_key: tuple) -> str | None:
 def _scouts(planner) -> dict[tuple, str]:
     circuits: dict[tuple, set[str]] = {}
     for combination in planner.recipe.combinations:
-        if "circuit" in combination:
+        # one without a model or strategy is refused, with its message, when the planner comes to it
+        if "circuit" in combination and "model" in combination and "strategy" in combination:
             brain_key = ("network", str(combination["model"]), str(combination["strategy"]),
                          str(combination.get("hardware", "cpu")))
             circuits.setdefault(brain_key, set()).add(str(combination["circuit"]))

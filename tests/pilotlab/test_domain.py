@@ -379,6 +379,15 @@ def test_a_tolerance_search_on_a_longer_circuit_starts_from_the_shortest_circuit
     assert {"online explicit on cpu at montreal cw", "online expert on cpu1 at montreal ccw"} <= set(hinted)
 
 
+def test_a_combination_without_a_model_is_refused_with_its_message_when_laps_take_hints(tmp_path):
+    """Found by the slow fuzz: the scouts were looked up over every combination, and one without a
+    model raised KeyError before the planner reached it to refuse it."""
+    text = RECIPE.replace("circuit: [simple_circuit]", "circuit: [montreal, simple_circuit]\n  include:\n"
+                          "    - {strategy: fp16, circuit: montreal}") + "online: {tolerance: true}\n"
+    with pytest.raises(MatrixError, match="has no model"):
+        engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
+
+
 def test_a_hardware_latency_file_is_replayed_instead_of_this_hosts_timings(tmp_path):
     (tmp_path / "timings").mkdir()
     (tmp_path / "timings" / "jetson.csv").write_text("model,strategy,latency_ms\n,,25\n")
