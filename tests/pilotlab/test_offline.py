@@ -10,7 +10,8 @@ from pilotlab.columns import BY_NAME
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.models import load_checkpoint
 from pilotlab.strategies.apply import StrategySource, apply_strategy
-from pilotlab.offline import TimingSettings, evaluate_offline, measure_latency
+from pilotlab.offline import TimingSettings, evaluate_accuracy, evaluate_offline, measure_latency
+from pilotlab.predictor import resolve_profile
 
 QUICK = TimingSettings(warmup_runs=5, warmup_seconds=0.0, min_runs=30, max_seconds=0.5, block_seconds=0.05,
                        min_blocks=2, throughput_batch=8, throughput_seconds=0.1, throughput_min_runs=3)
@@ -21,6 +22,19 @@ def baseline(trained, tmp_path_factory):
     folder = tmp_path_factory.mktemp("baseline")
     apply_strategy("baseline", {}, StrategySource(trained / "model.pt", folder))
     return folder
+
+
+def test_the_mse_runs_on_the_workers_share_and_reports_the_profiles_threads(baseline, test_frames, monkeypatch):
+    """Nothing in the MSE is timed and an offline job runs beside another: it keeps to its worker's share
+    of the cores (OMP_NUM_THREADS, set per worker), while `threads` says the profile's, as timed."""
+    before = torch.get_num_threads()
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    try:
+        result = evaluate_accuracy(baseline, "cpu", FrameSet.load(test_frames))
+        assert torch.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(before)
+    assert result["threads"] == resolve_profile("cpu").cpu_threads
 
 
 def test_offline_metrics_of_the_baseline(baseline, trained, test_frames):
