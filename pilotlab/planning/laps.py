@@ -62,8 +62,7 @@ def _scouts(planner) -> dict[tuple, str]:
     for hardware, place in reference_cells(planner):
         if place[0] == "circuit":
             for reference in planner.config.online.references:
-                name = reference if isinstance(reference, str) else next(iter(reference))
-                circuits.setdefault(("reference", name, hardware), set()).add(place[1])
+                circuits.setdefault(("reference", reference_name(reference), hardware), set()).add(place[1])
     return {key: min(names, key=lambda circuit: (lap_scale(circuit), circuit))
             for key, names in circuits.items() if len(names) > 1}
 
@@ -118,14 +117,23 @@ def reference_cells(planner) -> list[tuple[str, tuple[str, str]]]:
     return planner.remembered(("reference cells",), cells)
 
 
+def reference_name(reference: str | dict[str, str]) -> str:
+    """A reference's row name: a built-in brain's name, or the key of {name: file.py:Class}."""
+    if isinstance(reference, str):
+        return reference
+    (name, _), = reference.items()
+    return name
+
+
 def reference_brain(planner, reference: str | dict[str, str], index: int) -> tuple[str, dict, dict]:
     """(row name, the online job's brain params, its input files) of a reference: a built-in brain's
     name, or {name: file.py:Class} for a brain the user wrote (its source hash goes into the key;
     planning reads the files, never runs them)."""
+    name = reference_name(reference)
     if isinstance(reference, str):
-        return reference, {"brain": reference}, {}
+        return name, {"brain": reference}, {}
     from pilotlab import usercode
-    (name, spec), = reference.items()
+    spec = reference[name]
     try:
         source = usercode.source_files(spec, planner.folder)[0]
         digest = usercode.source_hash(spec, planner.folder)
