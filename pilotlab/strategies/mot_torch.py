@@ -52,9 +52,12 @@ class Clusters(nn.Module):
 def in_layout_of(weight: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
     """`values` in `weight`'s memory layout: fine-tuning runs the convolutions channels-last
     (pilotlab.training), and a conv handed a standard-layout weight there runs ~1.5x slower."""
-    if weight.dim() == 4 and not weight.is_contiguous() and weight.is_contiguous(memory_format=torch.channels_last):
-        return values.contiguous(memory_format=torch.channels_last)
-    return values
+    return values.contiguous(memory_format=torch.channels_last) if _channels_last(weight) else values
+
+
+def _channels_last(x: torch.Tensor) -> bool:
+    """Laid out channels-last (and not also in the standard layout, as a tensor with 1x1 planes is)."""
+    return x.dim() == 4 and not x.is_contiguous() and x.is_contiguous(memory_format=torch.channels_last)
 
 
 class FakeQuantWeight(nn.Module):
@@ -123,9 +126,7 @@ class FakeQuantPerTensor(torch.autograd.Function):
 def _memory_order(x: torch.Tensor) -> torch.Tensor:
     """The same elements as a view in memory order (a reduction over a channels-last tensor would
     copy it to the standard layout first: 5 ms against 1 on PilotNet's first activation)."""
-    if x.dim() == 4 and not x.is_contiguous() and x.is_contiguous(memory_format=torch.channels_last):
-        return x.permute(0, 2, 3, 1)
-    return x
+    return x.permute(0, 2, 3, 1) if _channels_last(x) else x
 
 
 def fold(model: nn.Module) -> nn.Module:
