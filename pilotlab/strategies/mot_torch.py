@@ -46,10 +46,10 @@ class Clusters(nn.Module):
         self.register_buffer("zero", torch.zeros(1))
 
     def forward(self, weight: torch.Tensor) -> torch.Tensor:
-        return in_layout_of(weight, torch.cat([self.centroids, self.zero])[self.index].view_as(weight))
+        return _in_layout_of(weight, torch.cat([self.centroids, self.zero])[self.index].view_as(weight))
 
 
-def in_layout_of(weight: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
+def _in_layout_of(weight: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
     """`values` in `weight`'s memory layout: fine-tuning runs the convolutions channels-last
     (pilotlab.training), and a conv handed a standard-layout weight there runs ~1.5x slower."""
     return values.contiguous(memory_format=torch.channels_last) if _channels_last(weight) else values
