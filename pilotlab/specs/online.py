@@ -61,7 +61,8 @@ class ToleranceSpec(Spec):
     # 50 ms is not among them: its lap was a whole lap of every cell (most keep 100 ms), and the search's
     # own laps put points between 0 and 100 where a cell's tolerance is there
     fixed_ms: list[float] = Field([0.0, 100.0, 200.0], description="injected latencies whose laps' deviation "
-                                                                  "is reported (they also bracket the search)")
+                                                                  "is reported (they also bracket the search; "
+                                                                  "a search from a hint drives none)")
     max_ms: float = Field(1000.0, gt=0, le=60_000, description="the largest injected latency searched")
     # 10 ms: the tolerance found for one network moved by 5-10 ms between the seeds of its latency draws
     # (study2022, 4 seeds, 2026-11-28), so a finer grid buys laps, not knowledge. Finer than 0.1 ms means

@@ -55,7 +55,7 @@ def test_probing_high_in_the_bracket_finds_the_same_tolerance_with_fewer_complet
 @pytest.mark.parametrize("off_by", [-300.0, -30.0, -20.0, -10.0, 0.0, 10.0, 20.0, 30.0, 300.0])
 def test_a_hint_finds_the_same_tolerance_and_a_good_one_in_fewer_laps(off_by):
     """Started at a neighbour cell's tolerance, the search finds what it finds without (a hint only
-    orders the laps), at any distance from the truth; within a step, in two laps after the fixed ones."""
+    orders the laps), at any distance from the truth; within a step, in two laps after the 0 ms one."""
     for limit in [-1.0, *range(0, 1100, 7)]:
         plain = Threshold(float(limit))
         expected = tolerance_search(plain, ToleranceSpec())
@@ -65,9 +65,17 @@ def test_a_hint_finds_the_same_tolerance_and_a_good_one_in_fewer_laps(off_by):
         assert (found["latency_tolerance_ms"], found["tolerance_at_least"]) == \
                (expected["latency_tolerance_ms"], expected["tolerance_at_least"])
         assert len(set(lap.driven)) == len(lap.driven)
-        fixed = len([ms for ms in (0.0, 100.0, 200.0) if ms in lap.driven])
         if off_by == 0.0 and 0 <= limit < 1000:
-            assert len(lap.driven) - fixed <= 2 and len(lap.driven) <= len(plain.driven)
+            assert len(lap.driven) <= 1 + 2 and len(lap.driven) < len(plain.driven)
+
+
+def test_a_hinted_search_drives_no_fixed_latency_below_its_tolerance():
+    """Each such lap is a whole (slow) lap that decides nothing the hint's laps do not."""
+    lap = Threshold(137.0)
+    found = tolerance_search(lap, ToleranceSpec(), hint_ms=130.0)
+    assert found["latency_tolerance_ms"] == 130.0 and lap.driven == [0.0, 130.0, 140.0]
+    assert found["tolerance_fixed_ms"] == [0.0]
+    assert tolerance_search(Threshold(137.0), ToleranceSpec())["tolerance_fixed_ms"] == [0.0, 100.0, 200.0]
 
 
 def test_a_hint_above_the_fixed_latencies_needs_no_lap_at_max_ms():
@@ -75,7 +83,7 @@ def test_a_hint_above_the_fixed_latencies_needs_no_lap_at_max_ms():
     from a neighbour's 200 ms, one lap (lost at 210) decides."""
     lap = Threshold(205.0)
     found = tolerance_search(lap, ToleranceSpec(), hint_ms=200.0)
-    assert found["latency_tolerance_ms"] == 200.0 and lap.driven == [0.0, 100.0, 200.0, 210.0]
+    assert found["latency_tolerance_ms"] == 200.0 and lap.driven == [0.0, 200.0, 210.0]
 
 
 def test_known_laps_are_not_driven_again():
