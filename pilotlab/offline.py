@@ -38,18 +38,20 @@ class TimingSettings:
     min_runs: int = 300
     max_runs: int = 20_000
     max_seconds: float = 5.0          # budget for the batch-1 latency when nothing disturbs it
-    block_seconds: float = 0.2        # timed calls between two looks at the CPU's load
+    # 0.1 s: the 5 blocks a figure takes at least are then half a second. Four timings each of five study
+    # artifacts, quiet, interleaved with the 0.2 s blocks and 1 s of throughput (2026-11-28): the
+    # medians spread over the four as much (latency 1.6-15 % against 1.5-12 %, throughput 1.5-7.5 %
+    # against 1.9-10 %: the spread is between runs, not within one), and a timing job took 1.6 s instead
+    # of 2.7. Each is exclusive: 24 of them were 65 s of the study's wall time.
+    block_seconds: float = 0.1        # timed calls between two looks at the CPU's load
     min_blocks: int = 5               # clean blocks behind a figure, at least
     attempts: int = 3                 # disturbed blocks are re-measured within attempts × the budget
     stable_within: float = 0.01       # stop when the median moved less than 1% over a block
     max_wait_share: float = 0.02      # a clean call's threads waited for a CPU at most 2 % of its time
     min_clean_share: float = 0.25     # a stable figure: at least a quarter of the calls clean
     throughput_batch: int = 64
-    # 1 s: the 5 blocks the plan takes at least. Four timings of each of three study artifacts on a quiet
-    # machine (2026-11-28) spread as much over 1.0 s as over 1.5 s (baseline 7.8 % against 7.5 %,
-    # ONNX Runtime 1.0 % against 4.2 %, dynamic_quant 0.6 % against 1.0 %), and each timing job is
-    # exclusive: the half second was 12 s of the study's wall time
-    throughput_seconds: float = 1.0
+    # the 5 blocks the plan takes at least (see block_seconds; 1.5 s spread as 1 s did, earlier)
+    throughput_seconds: float = 0.5
     throughput_min_runs: int = 10
     mse_batch: int = 64
 

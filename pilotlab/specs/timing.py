@@ -44,7 +44,7 @@ def timing_resources(params) -> dict[str, float]:
 
 # What a job typically takes, for the scheduler and the time left of a store that has not run it
 # (matrix.times): one for a CUDA profile, planned on a host without a GPU, says "not applicable" at once.
-NOT_HERE_S, TIMING_S = 0.1, 3.0    # a timing: about 3 s, most of it the measuring itself
+NOT_HERE_S, TIMING_S = 0.1, 2.0    # a timing: about 2 s, most of it the measuring itself
 
 
 def not_applicable_here(params) -> bool:
