@@ -17,5 +17,5 @@ def prune_quant(config: PruneQuantConfig, source: StrategySource) -> dict:
     prune_history = prune_and_finetune(model, source, config,
                                        lambda m: prune_local(m, config.conv, config.linear))
     pruned = sparsity_report(model)
-    qat_history = quantization_aware_finetune(model, source, config, keep_zeros=True)
+    qat_history = quantization_aware_finetune(model, source, config.quantization_aware, keep_zeros=True)
     return {**pruned, "finetune": prune_history + qat_history}
