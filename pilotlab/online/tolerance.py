@@ -103,8 +103,9 @@ def tolerance_search(lap: LapFn, settings: ToleranceSpec = ToleranceSpec(),
                      known: dict[float, LapOutcome] | None = None, hint_ms: float | None = None) -> dict[str, Any]:
     """Drive `lap(injected_ms)` as needed; `known`: outcomes already driven (the plain lap at 0 ms);
     `hint_ms`: where the tolerance probably is (a neighbour cell's), searched from (instead of the
-    fixed latencies first). tolerance_fixed_ms: the fixed latencies driven. latency_tolerance_ms is None when the lap is lost with nothing injected; tolerance_at_least is
-    true when it was still completed at max_ms."""
+    fixed latencies first). latency_tolerance_ms is None when the lap is lost with nothing injected;
+    tolerance_at_least is true when it was still completed at max_ms; tolerance_fixed_ms lists the
+    fixed latencies driven."""
     laps = _Laps(lap, known or {})
     if hint_ms is None:
         low, high = _bracket(laps, settings)
