@@ -254,3 +254,10 @@ def test_fine_tunes_train_in_the_models_precision_and_qat_in_fp32(artifacts):
     assert pruning and {row["precision"] for row in pruning} == {fit_precision("auto")}
     assert qat and {row["precision"] for row in qat} == {"fp32"}
     assert {row["precision"] for row in artifacts["qat"][1]["finetune"]} == {"fp32"}
+
+
+def test_prune_quant_fine_tunes_with_fake_quantization_for_its_qat_epochs_else_its_finetune_epochs():
+    from pilotlab.strategies.configs.prune_quant import PruneQuantConfig
+    assert PruneQuantConfig(finetune_epochs=3).quantization_aware.finetune_epochs == 3
+    qat = PruneQuantConfig(finetune_epochs=2, qat_epochs=1, lr=5e-4, batch_size=16).quantization_aware
+    assert (qat.finetune_epochs, qat.lr, qat.batch_size) == (1, 5e-4, 16)
