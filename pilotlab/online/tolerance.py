@@ -61,10 +61,10 @@ class _Laps:
         return self.outcomes[ms].completed
 
 
-def _bracket(laps: _Laps, settings: ToleranceSpec) -> tuple[float | None, float | None]:
-    """(largest latency of the completed run of fixed latencies from 0, first lost one after it)."""
+def _bracket(laps: _Laps, fixed_ms: list[float]) -> tuple[float | None, float | None]:
+    """(largest latency of the completed run of `fixed_ms` from 0, first lost one after it)."""
     completed, lost = None, None
-    for ms in sorted({0.0, *settings.fixed_ms}):
+    for ms in sorted({0.0, *fixed_ms}):
         if not laps.completed(ms):
             lost = ms
             break
@@ -107,12 +107,10 @@ def tolerance_search(lap: LapFn, settings: ToleranceSpec = ToleranceSpec(),
     tolerance_at_least is true when it was still completed at max_ms; tolerance_fixed_ms lists the
     fixed latencies driven."""
     laps = _Laps(lap, known or {})
-    if hint_ms is None:
-        low, high = _bracket(laps, settings)
-    else:   # no fixed laps first: each one under the tolerance is a whole lap, and the hint brackets better
-        low, high = (0.0, None) if laps.completed(0.0) else (None, 0.0)
-        if low is not None:
-            low, high = _from_hint(laps, low, high, hint_ms, settings)
+    # from a hint, no fixed laps first: each one under the tolerance is a whole lap, and the hint brackets better
+    low, high = _bracket(laps, settings.fixed_ms if hint_ms is None else [])
+    if low is not None and hint_ms is not None:
+        low, high = _from_hint(laps, low, high, hint_ms, settings)
     if low is not None and high is None:
         high = None if laps.completed(settings.max_ms) else settings.max_ms
         low = settings.max_ms if high is None else low
