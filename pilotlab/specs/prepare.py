@@ -16,16 +16,19 @@ from matrix.fingerprint import module_closure
 from matrix.kinds import register_kind
 from pilotlab.specs.base import Spec
 from pilotlab.specs.optimize import BASE_S, EPOCH_S
+from pilotlab.strategies import PREPARATIONS
 
 
 class PrepareSpec(Spec):
-    preparation: str = Field(description="a registered preparation (channel_pruning, magnitude_pruning)")
+    preparation: str = Field(description="a registered preparation (channel_pruning, l1_pruning, magnitude_pruning)")
     options: dict[str, Any] = Field({}, description="its config's fields, read from the strategies that use it")
 
 
 def preparation_code(params) -> list[str]:
-    """The preparations' run-side module and what it imports within pilotlab (the fine-tuning loop)."""
-    return list(dict.fromkeys(module_closure("pilotlab.strategies.prepared", "pilotlab")))
+    """The preparations' run-side module, the module of this preparation's shaper (its `target`: l1_pruning's
+    is pilotlab.strategies.prune), and what they import within pilotlab (the fine-tuning loop)."""
+    roots = ("pilotlab.strategies.prepared", PREPARATIONS.get(params["preparation"]).module)
+    return list(dict.fromkeys(module for root in roots for module in module_closure(root, "pilotlab")))
 
 
 def typical_seconds(params) -> float:

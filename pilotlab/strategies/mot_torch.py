@@ -16,7 +16,9 @@ import torch
 from torch import nn
 from torch.nn.utils import parametrize
 
+from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.common import weight_layers
+from pilotlab.strategies.configs.prepare import MagnitudePruning
 from pilotlab.strategies.fold import fold_input_norm
 from pilotlab.strategies.kmeans import kmeans
 
@@ -240,3 +242,12 @@ def weight_figures(model: nn.Module) -> dict:
             "distinct_weights": {name: int(w.unique().numel()) for name, w in layers.items()},
             "channel_distinct_weights": {name: max(int(c.unique().numel()) for c in w.flatten(1))
                                          for name, w in layers.items()}}
+
+
+def magnitude_pruning(config: MagnitudePruning, source: StrategySource) -> tuple[nn.Module, dict]:
+    """The `magnitude_pruning` preparation's shape (pilotlab.strategies.configs.prepare): the input batch-norm
+    folded in, each layer's smallest weights masked. The masks stay on (parametrizations), so that a later
+    step (QAT) keeps the zeros too; the prepare job fine-tunes it (pilotlab.strategies.prepared)."""
+    model = fold(source.load_model())
+    add_masks(model, magnitude_masks(model, config.sparsity))
+    return model, {}

@@ -11,17 +11,27 @@ from __future__ import annotations
 from torch import nn
 from torch.nn.utils import prune
 
-from pilotlab.strategies.common import finetune, save_float_model, sparsity_report, weight_layers
-from pilotlab.strategies.configs.prune import GlobalPruneConfig, LocalPruneConfig
 from pilotlab.strategies.apply import StrategySource
+from pilotlab.strategies.common import finetune, save_float_model, sparsity_report, weight_layers
+from pilotlab.strategies.configs.prepare import L1Pruning
+from pilotlab.strategies.configs.prune import GlobalPruneConfig, LocalPruneConfig
+from pilotlab.strategies.prepared import prepared_network
 
 
 def local_prune(config: LocalPruneConfig, source: StrategySource) -> dict:
-    model = source.load_model()
-    history = prune_and_finetune(model, source, config,
-                                 lambda m: prune_local(m, config.conv, config.linear))
+    """The `l1_pruning` preparation's network (pruned, fine-tuned: its prepare job's), the zeros baked in."""
+    model, figures = prepared_network(config, source)
+    bake_masks(model)
     save_float_model(model, source, config.format)
-    return {**sparsity_report(model), "finetune": history}
+    return {**sparsity_report(model), "finetune": figures["finetune"]}
+
+
+def l1_pruning(config: L1Pruning, source: StrategySource) -> tuple[nn.Module, dict]:
+    """The `l1_pruning` preparation's shape (pilotlab.strategies.configs.prepare): the trained network
+    with each layer's L1 mask on (fine-tuned then with the mask held, by the prepare job)."""
+    model = source.load_model()
+    prune_local(model, config.conv, config.linear)
+    return model, {}
 
 
 def global_prune(config: GlobalPruneConfig, source: StrategySource) -> dict:
@@ -35,9 +45,14 @@ def prune_and_finetune(model: nn.Module, source: StrategySource, config, apply_m
     """Mask, fine-tune with the masks on (masked weights get no gradient), then make it permanent."""
     apply_masks(model)
     history = finetune(model, source, epochs=config.finetune_epochs, lr=config.lr, batch_size=config.batch_size)
+    bake_masks(model)
+    return history
+
+
+def bake_masks(model: nn.Module) -> None:
+    """Make the masks permanent: each weight becomes its masked value, zeros stored."""
     for _, layer in weight_layers(model):
         prune.remove(layer, "weight")
-    return history
 
 
 def prune_local(model: nn.Module, conv: float, linear: float) -> None:

@@ -5,17 +5,18 @@ sparsity survives quantization. Config: configs/prune_quant.py.
 """
 from __future__ import annotations
 
+from pilotlab.strategies.apply import StrategySource
 from pilotlab.strategies.common import sparsity_report
 from pilotlab.strategies.configs.prune_quant import PruneQuantConfig
-from pilotlab.strategies.prune import prune_and_finetune, prune_local
+from pilotlab.strategies.prepared import prepared_network
+from pilotlab.strategies.prune import bake_masks
 from pilotlab.strategies.pt2e import quantization_aware_finetune
-from pilotlab.strategies.apply import StrategySource
 
 
 def prune_quant(config: PruneQuantConfig, source: StrategySource) -> dict:
-    model = source.load_model()
-    prune_history = prune_and_finetune(model, source, config,
-                                       lambda m: prune_local(m, config.conv, config.linear))
+    """local_prune's network (the shared `l1_pruning` prepare job's, when the options agree), then QAT."""
+    model, figures = prepared_network(config, source)
+    bake_masks(model)
     pruned = sparsity_report(model)
     qat_history = quantization_aware_finetune(model, source, config.quantization_aware, keep_zeros=True)
-    return {**pruned, "finetune": prune_history + qat_history}
+    return {**pruned, "finetune": figures["finetune"] + qat_history}

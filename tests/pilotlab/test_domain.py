@@ -50,6 +50,7 @@ def test_jobs_are_shared_wherever_inputs_are_equal(tmp_path):
         "record": 3, "frames": 3,        # two training recordings, one test recording
         "train": 2,                      # one per model
         "optimize": 2 * 3,               # per (model, strategy)
+        "prepare": 2 * 2,                # per model and l1_pruning options: local_prune's, prune_more's
         "timing": 2 * 3 * 2,             # per (model, strategy, hardware)
         "offline": 2 * 3 * 2,            # per (model, strategy, hardware) and test set
         "online": 2 * 3 * 2 + 2 * 2,     # per cell and direction, plus explicit + expert per CPU profile
@@ -93,8 +94,12 @@ def test_changing_a_strategy_option_changes_only_its_jobs(tmp_path):
     before = {job.name: job.key for job in engine.plan_jobs(recipe_at(tmp_path), DOMAIN)}
     edited = recipe_at(tmp_path, RECIPE.replace("{use: local_prune, conv: 0.5}", "{use: local_prune, conv: 0.6}"))
     after = {job.name: job.key for job in engine.plan_jobs(edited, DOMAIN)}
-    assert set(before) == set(after)
-    assert sorted(name for name in after if after[name] != before[name]) == sorted(
+    # prune_more's network is prepared anew (a prepare job is named by its options)
+    renamed = {f"prepare {m}/l1_pruning (conv {conv:g})": conv for m in ("small", "other")
+               for conv in (0.5, 0.6)}
+    assert set(before) - set(after) == {name for name, conv in renamed.items() if conv == 0.5}
+    assert set(after) - set(before) == {name for name, conv in renamed.items() if conv == 0.6}
+    assert sorted(name for name in after if name in before and after[name] != before[name]) == sorted(
         [f"optimize {m}/prune_more" for m in ("small", "other")]
         + [f"{kind} {m}/prune_more on {h}" for kind in ("timing", "offline") for m in ("small", "other")
            for h in ("cpu", "cpu1")]

@@ -2,9 +2,11 @@
 
 Several strategies convert the same prepared network: structured_prune_int8 (ONNX Runtime) and
 structured_prune_litert_int8 (LiteRT) both remove channels and fine-tune; prune_litert, prune_litert_int8,
-pqat_litert_int8 and pcqat_litert_int8 all start from the same magnitude-pruned, fine-tuned network. The
-planner makes one `prepare` job per distinct preparation (pilotlab.specs.prepare) and every optimize job of
-those strategies loads the network it made, so the fine-tune runs once, not once per runtime.
+pqat_litert_int8 and pcqat_litert_int8 all start from the same magnitude-pruned, fine-tuned network;
+local_prune saves the L1-pruned, fine-tuned network that prune_quant goes on to fine-tune with fake
+quantization. The planner makes one `prepare` job per distinct preparation (pilotlab.specs.prepare) and every
+optimize job of those strategies loads the network it made, so the fine-tune runs once, not once per
+strategy.
 
 A preparation is a frozen, versioned config, like a strategy's. Its options are options of the strategies
 that use it, read from their config by name (`preparation_for`): two strategies whose options agree share
@@ -47,6 +49,19 @@ class MagnitudePruning:
     distill: float = 0.0
 
 
+@dataclass(frozen=True)
+class L1Pruning:
+    """The smallest weights of each layer zeroed by L1 norm, conv and linear layers each their own fraction
+    (the 2022 study's PyTorch pruning; pilotlab.strategies.prune), fine-tuned with the mask held:
+    local_prune's network, and prune_quant's before its quantization-aware fine-tune."""
+    version: int = 1
+    conv: float = 0.3
+    linear: float = 0.5
+    finetune_epochs: int = 2
+    lr: float = 1e-4
+    batch_size: int = 64
+
+
 @dataclass(frozen=True, eq=False)
 class PreparationEntry:
     name: str
@@ -73,6 +88,7 @@ class PreparationEntry:
 
 PREPARATIONS: Registry[PreparationEntry] = Registry("preparation")
 PREPARATIONS.add("channel_pruning", PreparationEntry("channel_pruning", ChannelPruning,
-                                                     "pilotlab.strategies.prepared:channel_pruning"))
+                                                     "pilotlab.strategies.channel_pruning:channel_pruning"))
+PREPARATIONS.add("l1_pruning", PreparationEntry("l1_pruning", L1Pruning, "pilotlab.strategies.prune:l1_pruning"))
 PREPARATIONS.add("magnitude_pruning", PreparationEntry("magnitude_pruning", MagnitudePruning,
-                                                       "pilotlab.strategies.prepared:magnitude_pruning"))
+                                                       "pilotlab.strategies.mot_torch:magnitude_pruning"))

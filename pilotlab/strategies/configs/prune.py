@@ -36,5 +36,5 @@ class GlobalPruneConfig:
         check_fraction("amount", self.amount)
 
 
-register_strategy("local_prune", LocalPruneConfig, "pilotlab.strategies.prune:local_prune")
+register_strategy("local_prune", LocalPruneConfig, "pilotlab.strategies.prune:local_prune", prepared_by="l1_pruning")
 register_strategy("global_prune", GlobalPruneConfig, "pilotlab.strategies.prune:global_prune")

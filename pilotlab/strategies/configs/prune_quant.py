@@ -31,4 +31,6 @@ class PruneQuantConfig:
                          batch_size=self.batch_size)
 
 
-register_strategy("prune_quant", PruneQuantConfig, "pilotlab.strategies.prune_quant:prune_quant")
+# local_prune's network (one shared prepare job when conv, linear and the fine-tune's options agree)
+register_strategy("prune_quant", PruneQuantConfig, "pilotlab.strategies.prune_quant:prune_quant",
+                  prepared_by="l1_pruning")

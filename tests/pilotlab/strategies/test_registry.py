@@ -96,12 +96,15 @@ def test_a_missing_requirement_is_not_applicable_before_the_handler_is_imported(
 def test_code_fingerprint_is_the_strategy_modules_and_what_they_build_on():
     packages = {"pilotlab.strategies", "pilotlab.strategies.configs"}   # their __init__.py runs first
     assert strategy_modules("local_prune")[:1] == ["pilotlab.strategies.prune"]
+    # local_prune loads its network from the l1_pruning prepare job: the loading code, not the shapers of the
+    # other preparations (channels, stem, mot_torch: in their own modules, fingerprinted by their prepare jobs)
+    prepared = {"pilotlab.strategies.prepared", "pilotlab.strategies.configs.prepare"}
     assert set(strategy_modules("local_prune")) == {"pilotlab.strategies.prune", "pilotlab.strategies.configs.prune",
-                                                    *packages}
+                                                    *prepared, *packages}
     assert set(strategy_modules("prune_quant")) == {
         "pilotlab.strategies.prune_quant", "pilotlab.strategies.prune", "pilotlab.strategies.pt2e",
         "pilotlab.strategies.pt2e_graph", "pilotlab.strategies.configs.prune_quant",
-        "pilotlab.strategies.configs.prune", "pilotlab.strategies.configs.pt2e", *packages}
+        "pilotlab.strategies.configs.prune", "pilotlab.strategies.configs.pt2e", *prepared, *packages}
     assert set(strategy_modules("cluster")) == {"pilotlab.strategies.cluster", "pilotlab.strategies.kmeans",
                                                 "pilotlab.strategies.configs.cluster", *packages}
     # the roots: the handler's module and the config's (read from the source: nothing is imported)
