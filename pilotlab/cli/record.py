@@ -22,7 +22,8 @@ def register(subparsers) -> None:
                     "simulated second (a lap of simple_circuit: ~430 MB); --compressed png keeps them lossless "
                     "in ~1% of that. Ctrl-C stops early and leaves a valid bag.")
     place = parser.add_mutually_exclusive_group(required=True)
-    place.add_argument("--circuit", help=RecordSpec.model_fields["circuit"].description)
+    # not the spec's description, which speaks of planned jobs (and is in the record job's code: its key)
+    place.add_argument("--circuit", help="circuit name (pilotlab circuit list) or CSV path")
     add_world_options(parser, place)
     parser.add_argument("--out", type=Path, required=True,
                         help="bag to write: a folder (ros2, the default format) or a file ending in .bag "

@@ -22,7 +22,7 @@ from torch import nn
 
 from matrix.errors import did_you_mean
 from pilotlab import usercode
-from pilotlab.errors import PilotlabError
+from pilotlab.errors import PilotlabError, library_message
 from pilotlab.models.imported import NetworkConfig, OnnxConfig, TorchScriptConfig
 
 ONNX_INPUT, ONNX_OUTPUT = "images", "vw"   # as pilotlab.strategies.artifact names them
@@ -125,8 +125,11 @@ def check_output(model: nn.Module, input_shape: tuple[int, int, int], what: str)
         with torch.no_grad():
             output = model(torch.zeros(shape))
     except Exception as error:  # noqa: BLE001 — the user's forward: say where it failed
-        raise PilotlabError(f"{what} fails on an input {shape} (the preprocessed camera image): "
-                            f"{usercode.error_line(error, what)}") from None
+        # a program's (TorchScript, ONNX Runtime) error has no line of the user's, and its reason may
+        # follow its first line (ONNX Runtime: "... for the following indices" then "index: 0 Got: 2 ...")
+        place = (f"{type(error).__name__}: {library_message(error)}" if isinstance(model, _Program)
+                 else usercode.error_line(error, what))
+        raise PilotlabError(f"{what} fails on an input {shape} (the preprocessed camera image): {place}") from None
     got = list(output.shape) if isinstance(output, torch.Tensor) else type(output).__name__
     if got != [2, 2]:
         raise PilotlabError(f"{what}'s output for an input {shape} is {got}; a driving network returns "
@@ -235,6 +238,13 @@ def _names(graph) -> set[str]:
 def _layout(value_info, input_shape: tuple[int, int, int], path: Path) -> str:
     dims = [d.dim_value or None for d in value_info.type.tensor_type.shape.dim]
     channels, height, width = input_shape
+    if dims and dims[0] is not None:   # torch.onnx.export's default: the graph fixed at the example's batch
+        raise PilotlabError(
+            f"{path.name}: its input {value_info.name!r} has a fixed batch size of {dims[0]} ({dims}); pilotlab "
+            "runs a network at batch 1 in a lap and on batches of 64 to evaluate it, so export it with a dynamic "
+            "batch axis: torch.onnx.export(model, example, path, input_names=['images'], output_names=['vw'], "
+            "dynamic_axes={'images': {0: 'batch'}, 'vw': {0: 'batch'}}), or with dynamo=True, "
+            "dynamic_shapes=({0: torch.export.Dim('batch')},)")
     if len(dims) == 4 and dims[1:] in ([height, width, channels],) and dims[3] != dims[1]:
         return "NHWC"
     if len(dims) != 4:

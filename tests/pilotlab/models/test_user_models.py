@@ -248,6 +248,19 @@ def test_an_onnx_file_that_is_not_a_model(tmp_path, frames):
     assert message.startswith("models.mine.onnx: model.onnx is not an ONNX model (")
 
 
+def test_an_onnx_graph_fixed_at_one_batch_size_is_refused_with_the_export_that_fixes_it(tmp_path, dls, frames):
+    """torch.onnx.export's default fixes the batch axis at the example's; the graph would fail at batch 64
+    (ONNX Runtime: 'Got invalid dimensions for input')."""
+    net = load_class(dls / "nets/pilotnet.py", "PilotNet")(**DLS_OPTIONS).eval()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        torch.onnx.export(net, (torch.rand(1, 3, 66, 200),), str(tmp_path / "fixed.onnx"), dynamo=False)
+    message = error_of(tmp_path, frames, {"onnx": "fixed.onnx"}, {"onnx": tmp_path / "fixed.onnx"})
+    assert message.startswith("models.mine.onnx: fixed.onnx: its input 'input.1' has a fixed batch size of 1 "
+                              "([1, 3, 66, 200]);")
+    assert "dynamic_axes" in message and "\n" not in message
+
+
 class _Nhwc(torch.nn.Module):
     """The same network taking [N, H, W, C], as TensorFlow exports it."""
 
