@@ -183,6 +183,12 @@ class Params(Mapping):
 class InputFile:
     path: str
     sha256: str
+    # an input hashed from several files (a module and the modules it imports): (name, sha256) of each, so
+    # that `plan` can say which one changed; kept in spec.json, not in the key (sha256 covers them)
+    parts: tuple[tuple[str, str], ...] = ()
+
+    def record(self) -> dict[str, Any]:
+        return {"path": self.path, "sha256": self.sha256, **({"parts": dict(self.parts)} if self.parts else {})}
 
 
 def spec_dep_keys(deps: dict[str, str | list[str]]) -> list[str]:
@@ -259,5 +265,5 @@ class Job:
         """What `spec.json` holds: everything that went into the key, readable."""
         return {"key": self.key, "kind": self.kind, "name": self.name, "params": dict(self.params),
                 "deps": self.dep_keys(), "dep_names": {d.key: d.name for d in self.dep_jobs()},
-                "inputs": {role: {"path": f.path, "sha256": f.sha256} for role, f in self.inputs.items()},
+                "inputs": {role: f.record() for role, f in self.inputs.items()},
                 "code": self.code, "labels": dict(self.labels)}

@@ -138,11 +138,22 @@ def own_changes(job: Job, before: dict) -> list[str]:
         reasons.append("params changed: " + ", ".join(diffs[:3]) + (" …" if len(diffs) > 3 else ""))
     if before.get("code") != job.code:
         reasons.append(f"code changed ({job.kind})")
-    old_inputs = {role: f.get("sha256") for role, f in before.get("inputs", {}).items()}
-    changed = sorted(role for role, f in job.inputs.items() if old_inputs.get(role) != f.sha256)
+    old_inputs = before.get("inputs", {})
+    changed = sorted(role for role, f in job.inputs.items() if old_inputs.get(role, {}).get("sha256") != f.sha256)
     if changed:
-        reasons.append("input changed: " + ", ".join(f"{r} ({job.inputs[r].path})" for r in changed))
+        reasons.append("input changed: " + ", ".join(f"{r} ({_changed_files(job.inputs[r], old_inputs.get(r, {}))})"
+                                                     for r in changed))
     return reasons
+
+
+def _changed_files(now, before: dict) -> str:
+    """Which files of an input changed: those of its parts whose hash differs (or that came or went), when
+    both it and the stored record have parts; else its path."""
+    old = before.get("parts")
+    if not now.parts or not isinstance(old, dict):
+        return now.path
+    new = dict(now.parts)
+    return ", ".join(name for name in sorted(set(new) | set(old)) if new.get(name) != old.get(name)) or now.path
 
 
 def dependency_changes(job: Job, before: dict) -> list[str]:

@@ -34,6 +34,7 @@ from pathlib import Path
 
 from matrix.errors import did_you_mean
 from matrix.fingerprint import source_code_text
+from matrix.jobs import InputFile
 from pilotlab.errors import PilotlabError
 
 
@@ -237,6 +238,15 @@ def source_hash(spec: str, base: Path) -> str:
         digest.update(f"# {file.relative_to(root).as_posix()}\n".encode())
         digest.update(source_code_text(_read(file)).encode())   # read by its coding line, as Python does
     return digest.hexdigest()
+
+
+def source_input(spec: str, base: Path) -> InputFile:
+    """The job input of the user's code `spec`: its file, `source_hash`, and each file's own hash (named
+    relative to `base`, the recipe's folder), so that `plan` names the module that changed."""
+    files = source_files(spec, base)
+    parts = tuple((os.path.relpath(file, base), hashlib.sha256(source_code_text(_read(file)).encode()).hexdigest())
+                  for file in files)
+    return InputFile(str(files[0]), source_hash(spec, base), parts)
 
 
 def _read(file: Path) -> bytes:

@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 from matrix.errors import MatrixError
-from matrix.jobs import InputFile, Job, Params, input_file
+from matrix.jobs import Job, Params, input_file
 from pilotlab.circuits.registry import lap_scale
 from pilotlab.planning.worlds import world_param
 from pilotlab.specs.online import LapSettings, OnlineSpec
@@ -135,12 +135,11 @@ def reference_brain(planner, reference: str | dict[str, str], index: int) -> tup
     from pilotlab import usercode
     spec = reference[name]
     try:
-        source = usercode.source_files(spec, planner.folder)[0]
-        digest = usercode.source_hash(spec, planner.folder)
+        source = usercode.source_input(spec, planner.folder)
     except MatrixError as error:
         raise planner.recipe.error(str(error), ["online", "references", index, name]) from None
     brain = {"brain": "user", "user_brain": {"name": name, "spec": spec, "base": str(planner.folder)}}
-    return name, brain, {"brain_source": InputFile(str(source), digest)}
+    return name, brain, {"brain_source": source}
 
 
 def _lap(planner, name: str, labels: dict, hardware: str, place: tuple[str, str], direction: str,

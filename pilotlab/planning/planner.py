@@ -388,7 +388,7 @@ def model_inputs(planner: Planner, name: str, spec: ModelSpec) -> dict[str, Inpu
         try:
             files = usercode.source_files(spec.network, planner.folder)
             usercode.check_syntax(files[0])
-            inputs["network_source"] = InputFile(str(files[0]), usercode.source_hash(spec.network, planner.folder))
+            inputs["network_source"] = usercode.source_input(spec.network, planner.folder)
         except MatrixError as error:
             raise planner.recipe.error(str(error), ["models", name, "network"]) from None
     return inputs

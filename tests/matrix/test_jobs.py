@@ -78,3 +78,17 @@ def test_jobs_are_frozen():
         job.params["value"] = 2
     with pytest.raises(Exception):
         job.kind = "other"
+
+
+def test_an_inputs_parts_are_in_its_record_not_its_key_and_plan_names_the_part_that_changed():
+    from matrix.stale import own_changes
+    parts = (("net.py", "aa" * 32), ("helper.py", "bb" * 32))
+    job = Job("power", "p", {"power": 2}, inputs={"source": InputFile("net.py", "ef" * 32, parts)})
+    assert job.key == Job("power", "p", {"power": 2}, inputs={"source": InputFile("net.py", "ef" * 32)}).key
+    before = job.spec()
+    assert before["inputs"]["source"] == {"path": "net.py", "sha256": "ef" * 32, "parts": dict(parts)}
+    edited = Job("power", "p", {"power": 2}, inputs={"source": InputFile(
+        "net.py", "01" * 32, (("net.py", "aa" * 32), ("helper.py", "cc" * 32), ("new.py", "dd" * 32)))})
+    assert own_changes(edited, before) == ["input changed: source (helper.py, new.py)"]
+    before["inputs"]["source"].pop("parts")    # stored before inputs had parts: its path, as it was
+    assert own_changes(edited, before) == ["input changed: source (net.py)"]

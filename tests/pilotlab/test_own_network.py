@@ -81,6 +81,16 @@ def test_editing_a_models_file_reruns_exactly_that_models_jobs(folder, edited, m
     assert changed == set().union(*(of_model(m, before) for m in models))
 
 
+def test_plan_names_the_module_that_changed_among_a_networks_imports(folder):
+    """The network's input hash covers the modules it imports; `plan`'s reason names the one edited (it
+    named the network's own file, whichever had changed)."""
+    from matrix.stale import own_changes
+    before = plan(folder)["train dls"].spec()
+    assert before["inputs"]["network_source"]["parts"].keys() == {"nets/pilotnet.py", "nets/layers.py"}
+    (folder / "nets/layers.py").write_text((folder / "nets/layers.py").read_text() + "\n_EDITED = 1\n")
+    assert own_changes(plan(folder)["train dls"], before) == ["input changed: network_source (nets/layers.py)"]
+
+
 def test_onnx_external_data_is_an_input_resolved_beside_the_model(folder, monkeypatch):
     import torch
     from tests.pilotlab.models.test_user_models import onnx_with_external_data
