@@ -332,9 +332,11 @@ def pick_cpu_time(result: Mapping[str, Any]) -> dict[str, str]:
 def timing_issue(rows: Iterable[ReportRow], metric: str = "latency_ms") -> str | None:
     """Why the timed `metric` of `rows` cannot be compared, or None: one of them stayed disturbed
     (the per-call interference check of pilotlab.timing decides)."""
-    for row in (r for r in rows if r.get(metric) is not None):
+    timed = [r for r in rows if r.get(metric) is not None]
+    several = len({r.model for r in timed}) > 1     # then say whose: every model has a baseline
+    for row in timed:
         if reason := row.unstable_reason(metric):
-            return f"{row.strategy} ({row.hardware}): unstable: {reason}"
+            return f"{f'{row.model} · ' if several else ''}{row.strategy} ({row.hardware}): unstable: {reason}"
     return None
 
 

@@ -24,6 +24,7 @@ from matrix.fingerprint import code_fingerprint
 from matrix.recipe import Recipe
 from matrix.store import Store, read_json, result_token
 from pilotlab.errors import PilotlabError
+from pilotlab.hardware import host_fingerprint
 from pilotlab.report.data import (Claim, Host, ReportData, package_versions, pick_cpu_time, pick_metrics,
                                   pick_spread, pick_unstable)
 from pilotlab.report.studies import compare
@@ -266,12 +267,14 @@ def _history(job, store: Store) -> list[dict]:
 
 
 def _host(jobs: list, store: Store) -> Host:
-    """The host the timings were measured on (from the timing jobs), else this machine."""
+    """The host the timings were measured on (from the timing jobs), else this machine. A timing job's
+    host record (its fingerprint, in its key) has no OS: it is this machine's when the record is."""
     for job in jobs:
         result = store.result(job.key) if job.kind == "timing" else None
         host = (result or {}).get("value", {}).get("host")
         if host:
-            return Host(cpu=host.get("cpu") or "unknown CPU", cores=host.get("cores"), gpu=host.get("gpu"))
+            here = Host.detect() if host == host_fingerprint() else Host()
+            return Host(cpu=host.get("cpu") or "unknown CPU", cores=host.get("cores"), gpu=host.get("gpu"), os=here.os)
     return Host.detect()
 
 

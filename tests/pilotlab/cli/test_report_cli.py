@@ -83,3 +83,20 @@ def test_offline_timings_of_a_latency_file_profile_say_they_are_this_host_s(tmp_
     row = next(r for r in build_report_data(recipe, jobs, store).rows if r.kind == "offline" and r.status == "ok")
     assert row.unstable_reason("latency_ms") == ("timed on this report's host (AMD EPYC, 2 cores), not on jet; "
                                                  "jet's laps replay its latency file (jet.csv)")
+
+
+def test_the_reports_host_has_this_machines_os_only_when_the_timings_are_this_machines(tmp_path):
+    """A timing job's host record (its fingerprint) has no OS; the report said `"os": ""` for this machine."""
+    import platform
+
+    from pilotlab.hardware import host_fingerprint
+    recipe, store = load_recipe(QUICKSTART, DOMAIN), Store(tmp_path / "store")
+    jobs = [status.job for status in make_plan(recipe, DOMAIN, store).statuses]
+    timing = next(job for job in jobs if job.kind == "timing")
+    for host, os_name in ((host_fingerprint(), platform.platform(terse=True)),
+                          ({**host_fingerprint(), "cpu": "Jetson Orin"}, "")):
+        store.commit(timing.key, store.new_workdir(timing.key), timing.spec(),
+                     {"status": "ok", "value": {"latency_ms": 1.0, "host": host}})
+        data = build_report_data(recipe, jobs, store)
+        assert (data.host.cpu, data.host.os) == (host["cpu"], os_name)
+    assert platform.platform(terse=True)

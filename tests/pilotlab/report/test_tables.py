@@ -151,6 +151,10 @@ def test_no_summary_line_is_drawn_from_an_unstable_timing():
     found = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(rows)))}
     assert found["Fastest on cpu1"].startswith(f"not drawn: baseline (cpu1): unstable: {DISTURBED}; rerun")
     assert found["Highest throughput on cpu1"].startswith("baseline — 900")     # throughput was not disturbed
+    # with several models, whose baseline it was
+    other = [{**row, "model": "mine"} for row in timed_rows()]
+    found = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(rows + other)))}
+    assert found["Fastest on cpu1"].startswith(f"not drawn: pilotnet · baseline (cpu1): unstable: {DISTURBED}; rerun")
 
 
 def test_the_summary_names_the_fastest_method_that_keeps_its_accuracy_and_its_laps():
