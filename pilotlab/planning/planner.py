@@ -220,30 +220,39 @@ class Planner:
             suffix = f" for {device}" if device else ""
             params = self.params_once(("optimize", strategy, device), lambda: optimize_spec(base, options, device))
             deps = {"model": train, "calibration": train.deps["frames"]}
-            if prepared := self.prepared(model, base, options):
+            if prepared := self.prepared(model, strategy):
                 deps["prepared"] = prepared
             self.optimized[model, strategy, device] = Job(
                 "optimize", f"optimize {model}/{strategy}{suffix}", params, deps=deps)
         return self.optimized[model, strategy, device]
 
-    def prepared(self, model: str, base: str, options: dict[str, Any]) -> Job | None:
-        """The prepare job of the network strategy `base` converts, one per model and preparation options,
-        whichever strategies share it (pilotlab.strategies.configs.prepare); None for a strategy that
-        prepares none, or whose packages are missing here (it is not applicable: nothing to prepare)."""
+    def prepared(self, model: str, strategy: str) -> Job | None:
+        """The prepare job of the network recipe strategy `strategy` converts, one per model and preparation
+        options, whichever strategies share it (pilotlab.strategies.configs.prepare); None for a strategy
+        that prepares none, or whose packages are missing here (it is not applicable: nothing to prepare)."""
+        found = self.remembered(("prepare spec", strategy), lambda: self._prepare_spec(strategy))
+        if found is None:
+            return None
+        spec, text = found
+        return self.remembered(("prepare", model, text), lambda: self._prepare(model, spec))
+
+    def _prepare_spec(self, strategy: str) -> tuple[PrepareSpec, str] | None:
+        """The preparation of a recipe strategy and its JSON (the same for every model: made once per strategy)."""
         from pilotlab.strategies import STRATEGIES, make_strategy_config, preparation_for
+        base, options = self.strategy(strategy)
         if not STRATEGIES.get(base).prepared_by or STRATEGIES.get(base).missing:
             return None
         entry, config = preparation_for(base, make_strategy_config(base, options))
         spec = PrepareSpec(preparation=entry.name, options=entry.options_of(config))
-        return self.remembered(("prepare", model, spec.model_dump_json()), lambda: self._prepare(model, spec))
+        return spec, spec.model_dump_json()
 
     def _prepare(self, model: str, spec: PrepareSpec) -> Job:
         """Named by its options that differ from the preparation's defaults: "prepare pilotnet/channel_pruning
         (amount 0.65, finetune_epochs 12, distill 0.5)"."""
         from pilotlab.strategies import PREPARATIONS
         entry, train = PREPARATIONS.get(spec.preparation), self.train(model)
-        shown = ", ".join(f"{name} {value:g}" for name, value in spec.options.items()
-                          if value != entry.defaults.get(name))
+        defaults = entry.defaults
+        shown = ", ".join(f"{name} {value:g}" for name, value in spec.options.items() if value != defaults.get(name))
         return job("prepare", f"prepare {model}/{spec.preparation}" + (f" ({shown})" if shown else ""), spec,
                    deps={"model": train, "calibration": train.deps["frames"]})
 

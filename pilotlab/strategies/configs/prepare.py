@@ -17,6 +17,7 @@ and the options, so loading a prepared network redoes it and then loads the fine
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -77,7 +78,7 @@ class PreparationEntry:
         names = [f.name for f in dataclasses.fields(self.config_cls) if f.name != "version"]
         return self.config_cls(**{name: getattr(strategy_config, name) for name in names})
 
-    @property
+    @functools.cached_property      # read for every prepare job a recipe plans (its name shows what differs)
     def defaults(self) -> dict[str, Any]:
         return self.options_of(self.config_cls())
 
