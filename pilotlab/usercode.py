@@ -232,21 +232,30 @@ def source_hash(spec: str, base: Path) -> str:
     """sha256 over the code of `source_files(spec, base)` (their text without comments, docstrings and
     blank lines: matrix.fingerprint.code_text) and their names (relative to their common folder)."""
     files = source_files(spec, base)
-    root = Path(os.path.commonpath([str(f.parent) for f in files]))
-    digest = hashlib.sha256()
-    for file in files:
-        digest.update(f"# {file.relative_to(root).as_posix()}\n".encode())
-        digest.update(source_code_text(_read(file)).encode())   # read by its coding line, as Python does
-    return digest.hexdigest()
+    return _combined_hash(files, [_code_text(file) for file in files])
 
 
 def source_input(spec: str, base: Path) -> InputFile:
     """The job input of the user's code `spec`: its file, `source_hash`, and each file's own hash (named
     relative to `base`, the recipe's folder), so that `plan` names the module that changed."""
     files = source_files(spec, base)
-    parts = tuple((os.path.relpath(file, base), hashlib.sha256(source_code_text(_read(file)).encode()).hexdigest())
-                  for file in files)
-    return InputFile(str(files[0]), source_hash(spec, base), parts)
+    texts = [_code_text(file) for file in files]     # each file read once, for both hashes
+    parts = tuple((os.path.relpath(file, base), hashlib.sha256(text.encode()).hexdigest())
+                  for file, text in zip(files, texts))
+    return InputFile(str(files[0]), _combined_hash(files, texts), parts)
+
+
+def _code_text(file: Path) -> str:
+    return source_code_text(_read(file))   # read by its coding line, as Python does
+
+
+def _combined_hash(files: list[Path], texts: list[str]) -> str:
+    root = Path(os.path.commonpath([str(f.parent) for f in files]))
+    digest = hashlib.sha256()
+    for file, text in zip(files, texts):
+        digest.update(f"# {file.relative_to(root).as_posix()}\n".encode())
+        digest.update(text.encode())
+    return digest.hexdigest()
 
 
 def _read(file: Path) -> bytes:

@@ -11,6 +11,7 @@ import fcntl
 import hashlib
 import json
 import os
+import platform
 import shutil
 import tempfile
 from collections.abc import Iterator
@@ -273,8 +274,8 @@ def _host(jobs: list, store: Store) -> Host:
         result = store.result(job.key) if job.kind == "timing" else None
         host = (result or {}).get("value", {}).get("host")
         if host:
-            here = Host.detect() if host == host_fingerprint() else Host()
-            return Host(cpu=host.get("cpu") or "unknown CPU", cores=host.get("cores"), gpu=host.get("gpu"), os=here.os)
+            here = platform.platform(terse=True) if host == host_fingerprint() else ""
+            return Host(cpu=host.get("cpu") or "unknown CPU", cores=host.get("cores"), gpu=host.get("gpu"), os=here)
     return Host.detect()
 
 
