@@ -1,6 +1,7 @@
 """Shared fixtures: a randomly initialised PilotNet checkpoint (as the train job writes it), small
 random FrameSets (as frames jobs write them), a tiny circuit (a 110 m stadium CSV), and every
-registered strategy applied once to that checkpoint (the strategy tests and the export's share it)."""
+registered strategy applied once to that checkpoint (the strategy tests and the export's share it), and
+the small pipeline recipe run one job at a time (the slow parallel and Dask tests compare with it)."""
 from __future__ import annotations
 
 import multiprocessing
@@ -20,6 +21,24 @@ from pilotlab.strategies.apply import StrategySource, apply_strategy
 from tests.pilotlab.tracks import stadium, write_csv
 
 RANGES = LabelRanges((0.0, 12.0), (-1.5, 1.5))
+
+
+@pytest.fixture(scope="session")
+def pipeline_one_at_a_time(tmp_path_factory):
+    """(recipe, store, plan) of tests/pilotlab/test_dask_pipeline.RECIPE run with one job at a time: the
+    reference that the runs with several jobs at once and on Dask must match (run once for both)."""
+    from matrix import engine
+    from matrix.recipe import load_recipe
+    from matrix.store import Store
+    from pilotlab.domain import DOMAIN
+    from tests.pilotlab.test_dask_pipeline import RECIPE
+    folder = tmp_path_factory.mktemp("pipeline")
+    (folder / "recipe.yaml").write_text(RECIPE)
+    recipe, store = load_recipe(folder / "recipe.yaml", DOMAIN), Store(folder / "one")
+    plan = engine.make_plan(recipe, DOMAIN, store)
+    summary = engine.run_plan(plan, DOMAIN, store, jobs=1)
+    assert not summary.failed, summary.outcomes
+    return recipe, store, plan
 
 
 def random_frames(count: int, seed: int) -> FrameSet:

@@ -55,13 +55,9 @@ def assert_same_results(ours: dict, theirs: dict) -> None:
 
 
 @pytest.mark.slow
-def test_dask_local_cluster_matches_the_local_executor(tmp_path):
-    path = tmp_path / "recipe.yaml"
-    path.write_text(RECIPE)
-    recipe = load_recipe(path, DOMAIN)
-    local, remote = Store(tmp_path / "local"), Store(tmp_path / "dask")
-    local_plan = engine.make_plan(recipe, DOMAIN, local)
-    assert not engine.run_plan(local_plan, DOMAIN, local, jobs=2).failed
+def test_dask_local_cluster_matches_the_local_executor(tmp_path, pipeline_one_at_a_time):
+    recipe, local, local_plan = pipeline_one_at_a_time       # the local executor, one job at a time
+    remote = Store(tmp_path / "dask")
     remote_plan = engine.make_plan(recipe, DOMAIN, remote)
     summary = engine.run_plan(remote_plan, DOMAIN, remote, executor=engine.Executor("dask-local", 2))
     assert not summary.failed, summary.outcomes

@@ -5,10 +5,9 @@ import hashlib
 import pytest
 
 from matrix import engine
-from matrix.recipe import load_recipe
 from matrix.store import Store
 from pilotlab.domain import DOMAIN
-from tests.pilotlab.test_dask_pipeline import RECIPE, assert_same_results, results
+from tests.pilotlab.test_dask_pipeline import assert_same_results, results
 
 
 def file_hashes(store: Store, kinds=("record", "frames", "train", "optimize")) -> dict[str, str]:
@@ -33,17 +32,13 @@ def file_hashes(store: Store, kinds=("record", "frames", "train", "optimize")) -
 
 
 @pytest.mark.slow
-def test_several_jobs_at_once_give_the_results_of_one_at_a_time(tmp_path):
-    path = tmp_path / "recipe.yaml"
-    path.write_text(RECIPE)
-    recipe = load_recipe(path, DOMAIN)
-    one, many = Store(tmp_path / "one"), Store(tmp_path / "many")
-    plans = {}
-    for store, jobs in ((one, 1), (many, 3)):
-        plans[jobs] = engine.make_plan(recipe, DOMAIN, store)
-        assert not engine.run_plan(plans[jobs], DOMAIN, store, jobs=jobs).failed
+def test_several_jobs_at_once_give_the_results_of_one_at_a_time(tmp_path, pipeline_one_at_a_time):
+    recipe, one, one_plan = pipeline_one_at_a_time
+    many = Store(tmp_path / "many")
+    many_plan = engine.make_plan(recipe, DOMAIN, many)
+    assert not engine.run_plan(many_plan, DOMAIN, many, jobs=3).failed
     assert sorted(one.keys()) == sorted(many.keys())
-    assert_same_results(results(one, plans[1]), results(many, plans[3]))
+    assert_same_results(results(one, one_plan), results(many, many_plan))
     hashes = file_hashes(one)
     assert any(name.endswith("model.pt") for name in hashes) and any(name.startswith("record ") for name in hashes)
     assert file_hashes(many) == hashes

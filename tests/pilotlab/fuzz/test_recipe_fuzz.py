@@ -23,8 +23,10 @@ def test_a_few_hundred_mutated_recipes_plan_or_are_refused(tmp_path):
 
 
 @pytest.mark.slow
-def test_thousands_of_mutated_recipes_plan_or_are_refused(tmp_path):
-    check(fuzz(tmp_path, 2500, seed=2026), 2500)
+def test_over_a_thousand_mutated_recipes_plan_or_are_refused(tmp_path):
+    # 1200, not 2500: the default run's 300 cover the same mutations; this many found nothing more in
+    # the sessions they ran (and 2500 cost the slow suite 50 s of CI on a slower host)
+    check(fuzz(tmp_path, 1200, seed=2026), 1200)
 
 
 def test_mutated_recipes_through_the_command_line(tmp_path):
