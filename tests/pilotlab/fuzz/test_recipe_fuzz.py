@@ -24,8 +24,8 @@ def test_a_few_hundred_mutated_recipes_plan_or_are_refused(tmp_path):
 
 @pytest.mark.slow
 def test_over_a_thousand_mutated_recipes_plan_or_are_refused(tmp_path):
-    # 1200, not 2500: the default run's 300 cover the same mutations; this many found nothing more in
-    # the sessions they ran (and 2500 cost the slow suite 50 s of CI on a slower host)
+    # 1200, not 2500: the same mutator as the default run's 300, with another seed; 2500 cost the slow
+    # suite 50 s of CI on the slower 2-core host
     check(fuzz(tmp_path, 1200, seed=2026), 1200)
 
 
