@@ -16,7 +16,8 @@ from types import MappingProxyType
 from typing import Any
 
 from matrix.errors import MatrixError
-from matrix.fingerprint import cache_generation, hash_path
+from matrix.fingerprint import cache_generation
+from matrix.inputhash import hash_path
 from matrix.kinds import KINDS
 
 KEY_FORMAT = 1

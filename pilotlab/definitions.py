@@ -80,7 +80,7 @@ def path_problem(path: Path, expect: str) -> str | None:
     before it is hashed, so a folder given for a file (`/root`) fails at once, not after hashing it all.
     "file": a regular file; "recording": a ROS1 .bag (or ROS2 .db3/.mcap) file, or a folder holding
     metadata.yaml (a ROS2 bag) or data.csv (a DeepLearningStudio dataset folder)."""
-    from matrix.fingerprint import system_root
+    from matrix.inputhash import system_root
     if system_root(path.resolve()):   # hashing refuses it, saying so
         return None
     if expect == "file" and not path.is_file():

@@ -11,7 +11,7 @@ import io
 from dataclasses import dataclass
 from pathlib import Path
 
-from matrix.fingerprint import system_root
+from matrix.inputhash import system_root
 from pilotlab.data.damage import MAX_COMMAND
 from pilotlab.errors import BagError
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from matrix.errors import MatrixError, did_you_mean
-from matrix.fingerprint import hash_files
+from matrix.inputhash import hash_files
 from matrix.jobs import InputFile, Job, Params, input_file
 from matrix.recipe import Recipe
 from pilotlab.errors import PilotlabError
@@ -178,7 +178,7 @@ class Planner:
     def path(self, value: str, where: list, expect: str = "any") -> Path:
         """The path a recipe value names (relative to the recipe's folder); it must exist, and be what
         `expect` says ("file", "recording": see pilotlab.definitions.path_problem), checked before hashing."""
-        from matrix.fingerprint import shown_path, system_root
+        from matrix.inputhash import shown_path, system_root
         from pilotlab.definitions import path_problem
         try:
             path = Path(value).expanduser()

@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from matrix.errors import MatrixError
-from matrix.fingerprint import _HashProgress, clear_caches, hash_path
+from matrix.fingerprint import clear_caches
+from matrix.inputhash import _HashProgress, hash_path
 from tests.child import python_path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -72,7 +73,7 @@ def test_a_link_to_a_system_file_inside_a_folder_is_refused(tmp_path, target):
 
 
 def test_hashing_is_bounded_with_a_clear_error(tmp_path, monkeypatch):
-    import matrix.fingerprint
+    import matrix.inputhash
     (tmp_path / "a").mkdir()
     for i in range(4):
         (tmp_path / "a" / f"{i}.bin").write_bytes(b"x" * 1000)
@@ -86,12 +87,12 @@ def test_hashing_is_bounded_with_a_clear_error(tmp_path, monkeypatch):
         with pytest.raises(MatrixError, match=f"MATRIX_MAX_INPUT_GB='{bad}' is not a positive number"):
             hash_path(tmp_path / "a" / "0.bin")
     monkeypatch.delenv("MATRIX_MAX_INPUT_GB")
-    monkeypatch.setattr(matrix.fingerprint, "MAX_INPUT_FILES", 3)
+    monkeypatch.setattr(matrix.inputhash, "MAX_INPUT_FILES", 3)
     with pytest.raises(MatrixError, match=r"input folder .*/a holds more than 3 files; name the recording itself"):
         hash_path(tmp_path / "a")
 
 
-HASH_IN_A_PROCESS = "import sys; from matrix.fingerprint import hash_path; print(hash_path(sys.argv[1]))"
+HASH_IN_A_PROCESS = "import sys; from matrix.inputhash import hash_path; print(hash_path(sys.argv[1]))"
 
 
 def hash_in_a_new_process(path: Path, cache: Path) -> str:
