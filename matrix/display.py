@@ -14,7 +14,6 @@ import, which `plan --json` and scripts reading it need not pay.
 from __future__ import annotations
 
 import json
-import math
 import threading
 import time
 from collections import Counter
@@ -27,7 +26,7 @@ from rich.table import Table
 
 from matrix.errors import MatrixError
 from matrix.runs import RunSummary
-from matrix.store import ARTIFACTS, LOG, Store, read_json, write_json_atomic
+from matrix.store import ARTIFACTS, LOG, Store, read_json
 from matrix.times import KindStats, kind_times, recipe_keys
 
 SYMBOLS = {"ok": "[green]✓[/]", "not_applicable": "[yellow]–[/]", "failed": "[red]✗[/]",

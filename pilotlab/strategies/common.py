@@ -66,7 +66,7 @@ def save_float_model(model: nn.Module, source: StrategySource, fmt: str,
         raise PilotlabError(f"format: {fmt!r} is not one of {', '.join(FLOAT_FORMATS)}")
     if fmt == "checkpoint":
         if not same_arch:
-            raise PilotlabError(f"format: 'checkpoint' cannot hold a network whose "
+            raise PilotlabError("format: 'checkpoint' cannot hold a network whose "
                                 "layers changed shape; use format: torchscript or onnx")
         write_checkpoint(model, source)
         meta = source.meta(format="pilotlab-checkpoint", file="model.pt", runtime="torch",
