@@ -212,11 +212,15 @@ def draw_closed_loop(data: ReportData) -> Figure | None:
                ylabel="Average speed (m/s), higher is better")
         ax.margins(0.2)
         ax.grid(alpha=0.3)
-    lost_handle = Line2D([], [], ls="", marker="X", color="0.6", markeredgecolor="crimson", markersize=9,
-                         label="lap not completed")
-    _legend_and_title(figure, _identity_handles(data, rows) + [lost_handle],
+    _legend_and_title(figure, _identity_handles(data, rows) + [_lost_lap_handle()],
                       "Closed loop: speed vs deviation from the red line (upper left is better)")
     return figure
+
+
+def _lost_lap_handle() -> Line2D:
+    """The legend's entry for the ✗ that marks a lap not completed (laps and tolerance plots)."""
+    return Line2D([], [], ls="", marker="X", color="0.6", markeredgecolor="crimson", markersize=9,
+                  label="lap not completed")
 
 
 def draw_latency_tolerance(data: ReportData) -> Figure | None:
@@ -239,9 +243,7 @@ def draw_latency_tolerance(data: ReportData) -> Figure | None:
         ax.set(title=f"{place} · {target}", xlabel="Injected latency (ms)",
                ylabel="Position deviation MAE (m), lower is better")
         ax.grid(alpha=0.3)
-    lost_handle = Line2D([], [], ls="", marker="X", color="0.6", markeredgecolor="crimson", markersize=9,
-                         label="lap not completed")
-    _legend_and_title(figure, _identity_handles(data, rows) + [lost_handle],
+    _legend_and_title(figure, _identity_handles(data, rows) + [_lost_lap_handle()],
                       "Latency tolerance: deviation as latency is added to each brain's own")
     return figure
 
