@@ -34,6 +34,33 @@ def test_pilotnet_is_deeplearningstudios():
 
 
 @pytest.mark.parametrize("arch", ["pilotnet", "pilotnet_stacked"])
+def test_the_input_norm_s_scale_and_shift_are_not_trained_and_the_first_conv_absorbs_any(arch):
+    """Training leaves the input BatchNorm's scale and shift as they are (their gradient would be the first
+    convolution's whole input gradient) while its running statistics follow the data; nothing is lost:
+    the first convolution, without padding, computes any scale and shift into its own weights exactly."""
+    torch.manual_seed(0)
+    model = build_model(arch).train()
+    norm, conv = model.input_norm, model.features[0]
+    images = torch.rand(8, norm.num_features, 66, 200)
+    optimizer = torch.optim.Adam([p for p in model.parameters() if p.requires_grad])
+    model(images).square().mean().backward()
+    optimizer.step()
+    assert conv.padding == (0, 0) and not norm.weight.requires_grad and not norm.bias.requires_grad
+    assert torch.equal(norm.weight, torch.ones_like(norm.weight)) and torch.equal(norm.bias, torch.zeros_like(norm.bias))
+    assert not torch.allclose(norm.running_mean, torch.zeros_like(norm.running_mean))
+
+    model.eval()
+    with torch.no_grad():
+        norm.weight.uniform_(0.5, 2.0), norm.bias.uniform_(-0.5, 0.5)
+        before = model(images)
+        scale, shift = norm.weight.clone(), norm.bias.clone()
+        conv.bias += (conv.weight * shift[None, :, None, None]).sum((1, 2, 3))
+        conv.weight *= scale[None, :, None, None]
+        norm.weight.fill_(1.0), norm.bias.zero_()
+        assert torch.allclose(model(images), before, atol=1e-5)
+
+
+@pytest.mark.parametrize("arch", ["pilotnet", "pilotnet_stacked"])
 def test_no_seed_starts_with_a_dead_bottleneck(arch):
     """With torch's default initialisation, seed 1 started PilotNet with all ten units of its 10-wide
     layer dead: it output a constant and never learned. He initialisation keeps them alive."""
