@@ -3,7 +3,7 @@ import os
 # Tests share the 2-core machine with each other: keep torch from spawning a thread per core per worker.
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-# Input-file hashes are remembered across processes (matrix.fingerprint.HashCache): keep the tests'
+# Input-file hashes are remembered across processes (matrix.hashcache.HashCache): keep the tests'
 # out of the user's cache folder.
 os.environ.setdefault("MATRIX_HASH_CACHE", os.path.join(__import__("tempfile").gettempdir(),
                                                         "pilotlab-tests-file-hashes.sqlite"))

@@ -224,11 +224,11 @@ def test_an_input_that_is_not_data_is_one_line_at_once(tmp_path, path, message):
     ("matrix:", "hardware:\n  spare: {latency_file: BIG}\nmatrix:", "hardware.spare.latency_file: BIG is a folder"),
 ])
 def test_a_folder_where_a_file_is_expected_fails_before_anything_is_hashed(tmp_path, monkeypatch, old, new, message):
-    import matrix.fingerprint
+    import matrix.inputhash
     big = tmp_path / "home"                  # a folder of anything (a home folder of 6 GB)
     (big / "sub").mkdir(parents=True)
     (big / "sub" / "data.bin").write_bytes(b"0" * 1000)
-    monkeypatch.setattr(matrix.fingerprint, "_folder_files", lambda folder: pytest.fail(f"{folder} was walked"))
+    monkeypatch.setattr(matrix.inputhash, "_folder_files", lambda folder: pytest.fail(f"{folder} was walked"))
     with pytest.raises(RecipeError) as caught:
         engine.plan_jobs(recipe_at(tmp_path, RECIPE.replace(old, new.replace("BIG", str(big)), 1)), DOMAIN)
     assert message.replace("BIG", str(big)) in str(caught.value) and "\n" not in str(caught.value)
