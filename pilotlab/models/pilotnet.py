@@ -2,9 +2,10 @@
 
 BatchNorm on the input; convs 24, 36, 48 (5×5, stride 2) and 64, 64 (3×3); FC 1164, 100, 50, 10, 2;
 ReLU after every layer but the last. 1,595,528 parameters, 1.34 M of them in the first fully
-connected layer; the input BatchNorm's 6 are not trained (the first convolution absorbs them). Weights start with He (Kaiming) initialisation and biases at zero: with torch's
-default the activations shrink layer by layer until the biases decide the 10-unit layer's sign, and
-for some seeds all ten units start dead (the network then outputs a constant, whatever it is shown).
+connected layer; the input BatchNorm's 6 are not trained (the first convolution absorbs them).
+Weights start with He (Kaiming) initialisation and biases at zero: with torch's default the
+activations shrink layer by layer until the biases decide the 10-unit layer's sign, and for some
+seeds all ten units start dead (the network then outputs a constant, whatever it is shown).
 DeepLearningStudio's PyTorch PilotNet has no dropout, so `dropout` defaults to 0
 (no Dropout module at all); set it to add one after the last convolution. Its config,
 `PilotNetConfig` (height, width, channels, outputs, dropout), is in configs.py.
