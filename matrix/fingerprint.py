@@ -1,12 +1,10 @@
-"""Content fingerprints: of code (what implements a job kind) and of input files.
+"""Content fingerprints of code: what implements a job kind (input files: matrix.inputhash).
 
 Code is fingerprinted by its source text without comments, docstrings and blank lines
 (`code_text`), so editing a strategy's module changes the keys of that strategy's jobs and nothing
 else, and rewording a comment or a docstring changes none; which modules a module imports is read
 from its source, parsed once per text (the names are remembered across processes by its sha256),
 and a whole closure is remembered with the file hashes and folder listings it was read from.
-Files are hashed by content
-(sha256) in matrix.inputhash.
 """
 from __future__ import annotations
 
