@@ -57,7 +57,9 @@ def add_engine_commands(subparsers, get_domain: GetDomain,
     status.add_argument("--times", action="store_true",
                         help="how long the stored jobs took, per kind (where a recipe's minutes go)")
     status.add_argument("--recipe", metavar="NAME|FILE",
-                        help="with --times: only the jobs of this recipe's last run (its name, or its file)")
+                        help="how long the jobs of this recipe's last run took (its name, or its file)")
+    # as `run` and `plan` take it: `status recipes/study.yaml` was refused with "unrecognized arguments"
+    status.add_argument("recipe_given", nargs="?", metavar="recipe", help="the same as --recipe")
     show = add("show", cmd_show, "show one stored job: spec, result, log and artifacts")
     show.add_argument("key", help="a job key or its first characters")
     gc = add("gc", cmd_gc, "remove stored jobs that none of the given recipes reaches")
@@ -117,9 +119,16 @@ def cmd_status(args, domain: Domain) -> int:
         print(f"no job store at {store.root} yet: `run RECIPE` makes it")
         return 0
     from matrix import display
-    if args.times or args.recipe:
-        return display.print_times(display.console(), store, _recipe_name(args.recipe, domain))
+    recipe = _one_recipe(args.recipe, args.recipe_given)
+    if args.times or recipe:
+        return display.print_times(display.console(), store, _recipe_name(recipe, domain))
     return display.print_status(display.console(), store)
+
+
+def _one_recipe(option: str | None, positional: str | None) -> str | None:
+    if option and positional and option != positional:
+        raise MatrixError(f"status: two recipes given ({positional} and --recipe {option}); give one")
+    return option or positional
 
 
 def _recipe_name(given: str | None, domain: Domain) -> str | None:

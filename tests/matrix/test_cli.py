@@ -143,6 +143,10 @@ def test_status_times_sums_job_durations_per_kind(recipe, tmp_path, capsys):
     assert "recipe toy: 5 jobs" in out
     assert cli(capsys, "status", "--store", store, "--times", "--recipe", str(tmp_path / "slow.yaml"))[1] == out
     assert cli(capsys, "status", "--store", store, "--times", "--recipe", "nope")[0] == 2
+    # as `run` and `plan` take it (`status recipes/study.yaml` was an argparse error)
+    assert cli(capsys, "status", "--store", store, str(tmp_path / "slow.yaml"))[1] == out
+    code, _, err = cli(capsys, "status", "--store", store, "toy", "--recipe", "other")
+    assert code == 2 and "two recipes given" in err
 
 
 def test_engine_commands_are_the_ones_named_for_command_lines_that_load_commands_lazily():
