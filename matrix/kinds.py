@@ -21,14 +21,16 @@ without running.
 
 `typical_s=30` (or `typical_for=lambda params: 3.0 * params["epochs"]`) says what a job of the kind
 typically takes: until a store has run it, the scheduler orders ready jobs and fills an idle core with
-it (matrix.execute.Schedule), and the time left starts from it. A guess only, never in a key.
+it (matrix.execute.Schedule), and the time left starts from it. A guess only, never in a key: given at
+registration, it is written in the kind's own module, which is its code (tuning it re-keys the kind's
+jobs); `guess_kind(name, typical_for=...)` gives it from a module that no handler imports.
 """
 from __future__ import annotations
 
 import importlib
 import logging
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import ModuleType
 from functools import cached_property
@@ -222,11 +224,23 @@ def register_kind(name: str, target: str | Handler, *, params: Any = None, code:
                   resources: Mapping[str, float] | None = None, resources_for=None, exclusive_for=None,
                   typical_s: float | None = None, typical_for=None) -> JobKind:
     """Register job kind `name`, run by `target` ("module:function", or the function)."""
+    _check_typical(name, typical_s)
+    return KINDS.add(name, JobKind(name, target, params, tuple(code), code_for, code_exclude, exclusive,
+                                   dict(resources or {}), resources_for, exclusive_for, typical_s, typical_for))
+
+
+def guess_kind(name: str, *, typical_s: float | None = None, typical_for=None) -> JobKind:
+    """Give registered kind `name` what its jobs typically take (as register_kind's `typical_s` and
+    `typical_for`), from a module apart from its code: a guess is never in a key, and written in a
+    module no handler or params model imports, tuning it makes no job stale."""
+    _check_typical(name, typical_s)
+    return KINDS.replace(name, replace(KINDS.get(name), typical_s=typical_s, typical_for=typical_for))
+
+
+def _check_typical(name: str, typical_s: float | None) -> None:
     if typical_s is not None and (not isinstance(typical_s, (int, float)) or isinstance(typical_s, bool)
                                   or not 0 < typical_s < float("inf")):
         raise MatrixError(f"job kind {name!r}: typical_s must be a positive number of seconds (got {typical_s!r})")
-    return KINDS.add(name, JobKind(name, target, params, tuple(code), code_for, code_exclude, exclusive,
-                                   dict(resources or {}), resources_for, exclusive_for, typical_s, typical_for))
 
 
 def job_kind(name: str, **options) -> Callable[[Handler], Handler]:

@@ -29,6 +29,12 @@ class Registry(Generic[T]):
         self._entries[name] = entry
         return entry
 
+    def replace(self, name: str, entry: T) -> T:
+        """Put `entry` where the registered `name` was (an unknown name is an error, as `get` says it)."""
+        self.get(name)
+        self._entries[name] = entry
+        return entry
+
     def register(self, name: str) -> Callable[[T], T]:
         """Decorator form: `@models.register("pilotnet")`."""
         return lambda entry: self.add(name, entry)

@@ -15,6 +15,7 @@ one place. Planning imports this package, so nothing here imports torch, OpenCV 
     timing       OfflineSettings (recipe offline:, but `data`), TimingSpec
     offline      OfflineSpec
     online       DriveSettings, LapSettings (recipe online: + `pilotlab drive`), OnlineSpec
+    guesses      what a job of each kind typically takes (the scheduler's first guess; no kind's code)
 """
 KIND_MODULES = tuple(f"pilotlab.specs.{kind}" for kind in ("record", "frames", "train", "prepare", "optimize",
-                                                             "timing", "offline", "online"))
+                                                             "timing", "offline", "online", "guesses"))

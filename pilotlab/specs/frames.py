@@ -49,5 +49,4 @@ class FramesSpec(PreprocessConfig):
     path: str | None = Field(None, description="the recording, for jobs built by hand (not hashed: prefer inputs)")
 
 
-# typical seconds (a guess for the scheduler, matrix.times): a one-lap recording read in 3-4 s on 2 cores
-register_kind("frames", "pilotlab.jobs.frames:run_frames", params=FramesSpec, typical_s=3.0)
+register_kind("frames", "pilotlab.jobs.frames:run_frames", params=FramesSpec)

@@ -12,7 +12,7 @@ from pydantic import Field
 
 from matrix.kinds import register_kind
 from pilotlab.specs.base import Spec
-from pilotlab.specs.timing import gpu_resources, guess_here
+from pilotlab.specs.timing import gpu_resources
 
 
 class OfflineSpec(Spec):
@@ -24,7 +24,4 @@ class OfflineSpec(Spec):
                                                           "another host keeps it with its timing")
 
 
-# What an offline job typically takes, for the scheduler (matrix.times): a test set of a few hundred frames
-OFFLINE_S = 1.0
-register_kind("offline", "pilotlab.jobs.offline:run_offline", params=OfflineSpec, resources_for=gpu_resources,
-              typical_for=guess_here(lambda params: OFFLINE_S))
+register_kind("offline", "pilotlab.jobs.offline:run_offline", params=OfflineSpec, resources_for=gpu_resources)

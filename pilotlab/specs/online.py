@@ -17,9 +17,8 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from matrix.kinds import register_kind
-from pilotlab.circuits.registry import lap_scale
 from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, InWorld, Spec
-from pilotlab.specs.timing import gpu_resources, guess_here, timing_resources
+from pilotlab.specs.timing import gpu_resources, timing_resources
 
 
 # the timing modes that charge the brain's time to the lap (pilotlab.online.drive explains all four)
@@ -180,29 +179,5 @@ def lap_resources(params) -> dict[str, float]:
     return timing_resources(params) if timed_live(params) else gpu_resources(params)
 
 
-# What a lap cell typically takes, for the scheduler of a store that has not run it (matrix.times), as
-# measured in the study's cold run on the 2-core development machine (2026-11-28): a network's lap of
-# simple_circuit (replayed timing, driving on its view) 0.65 s after 0.5 s of setting up, other
-# circuits by their length (Montreal 3.3 times); a tolerance search drives a lap per fixed latency above
-# 0 and the bisection's, each 0.9 of the plain lap on average: the completed ones take longer (the car
-# slows as latency grows: up to twice the plain lap's simulated time), the lost ones end where the car
-# leaves the road. A search from a neighbour's hint (pilotlab.online.tolerance) drives fewer, which the
-# params do not say: the study's Montreal cells are guessed at 12.9 s and take ~9.5.
-SETUP_S, LAP_S, SEARCH_SHARE = 0.5, 0.65, 0.9
-
-
-def search_laps(tolerance: ToleranceSpec) -> float:
-    """Plain laps' worth of driving a tolerance search adds to its cell."""
-    fixed = len({ms for ms in tolerance.fixed_ms if ms > 0})
-    return SEARCH_SHARE * (fixed + tolerance.bisection_laps)
-
-
-def typical_seconds(params) -> float:
-    settings = LapSettings.model_validate({k: params[k] for k in ("laps", "repetitions", "starts", "tolerance")
-                                           if k in params})
-    searched = 0 if settings.tolerance is None else search_laps(settings.tolerance)
-    return SETUP_S + LAP_S * lap_scale(str(params.get("circuit", ""))) * settings.laps * settings.runs * (1 + searched)
-
-
 register_kind("online", "pilotlab.jobs.online:run_online", params=OnlineSpec, exclusive_for=timed_live,
-              resources_for=lap_resources, typical_for=guess_here(typical_seconds))
+              resources_for=lap_resources)

@@ -14,8 +14,7 @@ from pydantic import Field
 from matrix.fingerprint import module_closure
 from matrix.kinds import register_kind
 from pilotlab.specs.base import Spec
-from pilotlab.specs.timing import guess_here
-from pilotlab.strategies import PREPARATIONS, STRATEGIES
+from pilotlab.strategies import STRATEGIES
 
 
 class OptimizeSpec(Spec):
@@ -42,25 +41,5 @@ def own_strategy(params) -> list[str]:
     return list(dict.fromkeys(found))
 
 
-# What an optimization typically takes, for the scheduler of a store that has not run it (matrix.times),
-# on one core of the 2-core development machine: a conversion 1-4 s, a calibration ~2 s more, and each
-# epoch of fine-tuning (pruning, QAT, clustering; a strategy's *epochs options) 3-4 s on a thousand frames.
-BASE_S, CALIBRATION_S, EPOCH_S = 3.0, 2.0, 3.5
-
-
-def prepared_options(strategy: str | None) -> dict:
-    """The options of the network a strategy's prepare job makes for it ({} when it prepares none)."""
-    entry = STRATEGIES.get(strategy) if strategy in STRATEGIES else None
-    return PREPARATIONS.get(entry.prepared_by).defaults if entry is not None and entry.prepared_by else {}
-
-
-def typical_seconds(params) -> float:
-    """The epochs of a shared preparation are its prepare job's (pilotlab.specs.prepare), not this job's."""
-    options, prepared = params.get("options") or {}, prepared_options(params.get("strategy"))
-    epochs = sum(value for name, value in options.items()
-                 if name.endswith("epochs") and isinstance(value, int) and name not in prepared)
-    return BASE_S + (CALIBRATION_S if options.get("calibration_frames") else 0.0) + EPOCH_S * epochs
-
-
 register_kind("optimize", "pilotlab.jobs.optimize:run_optimize", params=OptimizeSpec,
-              code_for=own_strategy, code_exclude=strategy_modules, typical_for=guess_here(typical_seconds))
+              code_for=own_strategy, code_exclude=strategy_modules)

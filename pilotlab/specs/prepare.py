@@ -15,7 +15,6 @@ from pydantic import Field
 from matrix.fingerprint import module_closure
 from matrix.kinds import register_kind
 from pilotlab.specs.base import Spec
-from pilotlab.specs.optimize import BASE_S, EPOCH_S
 from pilotlab.strategies import PREPARATIONS
 
 
@@ -31,9 +30,4 @@ def preparation_code(params) -> list[str]:
     return list(dict.fromkeys(module for root in roots for module in module_closure(root, "pilotlab")))
 
 
-def typical_seconds(params) -> float:
-    return BASE_S + EPOCH_S * int((params.get("options") or {}).get("finetune_epochs", 0))
-
-
-register_kind("prepare", "pilotlab.jobs.prepare:run_prepare", params=PrepareSpec, code_for=preparation_code,
-              typical_for=typical_seconds)
+register_kind("prepare", "pilotlab.jobs.prepare:run_prepare", params=PrepareSpec, code_for=preparation_code)

@@ -10,7 +10,6 @@ from typing import Literal
 from pydantic import Field, field_validator
 
 from matrix.kinds import register_kind
-from pilotlab.circuits.registry import lap_scale
 from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, InWorld, Spec
 
 BAG_FORMATS = ("ros1", "ros2")
@@ -51,17 +50,7 @@ class RecordSpec(RecordSettings, InWorld):
     version: int = 1
 
 
-# What a recording typically takes, for the scheduler of a store that has not run it (matrix.times):
-# a lap of simple_circuit at 640×480 took 4-6 s on the 2-core development machine, other circuits by their length.
-LAP_S = 5.0
-
-
-def typical_seconds(params) -> float:
-    laps = float(params.get("laps", RecordSpec.model_fields["laps"].default))
-    return LAP_S * lap_scale(str(params.get("circuit", ""))) * laps
-
-
-register_kind("record", "pilotlab.jobs.record:run_record", params=RecordSpec, typical_for=typical_seconds)
+register_kind("record", "pilotlab.jobs.record:run_record", params=RecordSpec)
 
 
 def with_circuit_file(spec, inputs):

@@ -8,7 +8,6 @@ The offline jobs (MSE, size) and the laps (replayed latencies) of the artifact o
 """
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 from pydantic import Field
@@ -42,21 +41,5 @@ def timing_resources(params) -> dict[str, float]:
     return gpu_resources(params) | ({machine: 1} if machine else {})
 
 
-# What a job typically takes, for the scheduler and the time left of a store that has not run it
-# (matrix.times): one for a CUDA profile, planned on a host without a GPU, says "not applicable" at once.
-NOT_HERE_S, TIMING_S = 0.1, 2.0    # a timing: about 2 s, most of it the measuring itself
-
-
-def not_applicable_here(params) -> bool:
-    """A job for a CUDA profile whose planned host has no GPU (it is "not applicable" when it runs)."""
-    host = params.get("host")
-    return (params.get("hardware") or {}).get("device") == "cuda" and isinstance(host, dict) and not host.get("gpu")
-
-
-def guess_here(seconds_for: Callable[[Any], float]) -> Callable[[Any], float]:
-    """A kind's guess (`typical_for`) that knows a job that cannot run on its planned host ends at once."""
-    return lambda params: NOT_HERE_S if not_applicable_here(params) else seconds_for(params)
-
-
 register_kind("timing", "pilotlab.jobs.timing:run_timing", params=TimingSpec, exclusive=True,
-              resources_for=timing_resources, typical_for=guess_here(lambda params: TIMING_S))
+              resources_for=timing_resources)

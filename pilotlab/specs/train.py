@@ -145,17 +145,7 @@ def arch_modules(params) -> list[str]:
     return module_closure(entry.network_module, "pilotlab.models", exclude=["pilotlab.models.registry"])
 
 
-# What a training typically takes, for the scheduler of a store that has not run it (matrix.times):
-# PilotNet, a thousand frames, took 3 s an epoch on the 2-core development machine.
-EPOCH_S = 3.0
-
-
-def typical_seconds(params) -> float:
-    return EPOCH_S * int(params.get("epochs", TrainSpec.model_fields["epochs"].default))
-
-
 # Training runs alone, on every core: beside another job torch's threads spin against it, and on one
 # core of two the quickstart's training took 58 s instead of ~30 (what could run beside it, the reference
 # laps, runs beside the fine-tunes later).
-register_kind("train", "pilotlab.jobs.train:run_train", params=TrainSpec, code_for=arch_modules, exclusive=True,
-              typical_for=typical_seconds)
+register_kind("train", "pilotlab.jobs.train:run_train", params=TrainSpec, code_for=arch_modules, exclusive=True)

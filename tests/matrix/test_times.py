@@ -79,3 +79,18 @@ def test_a_guess_by_params_may_say_it_has_none(tmp_path):
         assert KindStats(Store(tmp_path)).estimate("shy_toy", "x", {}) == DEFAULT_ESTIMATE_S
     finally:
         KINDS._entries.pop("shy_toy")
+
+
+def test_a_guess_given_apart_from_the_registration_replaces_the_kind_s(kinds):
+    """guess_kind: a domain writes its guesses in a module that is no kind's code (tuning one re-keys no job)."""
+    from matrix.kinds import guess_kind
+    from matrix.registry import UnknownNameError
+    before = KINDS.get("flat_toy")
+    guess_kind("flat_toy", typical_for=lambda params: 2.0 * params["laps"])
+    assert KINDS.get("flat_toy").typical({"laps": 3}) == 6.0 and KINDS.get("flat_toy").target is before.target
+    guess_kind("flat_toy", typical_s=5.0)
+    assert KINDS.get("flat_toy").typical({"laps": 3}) == 5.0
+    with pytest.raises(MatrixError, match="'flat_toy': typical_s must be a positive number"):
+        guess_kind("flat_toy", typical_s=-1.0)
+    with pytest.raises(UnknownNameError, match="flat_toy"):   # the known ones are named
+        guess_kind("flat_tyo", typical_s=1.0)

@@ -259,7 +259,7 @@ def test_a_cold_store_guesses_a_lap_with_a_tolerance_search_as_several_laps(tmp_
     searched = [job.params for job in laps if job.params["tolerance"] is not None]
     assert searched
     online, plain = KINDS.get("online"), dict(searched[0], tolerance=None)
-    from pilotlab.specs.online import SETUP_S as setup   # setting up the simulator, whatever the laps
+    from pilotlab.specs.guesses import SETUP_S as setup   # setting up the simulator, whatever the laps
     ratio = (online.typical(searched[0]) - setup) / (online.typical(plain) - setup)
     from pilotlab.specs.online import ToleranceSpec
     tolerance = ToleranceSpec.model_validate(searched[0]["tolerance"])   # the fixed laps above 0 and log2(100/10)

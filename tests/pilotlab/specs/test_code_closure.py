@@ -143,3 +143,17 @@ def test_a_timing_job_runs_the_timing_code_and_no_lap_or_training(jobs):
     assert {"pilotlab.jobs.timing", "pilotlab.specs.timing", "pilotlab.offline", "pilotlab.timing",
             "pilotlab.predictor", "pilotlab.data.frames"} <= modules
     assert not modules & {"pilotlab.jobs.offline", "pilotlab.online.drive", "pilotlab.training"}
+
+
+def test_editing_a_guess_re_keys_no_job_and_every_kind_has_one(jobs):
+    """What a job typically takes (pilotlab.specs.guesses) is the scheduler's first guess, never a job's
+    code: the lap cell's guess, written in the online kind's module, made every lap stale when tuned."""
+    from pilotlab.specs import KIND_MODULES
+    before = {job.name: code_of(job) for job in jobs}
+    with edited("pilotlab.specs.guesses"):
+        assert [job.name for job in jobs if code_of(job) != before[job.name]] == []
+    kinds = {job.kind for job in jobs}
+    assert {"record", "frames", "train", "optimize", "timing", "offline", "online"} <= kinds
+    assert all(KINDS.get(kind).typical_s or KINDS.get(kind).typical_for for kind in KINDS
+               if KINDS.get(kind).module.startswith("pilotlab.")), "a kind of pilotlab's without a guess"
+    assert KIND_MODULES[-1] == "pilotlab.specs.guesses"   # imported where the kinds are, after them

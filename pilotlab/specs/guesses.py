@@ -1,0 +1,114 @@
+"""What a job of each kind typically takes, for the scheduler and the time left of a store that has not
+run it yet (matrix.times: once a store has run a kind, its own figures scale these).
+
+A guess is never part of a job's key, and here it is not part of any kind's code either: no handler
+and no params model imports this module (a test checks it), so tuning a guess re-keys no job. Written
+in the kinds' own modules, a guess was their code: editing the lap cell's guess made every lap stale.
+Only guesses belong here; anything a job's result depends on belongs to the kind's modules.
+
+Each figure was measured on a 2-core development machine (which one and when is said beside it).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from matrix.kinds import guess_kind
+from pilotlab.circuits.registry import lap_scale
+from pilotlab.specs.online import LapSettings, ToleranceSpec
+from pilotlab.specs.record import RecordSpec
+from pilotlab.specs.train import TrainSpec
+from pilotlab.strategies import PREPARATIONS, STRATEGIES
+
+# A job for a CUDA profile, planned on a host without a GPU, says "not applicable" at once.
+NOT_HERE_S = 0.1
+
+
+def not_applicable_here(params) -> bool:
+    """A job for a CUDA profile whose planned host has no GPU (it is "not applicable" when it runs)."""
+    host = params.get("host")
+    return (params.get("hardware") or {}).get("device") == "cuda" and isinstance(host, dict) and not host.get("gpu")
+
+
+def guess_here(seconds_for: Callable[[Any], float]) -> Callable[[Any], float]:
+    """A kind's guess that knows a job that cannot run on its planned host ends at once."""
+    return lambda params: NOT_HERE_S if not_applicable_here(params) else seconds_for(params)
+
+
+# record: a lap of simple_circuit at 640×480 took 4-6 s, other circuits by their length.
+RECORD_LAP_S = 5.0
+
+
+def record_seconds(params) -> float:
+    laps = float(params.get("laps", RecordSpec.model_fields["laps"].default))
+    return RECORD_LAP_S * lap_scale(str(params.get("circuit", ""))) * laps
+
+
+# frames: a one-lap recording read in 3-4 s on 2 cores.
+FRAMES_S = 3.0
+
+# train: PilotNet, a thousand frames, took 3 s an epoch.
+TRAIN_EPOCH_S = 3.0
+
+
+def train_seconds(params) -> float:
+    return TRAIN_EPOCH_S * int(params.get("epochs", TrainSpec.model_fields["epochs"].default))
+
+
+# optimize and prepare, on one core: a conversion 1-4 s, a calibration ~2 s more, and each epoch of
+# fine-tuning (pruning, QAT, clustering; a strategy's *epochs options) 3-4 s on a thousand frames.
+BASE_S, CALIBRATION_S, EPOCH_S = 3.0, 2.0, 3.5
+
+
+def prepared_options(strategy: str | None) -> dict:
+    """The options of the network a strategy's prepare job makes for it ({} when it prepares none)."""
+    entry = STRATEGIES.get(strategy) if strategy in STRATEGIES else None
+    return PREPARATIONS.get(entry.prepared_by).defaults if entry is not None and entry.prepared_by else {}
+
+
+def optimize_seconds(params) -> float:
+    """The epochs of a shared preparation are its prepare job's, not this job's."""
+    options, prepared = params.get("options") or {}, prepared_options(params.get("strategy"))
+    epochs = sum(value for name, value in options.items()
+                 if name.endswith("epochs") and isinstance(value, int) and name not in prepared)
+    return BASE_S + (CALIBRATION_S if options.get("calibration_frames") else 0.0) + EPOCH_S * epochs
+
+
+def prepare_seconds(params) -> float:
+    return BASE_S + EPOCH_S * int((params.get("options") or {}).get("finetune_epochs", 0))
+
+
+# timing: about 2 s, most of it the measuring itself; offline: a test set of a few hundred frames.
+TIMING_S, OFFLINE_S = 2.0, 1.0
+
+# online: as measured in the study's cold run (2026-11-28): a network's lap of simple_circuit (replayed
+# timing, driving on its view) 0.65 s after 0.5 s of setting up, other circuits by their length
+# (Montreal 3.3 times); a tolerance search drives a lap per fixed latency above 0 and the bisection's,
+# each 0.9 of the plain lap on average: the completed ones take longer (the car slows as latency grows:
+# up to twice the plain lap's simulated time), the lost ones end where the car leaves the road. A
+# search from a neighbour's hint (pilotlab.online.tolerance) drives fewer, which the params do not say:
+# the study's Montreal cells are guessed at 12.9 s and take ~9.5.
+SETUP_S, LAP_S, SEARCH_SHARE = 0.5, 0.65, 0.9
+
+
+def search_laps(tolerance: ToleranceSpec) -> float:
+    """Plain laps' worth of driving a tolerance search adds to its cell."""
+    fixed = len({ms for ms in tolerance.fixed_ms if ms > 0})
+    return SEARCH_SHARE * (fixed + tolerance.bisection_laps)
+
+
+def online_seconds(params) -> float:
+    settings = LapSettings.model_validate({k: params[k] for k in ("laps", "repetitions", "starts", "tolerance")
+                                           if k in params})
+    searched = 0 if settings.tolerance is None else search_laps(settings.tolerance)
+    return SETUP_S + LAP_S * lap_scale(str(params.get("circuit", ""))) * settings.laps * settings.runs * (1 + searched)
+
+
+guess_kind("record", typical_for=record_seconds)
+guess_kind("frames", typical_s=FRAMES_S)
+guess_kind("train", typical_for=train_seconds)
+guess_kind("prepare", typical_for=prepare_seconds)
+guess_kind("optimize", typical_for=guess_here(optimize_seconds))
+guess_kind("timing", typical_for=guess_here(lambda params: TIMING_S))
+guess_kind("offline", typical_for=guess_here(lambda params: OFFLINE_S))
+guess_kind("online", typical_for=guess_here(online_seconds))
