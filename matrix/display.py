@@ -109,7 +109,7 @@ Display = NullDisplay
 
 class Estimate:
     """Seconds left: the prior of each job not finished, the running ones corrected by their own
-    progress, divided by how many jobs have been running at once; smoothed. A job's prior is what it
+    progress, divided by how many jobs have been running at once (at most as many as are left); smoothed. A job's prior is what it
     took the last time on this store; failing that its kind's estimate (matrix.times.KindStats), which
     the jobs of the kind that finish in this run correct as they go: by how their time compared with
     their own prior, so that a lap with a tolerance search still counts as a dozen plain ones (a kind
@@ -152,7 +152,10 @@ class Estimate:
         work = sum(self._left_of(key, now, factors) for key in self.prior)
         running = sum(now - at for at in self.started_at.values())
         parallel = max(1.0, (self.busy_s + running) / max(now - self.began, 1e-9))
-        return work / min(parallel, max(1, len(self.started_at)))
+        # bounded by the jobs left, not by the jobs running now: while a training runs alone, the twenty
+        # jobs after it still run as many at once as the run has so far (the quickstart's time left read
+        # 1.6-2x what was left, all of its training long)
+        return work / min(parallel, max(1, len(self.prior)))
 
     def left(self, now: float) -> float:
         """The shown estimate: it counts down with the clock and moves a share towards the raw one."""

@@ -32,6 +32,24 @@ def test_time_left_starts_from_each_kinds_mean_and_counts_down(tmp_path):
     assert abs(estimate.raw(60.0) - 20.0) < 1e-9
 
 
+def test_a_job_running_alone_does_not_make_the_rest_look_one_at_a_time(tmp_path):
+    """Two jobs ran at once, then a training runs alone (as it does, on every core) with four jobs after
+    it: they will run two at a time again, so the time left is not all of their work end to end."""
+    estimate = Estimate(stats_with(tmp_path, fit=10.0, train=30.0),
+                        [job("a1"), job("a2"), job("t", "train"), *(job(f"b{i}") for i in range(4))], now=0.0)
+    for key in ("a1", "a2"):
+        estimate.job_started(key, 0.0)
+    for key in ("a1", "a2"):
+        estimate.job_finished(key, 10.0)
+    estimate.job_started("t", 10.0)
+    # 20 s of the training left and 40 s of work after it, at 1.5 jobs at once so far (30 job-s in 20 s)
+    assert abs(estimate.raw(20.0) - 60.0 / 1.5) < 1e-9
+    estimate.job_finished("t", 40.0)
+    for key in ("b0", "b1", "b2"):
+        estimate.job_finished(key, 50.0)
+    assert abs(estimate.raw(50.0) - 10.0) < 1e-9        # one job left: its own time, whatever ran before
+
+
 def test_the_shown_estimate_does_not_jump_with_a_jumpy_progress(tmp_path):
     estimate = Estimate(stats_with(tmp_path, fit=60.0), [job("t")], now=0.0)
     estimate.job_started("t", 0.0)
