@@ -109,11 +109,11 @@ Display = NullDisplay
 
 class Estimate:
     """Seconds left: the prior of each job not finished, the running ones corrected by their own
-    progress, divided by how many jobs have been running at once (at most as many as are left); smoothed. A job's prior is what it
-    took the last time on this store; failing that its kind's estimate (matrix.times.KindStats), which
-    the jobs of the kind that finish in this run correct as they go: by how their time compared with
-    their own prior, so that a lap with a tolerance search still counts as a dozen plain ones (a kind
-    not measured on this store has only its own jobs to go by)."""
+    progress, divided by how many jobs have been running at once (at most as many as are left);
+    smoothed. A job's prior is what it took the last time on this store; failing that its kind's
+    estimate (matrix.times.KindStats), which the jobs of the kind that finish in this run correct as
+    they go: by how their time compared with their own prior, so that a lap with a tolerance search
+    still counts as a dozen plain ones (a kind not measured on this store has only its own jobs to go by)."""
 
     def __init__(self, stats: KindStats, jobs: Iterable, now: float):
         jobs = list(jobs)
