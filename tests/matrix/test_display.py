@@ -35,8 +35,8 @@ def test_time_left_starts_from_each_kinds_mean_and_counts_down(tmp_path):
 def test_a_job_running_alone_does_not_make_the_rest_look_one_at_a_time(tmp_path):
     """Two jobs ran at once, then a training runs alone (as it does, on every core) with four jobs after
     it: they will run two at a time again, so the time left is not all of their work end to end."""
-    estimate = Estimate(stats_with(tmp_path, fit=10.0, train=30.0),
-                        [job("a1"), job("a2"), job("t", "train"), *(job(f"b{i}") for i in range(4))], now=0.0)
+    estimate = Estimate(stats_with(tmp_path, fit=10.0, fit_alone=30.0),
+                        [job("a1"), job("a2"), job("t", "fit_alone"), *(job(f"b{i}") for i in range(4))], now=0.0)
     for key in ("a1", "a2"):
         estimate.job_started(key, 0.0)
     for key in ("a1", "a2"):
