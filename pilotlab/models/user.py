@@ -156,6 +156,14 @@ class _Program(nn.Module):
     def load_state_dict(self, state_dict, strict: bool = True, assign: bool = False):
         return self.load_program(state_dict["program"].cpu().numpy().tobytes())
 
+    def state_dict(self, *args, destination=None, prefix: str = "", keep_vars: bool = False):
+        """The program alone: its bytes hold the weights (a TorchScript module's parameters, the module
+        being a submodule, would store them a second time: the checkpoint, whose size the report shows,
+        twice the file's)."""
+        destination = {} if destination is None else destination
+        destination[prefix + "program"] = self.program if keep_vars else self.program.detach()
+        return destination
+
     def _build(self, data: bytes) -> None:
         raise NotImplementedError
 

@@ -100,6 +100,10 @@ def test_a_dls_state_dict_as_it_is_torchscript_and_onnx_give_the_same_mse(tmp_pa
     for model in models.values():   # checkpoints are plain data
         payload = torch.load(model.artifacts / "model.pt", map_location="cpu", weights_only=True)
         assert payload["arch"] in ("network", "torchscript", "onnx", "pilotnet")
+    for name, file in (("scripted", "pilotnet.pt"), ("exported", "pilotnet.onnx")):   # the file once, not its weights again
+        payload = torch.load(models[name].artifacts / "model.pt", map_location="cpu", weights_only=True)
+        assert list(payload["state_dict"]) == ["program"]
+        assert (models[name].artifacts / "model.pt").stat().st_size < 1.1 * (dls / file).stat().st_size
 
 
 def test_a_network_class_trains_and_fine_tunes_from_weights(tmp_path, dls, frames):
