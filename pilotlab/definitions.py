@@ -27,7 +27,18 @@ def check_definitions(planner) -> None:
         if planner.latency_file(name) is not None:
             planner.check_latency_file(name)
     for name, circuit in config.circuits.items():
+        _check_circuit_name(planner.recipe, name)
         planner.path(circuit.csv, ["circuits", name, "csv"], "file")
+
+
+def _check_circuit_name(recipe, name: str) -> None:
+    """A recipe's circuit does not take a built-in's name: every lap and row named so would be driven on
+    the user's file (a CSV named so beside the recipe is refused the same way: pilotlab.circuits.registry)."""
+    from pilotlab.circuits.registry import CIRCUITS
+    if name in CIRCUITS:
+        raise recipe.error(f"{name!r} is the name of a built-in circuit, which a recipe's circuit does not "
+                           f"replace; give yours another name (e.g. my_{name}) and use that name in the matrix",
+                           ["circuits", name])
 
 
 def _check_model(planner, name: str, spec) -> None:

@@ -470,6 +470,16 @@ def test_a_user_circuit_named_like_a_built_in_one_is_refused_not_passed_over(tmp
         engine.plan_jobs(recipe_at(tmp_path), DOMAIN)
 
 
+def test_a_recipe_circuit_named_like_a_built_in_one_is_refused_not_driven_in_its_place(tmp_path):
+    (tmp_path / "oval.csv").write_text("\n".join(f"{x},{y}" for x, y in stadium()))
+    text = RECIPE + "circuits: {simple_circuit: {csv: oval.csv}}\n"
+    with pytest.raises(RecipeError, match=r"circuits.simple_circuit: 'simple_circuit' is the name of a built-in "
+                                          r"circuit, .* \(e.g. my_simple_circuit\)"):
+        engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
+    renamed = engine.plan_jobs(recipe_at(tmp_path, RECIPE + "circuits: {my_oval: {csv: oval.csv}}\n"), DOMAIN)
+    assert any(job.kind == "online" for job in renamed)
+
+
 def test_a_dls_folder_is_keyed_by_data_csv_and_the_images_it_names_only(tmp_path):
     from tests.pilotlab.data.bagfiles import images
     from tests.pilotlab.data.test_folder import make_folder
