@@ -48,6 +48,7 @@ def slug(name: str) -> str:
 class Plan:
     recipe: Recipe
     statuses: list[JobStatus]          # dependencies first
+    previous: dict[str, dict] = field(default_factory=dict)   # job name -> the spec its reasons compare with
 
     @property
     def stale(self) -> list[JobStatus]:
@@ -80,9 +81,32 @@ def make_plan(recipe: Recipe, domain: Domain, store: Store, force: Iterable[str]
         jobs = plan_jobs(recipe, domain)
         paused.freeze = len(jobs) >= FREEZE_FROM_JOBS
         forced = _check_forced(force)
-        previous = (read_json(store.recipe_path(slug(recipe.name))) or {}).get("jobs", {})
         listing = StoreListing.of(store)
-        return Plan(recipe, plan_statuses(jobs, store, previous, forced, listing))
+        previous = _previous_specs(read_json(store.recipe_path(slug(recipe.name))), listing)
+        return Plan(recipe, plan_statuses(jobs, store, previous, forced, listing), previous)
+
+
+def _previous_specs(record: dict | None, listing: StoreListing) -> dict[str, dict]:
+    """Per job name, the spec of the recipe's last run, or, where that run ended (interrupted, failed)
+    before the job of that name ran, the version before it, which the store holds (`before`): what an
+    unfinished edit changed is still said after the run that began it stopped."""
+    record = record if isinstance(record, dict) else {}
+    previous = dict(record.get("jobs") or {})
+    for name, spec in (record.get("before") or {}).items():
+        if (previous.get(name) or {}).get("key") not in listing.stored:
+            previous[name] = spec
+    return previous
+
+
+def _unfinished_before(plan: Plan) -> dict[str, dict]:
+    """The specs a run's record keeps beside its jobs: for each job that is to run, the version of that
+    name before this plan, where it differs."""
+    before = {}
+    for status in plan.stale:
+        spec = plan.previous.get(status.job.name)
+        if spec is not None and spec.get("key") != status.job.key:
+            before[status.job.name] = spec
+    return before
 
 
 class _CollectorPaused:
@@ -151,7 +175,7 @@ def _record_and_run(plan: Plan, domain: Domain, store: Store, executor: Executor
         shutil.rmtree(leftover, ignore_errors=True)
     write_json_atomic(store.recipe_path(slug(plan.recipe.name)),
                       {"recipe": plan.recipe.name, "file": plan.recipe.file, "written_at": time.time(),
-                       "jobs": {s.job.name: s.job.spec() for s in plan.statuses}})
+                       "jobs": {s.job.name: s.job.spec() for s in plan.statuses}, "before": _unfinished_before(plan)})
     if display is not None:
         display.start(s.job for s in plan.stale)
     try:

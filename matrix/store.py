@@ -5,7 +5,8 @@
     <root>/locks/<key>.lock        held (flock) by the process running the job
     <root>/locks/runs.lock         held shared by every run while it runs, exclusively by gc
     <root>/tmp/                    jobs in flight; renamed into jobs/ when their result is written
-    <root>/recipes/<name>.json     the job names and specs of a recipe's last run (reasons, gc)
+    <root>/recipes/<name>.json     the job names and specs of a recipe's last run (plan's reasons, status
+                                   --times), and of each job it had yet to run, the version before
     <root>/cache/                  scratch shared by jobs (for example decoded frames)
 
 A job is done exactly when `jobs/<key>/result.json` exists: the folder appears by one rename, so a

@@ -67,6 +67,29 @@ def test_changing_one_parameter_reruns_exactly_its_downstream(tmp_path):
     assert reasons["power a^2"] == ""
 
 
+def test_a_run_stopped_before_an_edited_job_ran_leaves_the_edit_s_reasons(tmp_path, monkeypatch):
+    """Outside test: after an interrupted run, `plan` said "new" for the jobs it had not reached (the
+    run's record already held their new versions); it says what the edit changed until they run."""
+    store = Store(tmp_path / "store")
+    run(recipe_file(tmp_path), store)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    with monkeypatch.context() as patched:
+        patched.setattr(engine, "_run_here", interrupted)
+        for _ in range(2):   # stopped twice in a row: the version the store holds is still the one compared with
+            with pytest.raises(KeyboardInterrupt):
+                run(recipe_file(tmp_path, b=4), store)
+            plan = engine.make_plan(load_recipe(recipe_file(tmp_path, b=4), TOY), TOY, store)
+            reasons = {s.job.name: s.reason for s in plan.statuses}
+            assert reasons["source b"] == "params changed: value 3 -> 4"
+            assert reasons["power b^2"] == "dependency changed: source b" and reasons["power a^2"] == ""
+    plan, summary = run(recipe_file(tmp_path, b=4), store)
+    assert ran(summary) == ["power b^2", "power b^3", "source b", "total"]
+    plan = engine.make_plan(load_recipe(recipe_file(tmp_path, b=6), TOY), TOY, store)
+    assert {s.job.name: s.reason for s in plan.statuses}["source b"] == "params changed: value 4 -> 6"
+
+
 def test_undoing_an_edit_finds_the_old_results(tmp_path):
     store = Store(tmp_path / "store")
     run(recipe_file(tmp_path), store)
