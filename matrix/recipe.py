@@ -6,6 +6,7 @@ the file, the line and the key path, says what was expected and suggests the clo
 """
 from __future__ import annotations
 
+import re
 import typing
 from collections.abc import Callable, Collection, Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -107,10 +108,14 @@ def _validate(data: dict, lines: Lines, file: str, domain: Domain) -> Any:
 def _recipe_error(error: pydantic.ValidationError, data: Any, lines: Lines, file: str,
                   model: type) -> RecipeError:
     # A typo'd key also makes the key it meant "missing": report the typo, it is the cause.
-    first = min(error.errors(include_url=False), key=lambda e: e["type"] != "extra_forbidden")
-    path = _data_path(data, first["loc"])
-    message = _message(first, path, model)
-    more = error.error_count() - 1
+    errors = error.errors(include_url=False)
+    first = min(errors, key=lambda e: e["type"] != "extra_forbidden")
+    path = _data_path(data, first["loc"], first["type"] == "missing")
+    # a union's arms each give an error at the same place: one message says what each would take
+    arms = [e for e in errors if e["type"] not in ("extra_forbidden", "missing")
+            and _data_path(data, e["loc"], False) == path] if first["type"] != "extra_forbidden" else []
+    message = _union_message(arms, data, path) if len(arms) > 1 else _message(first, path, model)
+    more = error.error_count() - max(1, len(arms))
     if more:
         message += f" (and {more} more problem{'s' if more > 1 else ''})"
     return RecipeError(message, file=file, line=line_of(lines, tuple(path)), path=path)
@@ -127,12 +132,36 @@ def _message(err: dict, path: list, model: type) -> str:
     if kind == "value_error":  # a domain validator's own sentence
         return err["msg"].removeprefix("Value error, ")
     given = err.get("input")
-    given_text = shown(given) if not isinstance(given, (dict, list)) else type(given).__name__
-    return f"{err['msg']} (got {given_text})"
+    return f"{err['msg']} (got {_given(given)}){_literal_guess([err], given)}"
 
 
-def _data_path(data: Any, loc: tuple) -> list:
-    """The part of a pydantic error location that indexes into the data (drops union tags)."""
+def _union_message(arms: list[dict], data: Any, path: list) -> str:
+    """`arms`: the errors of a value that fits no arm of a union, e.g. 'explicit' or 'expert', or a mapping."""
+    given = arms[0].get("input")
+    wanted = " or ".join(dict.fromkeys(e["msg"].removeprefix("Input should be ") for e in arms))
+    return f"{_key_of(path)}should be {wanted} (got {_given(given)}){_literal_guess(arms, given)}"
+
+
+def _key_of(path: list) -> str:
+    return f"{path[-1]!r} " if path and isinstance(path[-1], str) else ""
+
+
+def _literal_guess(errors: list[dict], given: Any) -> str:
+    """'did you mean' among the literal values the errors name, for a string given."""
+    if not isinstance(given, str):
+        return ""
+    options = [v for e in errors if e["type"] == "literal_error"
+               for v in re.findall(r"'([^']*)'", str((e.get("ctx") or {}).get("expected", "")))]
+    return did_you_mean(given, options) if options else ""
+
+
+def _given(given: Any) -> str:
+    return shown(given) if not isinstance(given, (dict, list)) else type(given).__name__
+
+
+def _data_path(data: Any, loc: tuple, missing: bool = False) -> list:
+    """The part of a pydantic error location that indexes into the data (drops union tags such as
+    "literal['a','b']"); `missing`: the last part is a key the data lacks (a missing key's name)."""
     path, current = [], data
     for i, part in enumerate(loc):
         if isinstance(current, dict) and part in current:
@@ -141,7 +170,7 @@ def _data_path(data: Any, loc: tuple) -> list:
         elif isinstance(current, list) and isinstance(part, int) and part < len(current):
             path.append(part)
             current = current[part]
-        elif i == len(loc) - 1:
+        elif i == len(loc) - 1 and missing:
             path.append(part)
     return path
 

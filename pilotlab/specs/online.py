@@ -120,6 +120,9 @@ class LapSettings(DriveSettings):
     @field_validator("tolerance", mode="before")
     @classmethod
     def _true_is_the_default_search(cls, value: Any) -> Any:
+        if value is not None and not isinstance(value, (bool, dict, ToleranceSpec)):
+            raise ValueError(f"tolerance is true (the default search), false, or a mapping of the search's "
+                             f"settings ({', '.join(ToleranceSpec.model_fields)}); got {value!r}")
         return {} if value is True else None if value is False else value
 
     @model_validator(mode="after")

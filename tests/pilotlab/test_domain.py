@@ -153,6 +153,15 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
     (("conv: 0.5", "finetune_epochs: -1"), "strategies.prune_more: finetune_epochs: -1 must be at least 0"),
     (("conv: 0.5", "format: bogus"), "strategies.prune_more: format: Input should be 'checkpoint', 'torchscript' or 'onnx'"),
     (("conv: 0.5", "version: 99"), ":10: strategies.prune_more.version: version is not an option"),
+    # outside test: a value fitting no arm of a union was said at pydantic's tag (references.1.literal['explicit',
+    # 'expert']) in one arm's words; `tolerance: maybe` did not say that true is allowed
+    (("matrix:", "online: {references: [explicit, expertt]}\nmatrix:"),
+     ":11: online.references.1: should be 'explicit' or 'expert' or a valid dictionary (got 'expertt') "
+     "(did you mean 'expert'?)"),
+    (("small: {epochs: 1}", "small: {epochs: 1, labels: autoo}"),
+     ":6: models.small.labels: 'labels' should be 'auto' or a valid dictionary (got 'autoo') (did you mean 'auto'?)"),
+    (("matrix:", "online: {tolerance: maybe}\nmatrix:"),
+     ":11: online.tolerance: tolerance is true (the default search), false, or a mapping of the search's settings"),
 ])
 def test_recipe_errors_name_the_line_and_key(tmp_path, edit, message):
     with pytest.raises(RecipeError) as caught:
