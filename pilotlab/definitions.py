@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from matrix.errors import MatrixError, UnknownNameError
+from matrix.errors import MatrixError, UnknownNameError, did_you_mean
 
 
 def check_definitions(planner) -> None:
@@ -45,7 +45,8 @@ def _check_model(planner, name: str, spec) -> None:
     from pilotlab import usercode
     check_arch(planner.recipe, name, spec)
     if spec.data not in planner.config.datasets:
-        raise planner.recipe.error(f"dataset {spec.data!r} is not defined; datasets: "
+        raise planner.recipe.error(f"dataset {spec.data!r} is not defined"
+                                   f"{did_you_mean(spec.data, planner.config.datasets)}; datasets: "
                                    f"{', '.join(planner.config.datasets) or '(none)'}", ["models", name, "data"])
     for key in ("weights", "torchscript", "onnx"):
         if getattr(spec, key) is not None:

@@ -97,24 +97,29 @@ def topic_listing(reader: AnyReader) -> str:
                      for name, info in sorted(reader.topics.items()))
 
 
-def find_topic(reader: AnyReader, path: Path, topic: str | None, key: str,
+def find_topic(reader: AnyReader, path: Path, topic: str | None, role: str,
                types: tuple[str, ...], defaults: tuple[str, ...] = ()) -> tuple[str, str, list]:
-    """(topic, msgtype, connections) of the topic named by `key` (or the first default present)."""
+    """(topic, msgtype, connections) of the `role` ("image", "command") topic named `topic` (or the
+    first default present)."""
     topics = reader.topics
     candidates = [topic] if topic else [t for t in defaults if t in topics]
     if not candidates or candidates[0] not in topics:
-        lacks = (f"no topic {topic!r}" if topic else
-                 f"none of the default {key.replace('_', ' ')}s ({', '.join(defaults)})")
+        lacks = f"no topic {topic!r}" if topic else f"none of the default {role} topics ({', '.join(defaults)})"
         raise BagError(f"{path}: the bag has {lacks}; topics present: {topic_listing(reader)}; "
-                       f"set {key} to one of them")
+                       f"set the {role} topic to one of them{_where_set(role)}")
     name = candidates[0]
     info = topics[name]
     if info.msgtype not in types:
-        raise BagError(f"{path}: topic {name!r} carries {info.msgtype}, not {' or '.join(types)}; "
-                       f"set {key} to a topic of that type (topics present: {topic_listing(reader)})")
+        raise BagError(f"{path}: topic {name!r} carries {info.msgtype}, not {' or '.join(types)}; set the "
+                       f"{role} topic to a topic of that type{_where_set(role)} (topics present: {topic_listing(reader)})")
     if info.msgcount == 0:
-        raise BagError(f"{path}: topic {name!r} has no messages; record it again or set {key} to another topic")
+        raise BagError(f"{path}: topic {name!r} has no messages; record it again or set the {role} topic to "
+                       f"another topic{_where_set(role)}")
     return name, info.msgtype, info.connections
+
+
+def _where_set(role: str) -> str:
+    return f" (a recipe's dataset: topics: {{{role}: NAME}}; the command line: --{role}-topic)"
 
 
 def messages(reader: AnyReader, path: Path, connections: list, start: int | None = None,
@@ -142,7 +147,7 @@ def messages(reader: AnyReader, path: Path, connections: list, start: int | None
 def read_commands(reader: AnyReader, path: Path, topic: str) -> tuple[np.ndarray, np.ndarray, Damage]:
     """(time stamps int64 [M], physical (v, w) float32 [M, 2], damage) of the command topic; a command
     that is damaged (not deserializable, not a finite number of sane size) is left out and counted."""
-    name, msgtype, connections = find_topic(reader, path, topic, "command_topic", COMMAND_TYPES)
+    name, msgtype, connections = find_topic(reader, path, topic, "command", COMMAND_TYPES)
     damage = Damage(path, name)
     stamps, labels = [], []
     for stamp, msg in messages(reader, path, connections, damage=damage):
@@ -174,7 +179,7 @@ def read_bag(path: Path | str, preprocess: PreprocessConfig, topics: Topics = To
         cmd_stamps, commands, command_damage = read_commands(reader, path, topics.command)
         order = np.argsort(cmd_stamps, kind="stable")
         cmd_stamps, commands = cmd_stamps[order], commands[order]
-        name, msgtype, connections = find_topic(reader, path, topics.image, "image_topic",
+        name, msgtype, connections = find_topic(reader, path, topics.image, "image",
                                                 IMAGE_TYPES, DEFAULT_IMAGE_TOPICS)
         total = sum(c.msgcount for c in connections)
         where, start = f"{path}, topic {name}", int(cmd_stamps[0])

@@ -47,7 +47,7 @@ def inspect_bag(path: Path, command_topic: str = COMMAND_TOPIC) -> dict[str, Any
 
 
 def _first_image(reader, path: Path, topic: str) -> dict[str, Any]:
-    name, msgtype, connections = find_topic(reader, path, topic, "image_topic", IMAGE_TYPES)
+    name, msgtype, connections = find_topic(reader, path, topic, "image", IMAGE_TYPES)
     first = next(messages(reader, path, connections), None)
     if first is None:  # the bag's index (metadata.yaml) announces messages the bag does not hold
         raise BagError(f"{path}: topic {name!r} is announced with {reader.topics[name].msgcount} {msgtype} "

@@ -178,7 +178,7 @@ def test_recipe_errors_name_the_line_and_key(tmp_path, edit, message):
     ("  other: {epochs: 2}\n", "  other: {epochs: 2}\n  spare: {options: {dropuot: 0.1}}\n",
      ":8: models.spare: model 'pilotnet': unknown option(s) dropuot (did you mean 'dropout'?)"),
     ("  other: {epochs: 2}\n", "  other: {epochs: 2}\n  spare: {data: trian}\n",
-     ":8: models.spare.data: dataset 'trian' is not defined"),
+     ":8: models.spare.data: dataset 'trian' is not defined (did you mean 'train'?); datasets: train, test"),
     ("  other: {epochs: 2}\n", "  other: {epochs: 2}\n  spare: {network: nope.py:Net}\n",
      ":8: models.spare.network: nope.py: no such file"),
     ("  test: {record", "  spare: {bags: [missing.bag]}\n  test: {record", ":4: datasets.spare.bags: missing.bag does not exist"),

@@ -70,13 +70,15 @@ def test_missing_image_topic_lists_the_topics_present(tmp_path):
     drive_bag(tmp_path / "run.bag", "ros1", images(3))
     assert message(tmp_path / "run.bag", topics=Topics(image="/camera/image")) == (
         f"{tmp_path}/run.bag: the bag has no topic '/camera/image'; topics present: {TOPICS}; "
-        "set image_topic to one of them")
+        "set the image topic to one of them"
+        " (a recipe's dataset: topics: {image: NAME}; the command line: --image-topic)")
 
 
 def test_missing_command_topic_lists_the_topics_present(tmp_path):
     drive_bag(tmp_path / "run", "mcap", images(3))
     assert message(tmp_path / "run", topics=Topics(command="/cmd")) == (
-        f"{tmp_path}/run: the bag has no topic '/cmd'; topics present: {TOPICS}; set command_topic to one of them")
+        f"{tmp_path}/run: the bag has no topic '/cmd'; topics present: {TOPICS}; set the command topic to one of them"
+        " (a recipe's dataset: topics: {command: NAME}; the command line: --command-topic)")
 
 
 def test_no_default_image_topic(tmp_path):
@@ -86,7 +88,8 @@ def test_no_default_image_topic(tmp_path):
     assert message(tmp_path / "other.bag") == (
         f"{tmp_path}/other.bag: the bag has none of the default image topics (/F1ROS/cameraL/image_raw, "
         "/F1ROS/cameraL/image_raw/compressed); topics present: /F1ROS/cmd_vel (geometry_msgs/msg/Twist, 1 message), "
-        "/front/image (sensor_msgs/msg/Image, 1 message); set image_topic to one of them")
+        "/front/image (sensor_msgs/msg/Image, 1 message); set the image topic to one of them"
+        " (a recipe's dataset: topics: {image: NAME}; the command line: --image-topic)")
 
 
 def test_command_topic_of_the_wrong_type(tmp_path):
@@ -95,7 +98,8 @@ def test_command_topic_of_the_wrong_type(tmp_path):
         bag.image(2, images(1)[0], topic="/F1ROS/cmd_vel")
     assert message(tmp_path / "swap.bag") == (
         f"{tmp_path}/swap.bag: topic '/F1ROS/cmd_vel' carries sensor_msgs/msg/Image, not geometry_msgs/msg/Twist "
-        "or geometry_msgs/msg/TwistStamped; set command_topic to a topic of that type (topics present: "
+        "or geometry_msgs/msg/TwistStamped; set the command topic to a topic of that type"
+        " (a recipe's dataset: topics: {command: NAME}; the command line: --command-topic) (topics present: "
         "/F1ROS/cameraL/image_raw (sensor_msgs/msg/Image, 1 message), /F1ROS/cmd_vel (sensor_msgs/msg/Image, "
         "1 message))")
 
