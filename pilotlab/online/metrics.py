@@ -29,7 +29,8 @@ where we differ, so our numbers can be read next to the 2022 study's:
   50 ms cycle inside the measured time in some versions; the study's 58-99 Hz figures show it did not.)
 - mean_inference_ms: mean time of one decision (the network's predict call; a reference brain's
   whole computation), artificial latency included, as BehaviorMetrics' `inference_times` (which
-  drop the first and last 10; we warm the network up before the run instead).
+  drop the first and last 10; we warm the network up before the run instead). In replay timing a
+  reference brain is charged none, so its lap reports none (pilotlab.jobs.online).
 - real_time_factor: simulated seconds per wall-clock second over the run (BehaviorMetrics averages
   Gazebo's own real-time factor).
 - suddenness: mean Euclidean change between consecutive (v, w) commands, in physical units (m/s and

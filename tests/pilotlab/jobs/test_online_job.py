@@ -102,6 +102,9 @@ def test_reference_brains_with_video_and_stills(tmp_path):
                                                      "camera": {"width": 320, "height": 240}})
     assert explicit["position_deviation_mae_m"] < 0.5 and explicit["off_road_events"] == 0
     assert (ctx.out / explicit["video"]).stat().st_size > 0 and len(explicit["camera_frames"]) == 2
+    for result in (expert, explicit):   # replayed, charged no inference time: none reported (it read 0 ms)
+        assert result["latency_source"].startswith("none:") and result["mean_inference_ms"] is None
+        assert all(run["mean_inference_ms"] is None for run in result["runs"]) and result["measured_inference_ms"] > 0
 
 
 def test_a_cuda_profile_on_a_host_without_a_gpu_is_not_applicable(tmp_path):
