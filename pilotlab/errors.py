@@ -18,7 +18,17 @@ def library_message(error: BaseException, limit: int = 300) -> str:
     the C++ source line and function signature, which alone could fill `limit` (on a GPU machine an
     IR-version refusal was cut before 'Unsupported model IR version')."""
     text = " ".join(line.strip() for line in str(error).splitlines() if line.strip())
-    return _CPP_LOCATION.sub(" ", text)[:limit]
+    return clipped(_CPP_LOCATION.sub(" ", text), limit)
+
+
+def clipped(text: str, limit: int) -> str:
+    """`text` in at most `limit` characters: cut at the last space in the final stretch, with "…" to say
+    so (a cut mid-word, as 'the checkpoint file is corru', read like the message itself)."""
+    if len(text) <= limit:
+        return text
+    cut = text[:limit - 1]
+    space = cut.rfind(" ")
+    return (cut[:space] if space >= limit * 0.6 else cut).rstrip(" ,;:") + "…"
 
 
 # "/onnxruntime_src/onnxruntime/core/graph/model.cc:256 onnxruntime::Model::Model(onnx::ModelProto&&, ...) "

@@ -26,7 +26,7 @@ from pilotlab.data.frames import FrameSet
 from pilotlab.data.images import IMAGE_TYPES, encoding_of, frame_from_message, image_size
 from pilotlab.data.preprocess import PreprocessConfig
 from pilotlab.data.topics import COMMAND_TOPIC, DEFAULT_IMAGE_TOPICS
-from pilotlab.errors import BagError
+from pilotlab.errors import BagError, clipped
 
 COMMAND_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")
 CHUNK = 32                     # frames per task handed to a worker thread
@@ -89,7 +89,7 @@ def open_bag(path: Path | str) -> Iterator[AnyReader]:
 def _describe(error: Exception) -> str:
     text = " ".join(str(a) for a in error.args) if error.args else type(error).__name__
     text = " ".join(text.split())             # one line: some readers quote whole message definitions
-    return (text[:200] + "...") if len(text) > 200 else text or type(error).__name__
+    return clipped(text, 200) or type(error).__name__
 
 
 def topic_listing(reader: AnyReader) -> str:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pilotlab.errors import PilotlabError
+from pilotlab.errors import PilotlabError, clipped
 
 
 def load_without_data(path: Path):
@@ -16,7 +16,7 @@ def load_without_data(path: Path):
         return onnx.load(str(path), load_external_data=False)
     except Exception as error:  # protobuf's DecodeError, OSError, ...
         raise PilotlabError(f"{path}: not a readable ONNX model ({type(error).__name__}: "
-                            f"{(str(error).splitlines() or [''])[0][:200]})") from None
+                            f"{clipped((str(error).splitlines() or [''])[0], 200)})") from None
 
 
 def external_data_files(model, path: Path, holder: str) -> dict[str, Path]:

@@ -18,7 +18,7 @@ import numpy as np
 from matrix.errors import MatrixError
 from matrix.kinds import NotApplicable
 from pilotlab.data.frames import FrameSet, LabelRanges
-from pilotlab.errors import PilotlabError
+from pilotlab.errors import PilotlabError, clipped
 from pilotlab.hardware import BUILTIN, HardwareProfile
 from pilotlab.models import load_checkpoint
 from pilotlab.models.imported import IMPORTED_ARCHS
@@ -162,7 +162,7 @@ def on_user_model(name: str, source: StrategySource, call: Callable[[], Any], ta
     except (MatrixError, KeyboardInterrupt, MemoryError):
         raise
     except Exception as error:  # noqa: BLE001 — the user's network is outside what the strategy handles
-        first = str(error).strip().splitlines()[0][:300] if str(error).strip() else ""
+        first = clipped(str(error).strip().splitlines()[0], 300) if str(error).strip() else ""
         hint = ""
         if source.imported == "torchscript":   # an ONNX strategy starts from the program's ONNX export
             hint = (" (its ONNX export, which this strategy starts from, failed)" if takes_onnx else

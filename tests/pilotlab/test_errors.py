@@ -1,4 +1,4 @@
-from pilotlab.errors import library_message
+from pilotlab.errors import clipped, library_message
 
 
 def test_a_library_message_keeps_the_reason_on_its_later_lines():
@@ -27,3 +27,10 @@ def test_a_library_message_drops_a_templated_signature_too():
                          "SUCCTYPE, const char*, const char*, int) [with ERRTYPE = cudaError; bool THRW = true; "
                          "SUCCTYPE = cudaError; std::conditional_t<THRW, void, common::Status> = void] CUDA call failed")
     assert library_message(error).endswith("hostname=h ; file= CUDA call failed")
+
+
+def test_a_clipped_message_ends_at_a_word_and_says_it_was_cut():
+    """Outside test: not-applicable reasons ended mid-word ('... device=c', '... file is corru')."""
+    text = "the checkpoint file is corrupt and cannot be read by torch.jit.load at all"
+    assert clipped(text, 40) == "the checkpoint file is corrupt and…" and clipped(text, 200) == text
+    assert len(clipped("x" * 300, 200)) == 200 and clipped("x" * 300, 200).endswith("x…")
