@@ -52,11 +52,13 @@ def camera_of(args: argparse.Namespace) -> dict:
         raise PilotlabError(f"--size {args.size}: {spec_problem(error).removeprefix('CameraSize: ')}") from None
 
 
-def check_out(path: Path) -> None:
-    """Before the progress bar: a bag that is there already, or a file where its folder goes."""
-    from pilotlab.data.bagwrite import check_new_bag
+def check_out(path: Path, format: str) -> None:
+    """Before the progress bar: a bag that is there already, a file where its folder goes, or a ROS2
+    bag's folder named as a ROS1 file."""
+    from pilotlab.data.bagwrite import check_new_bag, storage_for
     try:
         check_new_bag(path)
+        storage_for(path, "ros1" if format == "ros1" else "sqlite3")
     except PilotlabError as error:
         raise PilotlabError(f"--out: {error}") from None
 
@@ -72,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     spec = spec_from_args(RecordSpec, args, **place, **camera_of(args),
                           **({"format": "ros1"} if args.out.suffix == ".bag" and not hasattr(args, "format") else {}))
     check_rates(spec)   # before the progress bar: an error is then the only line printed
-    check_out(bag_path(args.out, spec.format))
+    check_out(bag_path(args.out, spec.format), spec.format)
     columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:.0f} m"),
                TextColumn("{task.fields[frames]} frames"), TimeElapsedColumn(), TimeRemainingColumn())
     circuit = world.circuit(spec.direction) if world is not None else get_circuit(spec.circuit, spec.direction)

@@ -50,7 +50,8 @@ def storage_for(path: Path, storage: str = "auto") -> str:
         raise BagError(f"{path}: unknown bag storage {storage!r}; use one of auto, {', '.join(STORAGES)}")
     if (storage == "ros1") != (Path(path).suffix == ".bag"):
         raise BagError(f"{path}: a ROS1 bag is a file ending in .bag and a ROS2 bag is a folder; "
-                       f"rename the output or choose another storage than {storage!r}")
+                       f"rename the output, or write the other kind (`record --format`, "
+                       f"`dataset convert --storage`; asked: {'ROS1' if storage == 'ros1' else 'ROS2'})")
     return storage
 
 

@@ -48,6 +48,10 @@ def test_a_command_s_parser_loads_its_own_module_and_help_lists_every_command(ca
     (["record", "--circuit", "simple_circuit", "--laps", "0.05", "--out", "{afile}/run"],
      "--out: {afile} is a file, so {afile}/run cannot be written below it"),
     (["record", "--circuit", "simple_circuit", "--laps", "0.05", "--out", "{afile}"], "--out: {afile} already exists"),
+    # outside test: said after a progress line, and named a storage option `record` does not have
+    (["record", "--circuit", "simple_circuit", "--format", "ros2", "--laps", "0.05", "--out", "run.bag"],
+     "--out: run.bag: a ROS1 bag is a file ending in .bag and a ROS2 bag is a folder; rename the output, or write "
+     "the other kind (`record --format`"),
     (["record", "--circuit", "simple_circuit", "--size", "0x0", "--out", "run"],
      "--size 0x0: width: Input should be greater than or equal to 16"),
     (["run", "{recipe}", "--store", "{afile}"], "{afile}/"),
