@@ -166,9 +166,17 @@ def _syntax_error(error: yaml.MarkedYAMLError, file: str) -> RecipeError:
                            column=where.column + 1)
     mark = mark or error.context_mark
     if problem.startswith("expected <block end>"):
-        problem = f"this line is indented differently from the lines around it ({problem})"
+        problem = _block_end_problem(problem)
     return RecipeError(f"not valid YAML: {' '.join(problem.split())}", file=file,
                        line=mark.line + 1 if mark else None, column=mark.column + 1 if mark else None)
+
+
+def _block_end_problem(problem: str) -> str:
+    """PyYAML's 'expected <block end>': after a flow collection's bracket ({...}, [...]) found closed, a
+    bracket closed one too many or too early; otherwise, an indentation that matches no level."""
+    if any(f"found '{token}'" in problem for token in ",]}"):
+        return f"a '}}' or ']' before this closes more than was opened, or closes it too early ({problem})"
+    return f"this line is indented differently from the lines around it ({problem})"
 
 
 def _character_error(error: yaml.reader.ReaderError, text: str, file: str) -> RecipeError:

@@ -52,6 +52,9 @@ def test_bad_yaml_names_file_and_line(tmp_path):
     (("{value: 3}", "{value: 3"), ":4:6: not valid YAML: this { mapping } is not closed (expected ',' or '}', "
                                   "but got ':' at line 5, column 7)"),
     (("  b: {value: 3}", "  b: {value: 3}\n    c: 1"), ":5:5: not valid YAML: this line is indented differently from the lines around it"),
+    # outside test: a bracket too many was said to be an indentation
+    (("power: [2, 3]", "power: [2], 3]"), ":7:13: not valid YAML: a '}' or ']' before this closes more than was "
+                                         "opened, or closes it too early"),
     (("name: toy", "name: \"toy"), ":1:7: not valid YAML: this quoted string is not closed"),
     (("name: toy", "name: t\x07oy"), ":1:8: not valid YAML: character U+0007 (a control character or a lone "
                                      "surrogate) is not allowed; remove it"),
