@@ -23,11 +23,12 @@ import ast
 import hashlib
 import importlib
 import importlib.util
+import inspect
 import os.path
 import sys
 import sysconfig
 import traceback
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -166,6 +167,15 @@ def _import_error(code: UserCode, error: BaseException) -> UserCodeError:
         return UserCodeError(f"{_place(error, code.where)}: the module called exit({error.code!r}) while being imported (importing "
                              f"{code.spec}); put what runs it as a script under `if __name__ == \"__main__\":`")
     return UserCodeError(error_line(error, code.where) + f" (importing {code.spec})")
+
+
+def defined_at(function: Callable, where: str) -> str:
+    """`file:line` where the user's `function` is defined (a wrong value it returned has no line of its
+    own), else `where`."""
+    try:
+        return f"{inspect.getsourcefile(function)}:{inspect.getsourcelines(function)[1]}"
+    except (TypeError, OSError):
+        return where
 
 
 def error_line(error: BaseException, where: str) -> str:

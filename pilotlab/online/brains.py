@@ -266,6 +266,7 @@ class UserBrain:
         except (TypeError, ValueError, RuntimeError):   # RuntimeError: a tensor that requires grad
             v = w = float("nan")
         if not (np.isfinite(v) and np.isfinite(w)):
-            raise PilotlabError(f"{self.spec}: act returned {command!r}; it must return (v, w), two finite numbers "
-                                "(m/s and rad/s)")
+            from pilotlab import usercode
+            raise PilotlabError(f"{usercode.defined_at(self.brain.act, self.spec)}: act returned {command!r}; it "
+                                f"must return (v, w), two finite numbers (m/s and rad/s) (in {self.spec}.act)")
         return v, w

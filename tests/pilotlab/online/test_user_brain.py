@@ -40,9 +40,10 @@ BROKEN = {
     "act raises": ("class B:\n    def act(self, image):\n        return 1 / 0\n",
                    ":3: ZeroDivisionError: division by zero (in brains/bad.py:B.act)"),
     "act returns one number": ("class B:\n    def act(self, image):\n        return 5.0\n",
-                               "brains/bad.py:B: act returned 5.0; it must return (v, w)"),
+                               ":2: act returned 5.0; it must return (v, w)"),
     "act returns text": ("class B:\n    def act(self, image):\n        return '5', '0'\n",
-                         "brains/bad.py:B: act returned ('5', '0'); it must return (v, w), two finite numbers"),
+                         ":2: act returned ('5', '0'); it must return (v, w), two finite numbers (m/s and rad/s) "
+                         "(in brains/bad.py:B.act)"),
     "no act": ("class B:\n    def drive(self, image):\n        return 5.0, 0.0\n", "brains/bad.py:B: has no act(image)"),
     "constructor raises": ("class B:\n    def __init__(self):\n        raise ValueError('no weights')\n",
                            ":3: ValueError: no weights (making brains/bad.py:B)"),
