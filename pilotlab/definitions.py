@@ -54,6 +54,7 @@ def _check_model(planner, name: str, spec) -> None:
     if spec.network is not None:
         try:
             usercode.source_files(spec.network, planner.folder)
+            usercode.check_source(spec.network, planner.folder, spec.options)
         except MatrixError as error:
             raise planner.recipe.error(str(error), ["models", name, "network"]) from None
 

@@ -28,10 +28,11 @@ import os.path
 import sys
 import sysconfig
 import traceback
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from matrix.errors import did_you_mean
 from matrix.fingerprint import source_code_text
@@ -200,14 +201,69 @@ def _is_library(filename: str) -> bool:
     return filename.startswith(("<frozen", PILOTLAB, STDLIB)) or "site-packages" in filename
 
 
-def check_syntax(file: Path) -> None:
-    """A UserCodeError naming the line when `file` does not parse (nothing is run)."""
+def check_syntax(file: Path) -> ast.Module:
+    """`file`'s syntax tree; a UserCodeError naming the line when it does not parse (nothing is run)."""
     try:
-        ast.parse(Path(file).read_bytes(), str(file))
+        return ast.parse(Path(file).read_bytes(), str(file))
     except SyntaxError as error:
         raise UserCodeError(error_line(error, str(file))) from None
     except ValueError as error:   # a NUL byte
         raise UserCodeError(f"{file}: not Python source ({error})") from None
+
+
+def check_source(spec: str, base: Path, options: Mapping[str, Any] | None = None) -> None:
+    """At plan, from the source alone (nothing is run): the file `spec` names parses, defines the name
+    at its top level, and that class's __init__ takes `options`, as loading would find (a typo then
+    fails the plan, not a job in the run). What the source cannot say is left to loading: a module
+    (not a file), a star import, an inherited __init__, **kwargs."""
+    code = parse(spec, base)
+    if code.file is None:
+        return
+    defined = _top_level(check_syntax(code.file).body)
+    top = code.name.split(".")[0]
+    if defined is None or top in defined and not isinstance(defined[top], ast.ClassDef):
+        return
+    if top not in defined:
+        classes = sorted(n for n, node in defined.items() if isinstance(node, ast.ClassDef) and not n.startswith("_"))
+        raise UserCodeError(f"{code.where} has no {top!r}{did_you_mean(top, classes)}; it defines: "
+                            f"{', '.join(classes) or '(no classes)'}")
+    if options and "." not in code.name:
+        _check_options(defined[top], options)
+
+
+def _top_level(body: list[ast.stmt]) -> dict[str, ast.AST] | None:
+    """Name -> node of what a module's statements define (in its top-level if/try/with blocks too);
+    None after a star import (it may define anything)."""
+    found: dict[str, ast.AST] = {}
+    for node in body:
+        if isinstance(node, (ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            found[node.name] = node
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            if any(alias.name == "*" for alias in node.names):
+                return None
+            found.update({alias.asname or alias.name.split(".")[0]: node for alias in node.names})
+        elif isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            found.update({n.id: node for target in targets for n in ast.walk(target) if isinstance(n, ast.Name)})
+        else:
+            for block in ("body", "orelse", "finalbody", "handlers"):
+                inner = _top_level([s for s in getattr(node, block, []) if isinstance(s, ast.stmt)]
+                                   + [s for h in getattr(node, block, []) if isinstance(h, ast.excepthandler)
+                                      for s in h.body])
+                if inner is None:
+                    return None
+                found.update(inner)
+    return found
+
+
+def _check_options(cls: ast.ClassDef, options: Mapping[str, Any]) -> None:
+    init = next((n for n in cls.body if isinstance(n, ast.FunctionDef) and n.name == "__init__"), None)
+    if init is None or init.args.kwarg is not None:
+        return
+    takes = [a.arg for a in init.args.posonlyargs + init.args.args][1:] + [a.arg for a in init.args.kwonlyargs]
+    if unknown := [name for name in options if name not in takes]:
+        guesses = "".join(did_you_mean(name, takes) for name in unknown)
+        raise UserCodeError(f"options: {cls.name}({', '.join(takes)}) does not take {', '.join(unknown)}{guesses}")
 
 
 # --- the source hash -------------------------------------------------------------------------------

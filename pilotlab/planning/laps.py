@@ -135,6 +135,7 @@ def reference_brain(planner, reference: str | dict[str, str], index: int) -> tup
     from pilotlab import usercode
     spec = reference[name]
     try:
+        usercode.check_source(spec, planner.folder)
         source = usercode.source_input(spec, planner.folder)
     except MatrixError as error:
         raise planner.recipe.error(str(error), ["online", "references", index, name]) from None

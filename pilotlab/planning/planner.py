@@ -395,8 +395,7 @@ def model_inputs(planner: Planner, name: str, spec: ModelSpec) -> dict[str, Inpu
         inputs.update({f"onnx data {location}": input_file(str(file)) for location, file in data.items()})
     if spec.network is not None:
         try:
-            files = usercode.source_files(spec.network, planner.folder)
-            usercode.check_syntax(files[0])
+            usercode.check_source(spec.network, planner.folder, spec.options)
             inputs["network_source"] = usercode.source_input(spec.network, planner.folder)
         except MatrixError as error:
             raise planner.recipe.error(str(error), ["models", name, "network"]) from None

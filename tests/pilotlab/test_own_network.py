@@ -150,6 +150,30 @@ def test_a_syntax_error_names_the_key_and_the_line(folder):
 
 
 @pytest.mark.parametrize("old, new, said", [
+    ("dls: {network: nets/pilotnet.py:PilotNet,", "dls: {network: nets/pilotnet.py:PilotNt,",
+     "models.dls.network: {folder}/nets/pilotnet.py has no 'PilotNt' (did you mean 'PilotNet'?); it defines: PilotNet"),
+    ("options: {image_shape: [200, 66, 3], num_labels: 2}, preset: dls,\n        epochs",
+     "options: {image_shap: [200, 66, 3], num_labels: 2}, preset: dls,\n        epochs",
+     "models.dls.network: options: PilotNet(image_shape, num_labels) does not take image_shap (did you mean "
+     "'image_shape'?)"),
+])
+def test_a_class_or_option_the_source_lacks_fails_the_plan(folder, old, new, said):
+    """Outside test: a typo'd class or option planned, then failed its train job in the run."""
+    assert said.format(folder=folder) in recipe_error(folder, old, new)
+
+
+def test_what_the_source_cannot_say_is_left_to_loading(folder):
+    write(folder, "nets/star.py", "from torch.nn import *\n")
+    write(folder, "nets/wide.py", "import torch\nclass Net(torch.nn.Module):\n    def __init__(self, **options):\n"
+                                  "        super().__init__()\n")
+    text = RECIPE.replace("nets/pilotnet.py:PilotNet, options: {image_shape: [200, 66, 3], num_labels: 2}, preset: dls,\n"
+                          "        epochs", "nets/star.py:Linear, options: {in_features: 2}, preset: dls,\n        epochs")
+    text = text.replace("frozen: {network: nets/pilotnet.py:PilotNet, options: {image_shape: [200, 66, 3], num_labels: 2}",
+                        "frozen: {network: nets/wide.py:Net, options: {anything: 1}")
+    assert "train dls" in plan(folder, text) and "optimize frozen/baseline" in plan(folder, text)
+
+
+@pytest.mark.parametrize("old, new, said", [
     ("graph: {onnx: models/pilotnet.onnx,", "graph: {onnx: models/pilotnet.onnx, arch: pilotnet,",
      "give one of arch, network, torchscript, onnx, not arch and onnx"),
     ("weights: weights/dls.pth, train: false", "train: false", "train: false needs `weights:`"),

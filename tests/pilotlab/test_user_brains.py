@@ -63,6 +63,8 @@ def test_the_planner_makes_a_reference_lap_keyed_by_the_brain_s_source(tmp_path)
 @pytest.mark.parametrize("spec, message", [
     ("brains/none.py:RedLine", "mine.yaml:7: online.references.2.mine: brains/none.py: no such file"),
     ("brains/mine", "mine.yaml:7: online.references: mine: 'brains/mine': name your brain as file.py:Class"),
+    # outside test: a typo'd class planned, then failed the lap in the run
+    ("brains/mine.py:RedLin", "brains/mine.py has no 'RedLin' (did you mean 'RedLine'?); it defines: RedLine"),
 ])
 def test_recipe_errors_about_a_user_brain_name_the_line(tmp_path, spec, message):
     with pytest.raises(RecipeError) as caught:
@@ -148,6 +150,7 @@ def test_pilotlab_drive_with_a_brain_that_calls_exit_is_one_line_and_fails(tmp_p
 
 def test_planning_reads_a_user_brain_but_never_runs_it(tmp_path):
     recipe = recipe_at(tmp_path)
-    (tmp_path / "brains" / "mine.py").write_text("raise SystemExit('planning ran the brain')\n")
+    (tmp_path / "brains" / "mine.py").write_text("raise SystemExit('planning ran the brain')\n\n\nclass RedLine:\n"
+                                                 "    def act(self, image):\n        return 1.0, 0.0\n")
     (lap,) = user_laps(engine.plan_jobs(load_recipe(recipe.file, DOMAIN), DOMAIN))
     assert lap.inputs["brain_source"].sha256 == source_hash(SPEC, tmp_path)
