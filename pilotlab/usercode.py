@@ -215,14 +215,14 @@ def check_source(spec: str, base: Path, options: Mapping[str, Any] | None = None
     """At plan, from the source alone (nothing is run): the file `spec` names parses, defines the name
     at its top level, and that class's __init__ takes `options`, as loading would find (a typo then
     fails the plan, not a job in the run). What the source cannot say is left to loading: a module
-    (not a file), a star import, an inherited __init__, **kwargs."""
+    (not a file), a star import, a module __getattr__, an inherited __init__, **kwargs."""
     code = parse(spec, base)
     if code.file is None:
         return
     defined = _top_level(check_syntax(code.file).body)
     top = code.name.split(".")[0]
-    if defined is None or top in defined and not isinstance(defined[top], ast.ClassDef):
-        return
+    if defined is None or "__getattr__" in defined or top in defined and not isinstance(defined[top], ast.ClassDef):
+        return   # made at run time (a star import, a module __getattr__), or not a class: loading says
     if top not in defined:
         classes = sorted(n for n, node in defined.items() if isinstance(node, ast.ClassDef) and not n.startswith("_"))
         raise UserCodeError(f"{code.where} has no {top!r}{did_you_mean(top, classes)}; it defines: "
