@@ -90,6 +90,25 @@ def test_editing_a_strategy_reruns_only_its_jobs(tree, original):
     assert any(name.startswith("online pilotnet/local_prune") for name in changed)
 
 
+def test_adding_a_strategy_as_the_docs_say_reruns_no_other_strategy(tree, original):
+    """Outside test: docs/strategies.md had the new config module added to configs/__init__.py's imports,
+    which is in every optimize job's code: every strategy's jobs ran again."""
+    added = [tree / "pilotlab/strategies/configs/my_prune.py", tree / "pilotlab/strategies/my_prune.py"]
+    added[0].write_text("from dataclasses import dataclass\nfrom pilotlab.strategies.registry import register_strategy\n"
+                        "@dataclass(frozen=True)\nclass MyPruneConfig:\n    amount: float = 0.3\n    version: int = 1\n"
+                        "register_strategy('my_prune', MyPruneConfig, 'pilotlab.strategies.my_prune:my_prune')\n")
+    added[1].write_text("def my_prune(config, source):\n    return {}\n")
+    try:
+        assert plan_keys(tree) == original
+        known = subprocess.run([sys.executable, "-c", "from pilotlab.strategies import STRATEGIES; "
+                                "print('my_prune' in STRATEGIES.names())"], cwd=tree, capture_output=True, text=True,
+                               env={"PYTHONPATH": python_path(tree), "PATH": "/usr/bin:/bin"}, timeout=120)
+        assert known.stdout.strip() == "True", known.stderr      # registered without an edit elsewhere
+    finally:
+        for path in added:
+            path.unlink()
+
+
 def test_editing_a_helper_imported_inside_a_handler_reruns_its_strategy(tree, original):
     changed = changed_by_editing(tree, "pilotlab/strategies/kmeans.py", original)
     assert changed == {name for name in original if "/cluster" in name}

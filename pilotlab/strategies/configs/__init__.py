@@ -1,8 +1,13 @@
 """The strategies' configs: each module holds the frozen, versioned config dataclasses of one
 strategy family and registers each strategy with its handler named by string. Importing this
 package registers every strategy and imports no handler (so no torch, onnx, onnxruntime, torchao
-or tensorflow): planning needs only the names and the configs."""
-from pilotlab.strategies.configs import (  # noqa: F401  (each module registers its strategies)
-    baseline, cluster, cuda, half, litert, mot, onnx_runtime, prune, prune_quant, pt2e,
-    structured_prune, structured_prune_int8, structured_prune_xnnpack, torchscript,
-)
+or tensorflow): planning needs only the names and the configs.
+
+Every module of this folder is imported, found on disk: a new strategy's config module is registered
+without an edit here, so adding one changes no other strategy's code (this file is in every optimize
+job's code, as the package each config module is imported through)."""
+import importlib
+import pkgutil
+
+for _found in sorted(pkgutil.iter_modules(__path__), key=lambda module: module.name):
+    importlib.import_module(f"{__name__}.{_found.name}")
