@@ -43,7 +43,7 @@ class CarSpec:
     def command_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
         """((v_min, v_max), (w_min, w_max)) of the commands that mean something to this car: v as
         clipped by `Car.apply`; beyond |w| = max_speed · tan(max_steer) / wheelbase the steering is at
-        its stop at every speed the car can reach, so a larger w changes nothing."""
+        its stop at every speed the car can reach, and `Car.apply` clips w there too."""
         w_max = self.max_speed * math.tan(self.max_steer) / self.wheelbase
         return (-REVERSE_SPEED, self.max_speed), (-w_max, w_max)
 
@@ -189,9 +189,9 @@ class Car:
         wheels drive (and brake); the front wheels roll freely, and brake too when the car must slow.
         `speed`: the forward speed now, when the caller has just read it (saves reading it again)."""
         spec, client, body = self.spec, self.client, self.body
-        (v_min, v_max), _ = spec.command_bounds
+        (v_min, v_max), (w_min, w_max) = spec.command_bounds
         v = max(v_min, min(v_max, float(v)))
-        w = float(w)
+        w = max(w_min, min(w_max, float(w)))   # the rear wheels' speed difference follows w: past the stop, nothing more
         self.command = (v, w)
         for joint, angle in zip(self.steer, self.steering_angles(v, w)):
             p.setJointMotorControl2(body, joint, p.POSITION_CONTROL, targetPosition=angle, force=5000,

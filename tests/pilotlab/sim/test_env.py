@@ -31,6 +31,8 @@ def test_reset_and_step_follow_gymnasium(stadium_csv):
         assert obs.shape == (36, 48, 3) and not terminated and not truncated
         assert info["sim_time"] == pytest.approx(0.05) and info["dt"] == pytest.approx(0.05)
         assert info["command"] == (5.0, 0.0) and reward == pytest.approx(info["progress"]) and reward > 0
+        (_, w_max) = env.car.spec.command_bounds[1]
+        assert env.step((40.0, -50.0))[4]["command"] == pytest.approx((25.0, -w_max))   # clipped, w too (outside test)
         with pytest.raises(PilotlabError, match="finite"):
             env.step((float("nan"), 0.0))
         with pytest.raises(PilotlabError, match="unknown reset option"):
