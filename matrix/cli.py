@@ -151,7 +151,8 @@ def cmd_gc(args, domain: Domain) -> int:
             raise MatrixError(f"a run is running on the store {store.root}: gc would remove the jobs it has finished "
                               "and still reads; run gc when it has ended")
         garbage = engine.find_garbage(store, keep, None if args.all_hosts else domain.kept_elsewhere)
-        names = {key: _kind_and_name(store.spec(key) or {}) for key in garbage.keys}
+        names = {key: _kind_and_name(store.spec(key) or (store.failure(key) or {}).get("spec") or {})
+                 + ("" if store.spec(key) else " (failed)") for key in garbage.keys}
         removed = garbage.keys if args.dry_run else engine.collect_garbage(store, garbage)
     verb = "would remove" if args.dry_run else "removed"
     for key in removed:

@@ -213,6 +213,7 @@ class Garbage:
     temp: list[Path]
     bytes: int
     elsewhere: dict[str, str] = field(default_factory=dict)   # unreached, kept: key -> why (Domain.kept_elsewhere)
+    work: dict[str, Path] = field(default_factory=dict)       # a failed job's work folder, removed with it
 
 
 def find_garbage(store: Store, keep: set[str], kept_elsewhere: Callable[[dict], str | None] | None = None) -> Garbage:
@@ -224,9 +225,22 @@ def find_garbage(store: Store, keep: set[str], kept_elsewhere: Callable[[dict], 
     keep = set(keep) | _stood_on(store, elsewhere)   # what the jobs kept for elsewhere were made from
     keys = [key for key in unreached if key not in keep]
     failed = [p.stem for p in (store.root / "failed").glob("*.json") if p.stem not in keep]
-    temp = leftovers(store)
-    size = sum(_size(store.job_dir(k)) for k in keys) + sum(_size(p) for p in temp)
-    return Garbage(sorted(set(keys) | set(failed)), temp, size, elsewhere)
+    kept_for_failures = failure_workdirs(store)   # not a killed run's: a failed job's, kept for its log
+    work = {key: kept_for_failures[key] for key in failed if key in kept_for_failures}
+    temp = [p for p in leftovers(store) if p.resolve() not in kept_for_failures.values()]
+    size = sum(_size(store.job_dir(k)) for k in keys) + sum(_size(p) for p in [*temp, *work.values()])
+    return Garbage(sorted(set(keys) | set(failed)), temp, size, elsewhere, work)
+
+
+def failure_workdirs(store: Store) -> dict[str, Path]:
+    """Failed job key -> the work folder its failure record names, where it is still in the store's tmp/."""
+    found = {}
+    for record in (store.root / "failed").glob("*.json"):
+        workdir = (store.failure(record.stem) or {}).get("workdir")
+        folder = Path(workdir).resolve() if isinstance(workdir, str) else None
+        if folder is not None and folder.parent == (store.root / "tmp").resolve() and folder.is_dir():
+            found[record.stem] = folder
+    return found
 
 
 def _stood_on(store: Store, keys: Iterable[str]) -> set[str]:
@@ -249,6 +263,8 @@ def collect_garbage(store: Store, garbage: Garbage) -> list[str]:
             if held:
                 store.remove(key)
                 (store.root / "locks" / f"{key}.lock").unlink(missing_ok=True)
+                if key in garbage.work:
+                    shutil.rmtree(garbage.work[key], ignore_errors=True)
                 removed.append(key)
     for path in garbage.temp:
         shutil.rmtree(path, ignore_errors=True)

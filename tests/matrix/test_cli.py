@@ -62,6 +62,20 @@ def test_run_status_show_and_gc(recipe, tmp_path, capsys):
     assert cli(capsys, "gc", str(recipe), "--store", store)[1].startswith("removed 0 jobs")
 
 
+def test_gc_names_a_failed_job_and_removes_its_work_folder_with_it(recipe, tmp_path, capsys):
+    """Outside test: gc listed a failed job by its key alone, and its work folder (kept for its log) as a
+    leftover of a killed run."""
+    store = tmp_path / "s"
+    recipe.write_text(RECIPE.replace("b: {value: %d}", "b: {value: 3, fail: true}"))
+    assert cli(capsys, "run", str(recipe), "--store", str(store), "--keep-going")[0] == 1
+    assert len(list((store / "tmp").iterdir())) == 1                 # the failed job's, kept for its log
+    recipe.write_text(RECIPE % 4)
+    code, out, _ = cli(capsys, "gc", str(recipe), "--dry-run", "--store", str(store))
+    assert " source b (failed)\n" in out and "and 0 leftovers of killed runs" in out
+    cli(capsys, "gc", str(recipe), "--store", str(store))
+    assert list((store / "tmp").iterdir()) == [] and list((store / "failed").iterdir()) == []
+
+
 def test_gc_keeps_what_the_domain_keeps_for_another_host_unless_all_hosts(recipe, tmp_path, capsys):
     import dataclasses
     domain = dataclasses.replace(TOY, kept_elsewhere=lambda spec: "planned elsewhere" if spec.get("name") == "source b"
