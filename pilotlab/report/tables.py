@@ -25,7 +25,8 @@ UNSTABLE = "⚠"
 CPU_TIME = "CPU"   # after a timing that is the calls' thread CPU time (the wall clock was disturbed)
 PERCENTILES = {"latency_ms": ("latency_p10_ms", "latency_p90_ms"),
                "throughput_ips": ("throughput_p10_ips", "throughput_p90_ips")}
-COUNT_COLUMNS = {"params", "nonzero_params", "throughput_batch", "threads", "test_frames", "off_road_events"}
+COUNT_COLUMNS = {"params", "nonzero_params", "throughput_batch", "threads", "test_frames", "off_road_events",
+                 "latency_runs", "timing_blocks", "timing_calls_discarded"}
 
 
 @dataclass(frozen=True)
@@ -298,7 +299,9 @@ def timing_method(rows: list[ReportRow]) -> str:
     discarded = sum(int(r.get("timing_calls_discarded") or 0) for r in timed)
     others = [r.get("timing_other_cores") for r in timed if r.get("timing_other_cores") is not None]
     if others:
-        line += f" ({discarded:,} calls; other processes used {min(others):.2f}–{max(others):.2f} cores meanwhile)"
+        used = f"{min(others):.2f}" if f"{min(others):.2f}" == f"{max(others):.2f}" else \
+            f"{min(others):.2f}–{max(others):.2f}"
+        line += f" ({discarded:,} calls; other processes used {used} cores meanwhile)"
     return line + f"; {UNSTABLE} marks a timing that stayed disturbed: no conclusion is drawn from it."
 
 
