@@ -112,6 +112,8 @@ def test_a_missing_baseline_a_single_row_and_no_online_part(tmp_path):
     assert "| static_quant | 1.61 | 1.42 | 0.0700 | 1.20 | — | — | — | — |" in readme
     assert read_csv(paths.csv)[0]["size_gz_mb"] == "1.42"
     assert "No usable 'baseline' row for pilotnet here: ratios are not shown." in readme
+    assert "for the ratios: baseline (not among this report's strategies: no ratios)" in readme   # outside test
+    assert "baseline (not among this report&#39;s strategies: no ratios)" in paths.html.read_text()
     assert "No closed-loop runs in this recipe." in readme
     assert set(paths.plots) == {"pareto"}                      # no baseline: no ratio bars; no laps, no history
     assert read_csv(paths.csv)[0]["job_offline"] == "k1"
