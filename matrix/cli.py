@@ -151,8 +151,7 @@ def cmd_gc(args, domain: Domain) -> int:
             raise MatrixError(f"a run is running on the store {store.root}: gc would remove the jobs it has finished "
                               "and still reads; run gc when it has ended")
         garbage = engine.find_garbage(store, keep, None if args.all_hosts else domain.kept_elsewhere)
-        names = {key: _kind_and_name(store.spec(key) or (store.failure(key) or {}).get("spec") or {})
-                 + ("" if store.spec(key) else " (failed)") for key in garbage.keys}
+        names = {key: _garbage_name(store, key) for key in garbage.keys}
         removed = garbage.keys if args.dry_run else engine.collect_garbage(store, garbage)
     verb = "would remove" if args.dry_run else "removed"
     for key in removed:
@@ -165,6 +164,12 @@ def cmd_gc(args, domain: Domain) -> int:
         print(f"{'keeping' if args.dry_run else 'kept'} {count} stored jobs no recipe reaches here: {why} "
               "(gc there collects them, or gc --all-hosts here)")
     return 0
+
+
+def _garbage_name(store, key: str) -> str:
+    """A stored job's kind and name; a failed one's from its failure record."""
+    spec = store.spec(key)
+    return _kind_and_name(spec) if spec else f"{_kind_and_name((store.failure(key) or {}).get('spec') or {})} (failed)"
 
 
 def _kind_and_name(spec: dict) -> str:

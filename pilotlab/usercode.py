@@ -261,9 +261,16 @@ def _check_options(cls: ast.ClassDef, options: Mapping[str, Any]) -> None:
     if init is None or init.args.kwarg is not None:
         return
     takes = [a.arg for a in init.args.posonlyargs + init.args.args][1:] + [a.arg for a in init.args.kwonlyargs]
-    if unknown := [name for name in options if name not in takes]:
-        guesses = "".join(did_you_mean(name, takes) for name in unknown)
-        raise UserCodeError(f"options: {cls.name}({', '.join(takes)}) does not take {', '.join(unknown)}{guesses}")
+    if problem := options_not_taken(cls.name, takes, options):
+        raise UserCodeError(problem)
+
+
+def options_not_taken(name: str, takes: list[str], options: Mapping[str, Any]) -> str | None:
+    """What is wrong with giving `options` to the class `name` whose constructor takes `takes` (None: nothing)."""
+    if unknown := [option for option in options if option not in takes]:
+        guesses = "".join(did_you_mean(option, takes) for option in unknown)
+        return f"options: {name}({', '.join(takes)}) does not take {', '.join(unknown)}{guesses}"
+    return None
 
 
 # --- the source hash -------------------------------------------------------------------------------

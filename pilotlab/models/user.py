@@ -20,7 +20,6 @@ from typing import Any
 import torch
 from torch import nn
 
-from matrix.errors import did_you_mean
 from pilotlab import usercode
 from pilotlab.errors import PilotlabError, library_message
 from pilotlab.models.imported import NetworkConfig, OnnxConfig, TorchScriptConfig
@@ -55,9 +54,8 @@ def construct(cls: Any, options: dict[str, Any], where: str) -> nn.Module:
     takes = [n for n, p in parameters.items() if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)]
     signature = f"{cls.__name__}({', '.join(takes)})"
     if not any(p.kind == p.VAR_KEYWORD for p in parameters.values()):
-        if unknown := [name for name in options if name not in takes]:
-            guesses = "".join(did_you_mean(name, takes) for name in unknown)
-            raise PilotlabError(f"options: {signature} does not take {', '.join(unknown)}{guesses}")
+        if problem := usercode.options_not_taken(cls.__name__, takes, options):
+            raise PilotlabError(problem)
     try:
         inspect.signature(cls).bind(**options)
     except TypeError as error:

@@ -299,8 +299,8 @@ def timing_method(rows: list[ReportRow]) -> str:
     discarded = sum(int(r.get("timing_calls_discarded") or 0) for r in timed)
     others = [r.get("timing_other_cores") for r in timed if r.get("timing_other_cores") is not None]
     if others:
-        used = f"{min(others):.2f}" if f"{min(others):.2f}" == f"{max(others):.2f}" else \
-            f"{min(others):.2f}–{max(others):.2f}"
+        low, high = f"{min(others):.2f}", f"{max(others):.2f}"
+        used = low if low == high else f"{low}–{high}"
         line += f" ({discarded:,} calls; other processes used {used} cores meanwhile)"
     return line + f"; {UNSTABLE} marks a timing that stayed disturbed: no conclusion is drawn from it."
 
