@@ -242,3 +242,17 @@ def test_each_summary_finding_is_a_line_of_its_own(study_report):
     summary = paths.readme.read_text().split("## Summary", 1)[1].split("\n## ", 1)[0]
     findings = [line for line in summary.splitlines() if line.startswith("- **")]
     assert len(findings) >= 3 and all(line.count("- **") == 1 for line in findings)
+
+
+def test_the_simulation_legend_explains_the_real_time_factor_and_the_behaviormetrics_columns(tmp_path):
+    """Outside test: a lost lap's BM deviation (millions: 1000^d) and BM completed above 100 read as bugs
+    where the markdown page said nothing about them (the HTML had them in tooltips only)."""
+    with_bm = [online_row("baseline", lap_completed=True, bm_position_deviation_mae=1.32, bm_percentage_completed=102.0),
+               online_row("qat", lap_completed=False, bm_position_deviation_mae=21_170_202.0, bm_percentage_completed=17.2)]
+    paths = write_report(ReportData.from_dict(small_dict(with_bm)), tmp_path / "bm")
+    for text in (paths.readme.read_text(), paths.html.read_text()):
+        assert "Real-time factor: simulated seconds per wall-clock second" in text
+        assert "reads in the millions" in text and "above 100 after a whole lap" in text
+    plain = write_report(ReportData.from_dict(small_dict([online_row("baseline", lap_completed=True)])), tmp_path / "plain")
+    readme = plain.readme.read_text()
+    assert "Real-time factor: simulated seconds" in readme and "BM columns" not in readme
