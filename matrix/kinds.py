@@ -122,6 +122,10 @@ class JobKind:
     # task durations): the scheduler's and the time left's first guess, never part of a key.
     typical_s: float | None = None
     typical_for: Callable[[Mapping[str, Any]], float] | None = None   # per job, instead of `typical_s`
+    # Keys of a result's value (at any depth) that say how the run went, not what it made (wall-clock
+    # seconds): outside its outputs token, so a rerun (--force) that made the same outputs leaves the jobs
+    # that stand on it fresh
+    measured: tuple[str, ...] = ()
 
     def runs_alone(self, params: Mapping[str, Any]) -> bool:
         """Whether a job with `params` must have its host to itself (it measures time there)."""
@@ -222,11 +226,12 @@ KINDS: Registry[JobKind] = Registry("job kind")
 def register_kind(name: str, target: str | Handler, *, params: Any = None, code: CodeSources = (),
                   code_for=None, code_exclude=None, exclusive: bool = False,
                   resources: Mapping[str, float] | None = None, resources_for=None, exclusive_for=None,
-                  typical_s: float | None = None, typical_for=None) -> JobKind:
+                  typical_s: float | None = None, typical_for=None, measured: Iterable[str] = ()) -> JobKind:
     """Register job kind `name`, run by `target` ("module:function", or the function)."""
     _check_typical(name, typical_s)
     return KINDS.add(name, JobKind(name, target, params, tuple(code), code_for, code_exclude, exclusive,
-                                   dict(resources or {}), resources_for, exclusive_for, typical_s, typical_for))
+                                   dict(resources or {}), resources_for, exclusive_for, typical_s, typical_for,
+                                   tuple(measured)))
 
 
 def guess_kind(name: str, *, typical_s: float | None = None, typical_for=None) -> JobKind:
@@ -235,6 +240,12 @@ def guess_kind(name: str, *, typical_s: float | None = None, typical_for=None) -
     module no handler or params model imports, tuning it makes no job stale."""
     _check_typical(name, typical_s)
     return KINDS.replace(name, replace(KINDS.get(name), typical_s=typical_s, typical_for=typical_for))
+
+
+def measured_keys(name: str, *keys: str) -> JobKind:
+    """Tell registered kind `name` which keys of its results measure how the run went (as register_kind's
+    `measured`), from a module apart from its code, as `guess_kind`: they change nothing a job makes."""
+    return KINDS.replace(name, replace(KINDS.get(name), measured=tuple(keys)))
 
 
 def _check_typical(name: str, typical_s: float | None) -> None:

@@ -29,7 +29,7 @@ import re
 import shutil
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -65,9 +65,25 @@ def result_token(result: dict) -> str:
 
 def outputs_token(result: dict) -> str:
     """Names what a stored result gives the jobs that stand on it (its value and its files), not when or
-    how long it ran: a job rebuilt with the same outputs leaves them fresh."""
-    outputs = {"status": result.get("status"), "value": result.get("value"), "manifest": result.get("manifest")}
+    how long it ran: a job rebuilt with the same outputs leaves them fresh. Written into the result when
+    it is committed (`outputs`, without its kind's measured keys); worked out for a result from before."""
+    return result.get("outputs") or outputs_hash(result)
+
+
+def outputs_hash(result: dict, measured: Collection[str] = ()) -> str:
+    """sha256 of the result's status, value and file manifest, leaving out the value's `measured` keys at any
+    depth (how long the run took: a rerun differs there, whatever it made)."""
+    outputs = {"status": result.get("status"), "value": _without(result.get("value"), frozenset(measured)),
+               "manifest": result.get("manifest")}
     return hashlib.sha256(json.dumps(outputs, sort_keys=True).encode()).hexdigest()
+
+
+def _without(value: Any, keys: frozenset[str]) -> Any:
+    if not keys:
+        return value
+    if isinstance(value, dict):
+        return {k: _without(v, keys) for k, v in value.items() if k not in keys}
+    return [_without(v, keys) for v in value] if isinstance(value, list) else value
 
 
 def read_json(path: Path) -> Any | None:
@@ -206,11 +222,13 @@ class Store:
         (work / ARTIFACTS).mkdir()
         return work
 
-    def commit(self, key: str, workdir: Path, spec: dict, result: dict) -> None:
-        """Write spec and result into `workdir`, then move it into place in one rename.
+    def commit(self, key: str, workdir: Path, spec: dict, result: dict, measured: Collection[str] = ()) -> None:
+        """Write spec and result into `workdir`, then move it into place in one rename; `measured`: the
+        value's keys that say how the run went, not what it made (outside its outputs token).
 
         Call with the job's lock held: an existing (corrupt or stale) entry is replaced."""
         result = dict(result, manifest=_manifest(workdir / ARTIFACTS))
+        result["outputs"] = outputs_hash(result, measured)
         write_json_atomic(workdir / VERIFIED, _signatures(workdir / ARTIFACTS))
         write_json_atomic(workdir / SPEC, spec)
         write_json_atomic(workdir / RESULT, result)

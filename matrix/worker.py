@@ -121,7 +121,7 @@ def _run_locked(store: Store, spec: dict) -> dict:
               "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "deps_used": used}
     if blocker:   # the reason stays the dependency's own, so cells blocked for one cause group together
         result["blocked_by"] = blocker.name
-    store.commit(key, workdir, spec, result)
+    store.commit(key, workdir, spec, result, measured=KINDS.get(spec["kind"]).measured)
     shown = f"{reason} ({blocker.name})" if blocker else reason
     return {"status": status, "reason": shown, "duration_s": result["duration_s"]}
 

@@ -1,10 +1,12 @@
 """What a job of each kind typically takes, for the scheduler and the time left of a store that has not
-run it yet (matrix.times: once a store has run a kind, its own figures scale these).
+run it yet (matrix.times: once a store has run a kind, its own figures scale these); and, at the end,
+which keys of its results measure how the run went (wall-clock time), not what it made.
 
 A guess is never part of a job's key, and here it is not part of any kind's code either: no handler
 and no params model imports this module (a test checks it), so tuning a guess re-keys no job. Written
 in the kinds' own modules, a guess was their code: editing the lap cell's guess made every lap stale.
-Only guesses belong here; anything a job's result depends on belongs to the kind's modules.
+Only guesses (and the measured keys, which no result depends on either) belong here; anything a job's
+result depends on belongs to the kind's modules.
 
 Each figure was measured on a 2-core development machine (which one and when is said beside it).
 """
@@ -13,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from matrix.kinds import guess_kind
+from matrix.kinds import guess_kind, measured_keys
 from pilotlab.circuits.registry import lap_scale
 from pilotlab.specs.online import LapSettings, ToleranceSpec
 from pilotlab.specs.record import RecordSpec
@@ -112,3 +114,12 @@ guess_kind("optimize", typical_for=guess_here(optimize_seconds))
 guess_kind("timing", typical_for=guess_here(lambda params: TIMING_S))
 guess_kind("offline", typical_for=guess_here(lambda params: OFFLINE_S))
 guess_kind("online", typical_for=guess_here(online_seconds))
+
+# Measured, not made: left out of a result's outputs token (matrix.store), so a job run again (--force) that
+# made the same recording, frames, network or artifact leaves what stands on it fresh. (A training's
+# history.json, an artifact, still holds each epoch's seconds: a forced training reruns what stands on it.)
+measured_keys("record", "wall_seconds")
+measured_keys("frames", "decode_fps")
+measured_keys("train", "seconds")
+measured_keys("prepare", "seconds")      # each fine-tune epoch's, in its "finetune" history
+measured_keys("optimize", "seconds")

@@ -14,7 +14,7 @@ from matrix.jobs import Job
 from matrix.kinds import KINDS
 from matrix.recipe import load_recipe
 from matrix.stale import job_status
-from matrix.store import Store
+from matrix.store import Store, outputs_hash
 from tests.matrix.toydomain import TOY
 
 RECIPE = """\
@@ -163,7 +163,8 @@ def test_a_forced_job_reruns_what_was_made_from_it_in_the_same_run_if_its_output
     "fresh", showing the old timings beside the new ones. Keys are unchanged, so what stands on a job
     that runs again is planned to run after it, and runs unless that job's outputs came out the same."""
     store = Store(tmp_path / "store")
-    path = recipe_file(tmp_path, c_extra=", jitter: true")   # source c measures something new at each run
+    # source c measures something new at each run; source b says how long it took (measured, not made)
+    path = recipe_file(tmp_path, b="3, took: true", c_extra=", jitter: true")
     run(path, store)
     plan, summary = run(path, store, force=["source"])
     stale = {s.job.name: s.reason for s in plan.statuses}
@@ -171,7 +172,8 @@ def test_a_forced_job_reruns_what_was_made_from_it_in_the_same_run_if_its_output
     outcomes = {o.name: o.status for o in summary.outcomes}
     assert [n for n, status in outcomes.items() if status == "ok"] == ["source a", "source b", "source c",
                                                                           "power c^2", "power c^3"]
-    assert {outcomes[n] for n in ("power a^2", "power b^3", "total")} == {"done_elsewhere"}   # same outputs: kept
+    # same outputs (source b's run time differs: measured, not made): kept
+    assert {outcomes[n] for n in ("power a^2", "power b^3", "total")} == {"done_elsewhere"}
     reasons = {o.name: o.reason for o in summary.outcomes}
     assert reasons["total"] == "kept: its dependencies ran again with the outputs it was made from"
     executions = (store.root / "cache" / "executions.log").read_text().splitlines()
@@ -197,6 +199,7 @@ def test_a_result_made_from_a_dependency_that_ran_again_since_is_stale(tmp_path)
     result_file = store.job_dir(source_a.key) / "result.json"
     rebuilt = json.loads(result_file.read_text())
     rebuilt["value"]["value"] += 1                                 # as a rebuild with other outputs writes it
+    rebuilt["outputs"] = outputs_hash(rebuilt, ("seconds",))
     result_file.write_text(json.dumps(rebuilt))
     plan = engine.make_plan(load_recipe(path, TOY), TOY, store)
     stale = {s.job.name: s.reason for s in plan.statuses if s.state != "fresh"}

@@ -36,6 +36,7 @@ class SourceConfig(pydantic.BaseModel):
     library_log: bool = False     # log through a handler on sys.stderr made once per process, as torch does
     worker: str | None = None     # the Dask worker resource its measure jobs need (as a hardware profile's)
     jitter: bool = False          # its result also holds a measurement that differs at every run (as a timing)
+    took: bool = False            # ... or how long it took ("seconds", declared measured: not an output)
 
 
 def count_execution(ctx) -> None:
@@ -63,7 +64,7 @@ def timed(ctx):
         log.write(f"{ctx.kind} {ctx.key} {started:.6f} {time.time():.6f} {host_name()}\n")
 
 
-@job_kind("source")
+@job_kind("source", measured=("seconds",))   # how long it took: a rerun differs there, with the same outputs
 def run_source(ctx) -> dict[str, Any]:
     count_execution(ctx)
     if ctx.params["noise"]:
@@ -81,7 +82,8 @@ def run_source(ctx) -> dict[str, Any]:
     (ctx.out / "value.json").write_text(json.dumps(ctx.params["value"]))
     ctx.progress(1, 1, "written")
     measured = {"measured": time.perf_counter_ns()} if ctx.params["jitter"] else {}
-    return {"value": ctx.params["value"], "omp_threads": os.environ.get("OMP_NUM_THREADS"), **measured}
+    took = {"seconds": time.perf_counter_ns()} if ctx.params["took"] else {}   # differs at every run
+    return {"value": ctx.params["value"], "omp_threads": os.environ.get("OMP_NUM_THREADS"), **measured, **took}
 
 
 @job_kind("power")
