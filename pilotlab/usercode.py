@@ -6,6 +6,9 @@
 A file is read relative to `base` (the recipe's folder, or the current one on the command line), and
 its folder goes on `sys.path` as when Python runs a script, so the modules beside it import. A
 module is imported by name (with `base` on `sys.path`). `Name` may be dotted (`Outer.Inner`).
+One process loads many users' code (a pool worker runs job after job): loading from one folder takes
+the other user folders off `sys.path` and the modules imported from them out of `sys.modules`, so two
+networks that each import their own `helpers.py` (or a package of the same name) never share one.
 
 Whatever goes wrong is a `UserCodeError` of one line that names the file and line: a missing file,
 a syntax error, an exception while the file is imported (the line in the user's file it came from),
@@ -92,6 +95,47 @@ def load_object(spec: str, base: Path) -> object:
     return found
 
 
+_ROOTS: dict[str, set[str]] = {}   # a user folder put on sys.path -> the modules imported from it
+_ADDED: set[str] = set()            # ... of which these were not on sys.path before
+
+
+@contextmanager
+def _from_root(root: Path) -> Iterator[None]:
+    """Imports inside resolve in user folder `root` alone (see the module docstring); the modules they
+    load from it are noted, to be dropped when another user folder's code is loaded."""
+    folder = str(root)
+    for other in [other for other in _ROOTS if other != folder]:
+        for name in _ROOTS.pop(other):
+            sys.modules.pop(name, None)
+        if other in _ADDED:
+            _ADDED.discard(other)
+            while other in sys.path:
+                sys.path.remove(other)
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
+        _ADDED.add(folder)
+    before = set(sys.modules)
+    try:
+        yield
+    finally:
+        _ROOTS.setdefault(folder, set()).update(
+            name for name in set(sys.modules) - before
+            if name.partition(".")[0] not in before and _users(sys.modules.get(name), root))
+
+
+def _users(module: object, root: Path) -> bool:
+    """Whether `module` is a user's file in `root` (not an installed package: a project's own .venv may lie
+    inside it, and an installed package is never taken out of sys.modules)."""
+    file = getattr(module, "__file__", None)
+    if not file:
+        return False
+    path = Path(file).resolve()
+    return path.is_relative_to(root) and not any(path.is_relative_to(p) for p in _INSTALLED)
+
+
+_INSTALLED = {Path(sysconfig.get_paths()[k]).resolve() for k in ("stdlib", "platstdlib", "purelib", "platlib")}
+
+
 def _import_file(code: UserCode) -> object:
     if (package := _in_package(code.file)) is not None:   # its relative imports need its package
         root, dotted = package
@@ -100,9 +144,11 @@ def _import_file(code: UserCode) -> object:
             raise UserCodeError(f"{code.spec}: another module {dotted!r} is loaded already (from "
                                 f"{getattr(module, '__file__', None)}); rename one of the two packages")
         return module
-    folder = str(code.file.parent)
-    if folder not in sys.path:
-        sys.path.insert(0, folder)
+    with _from_root(code.file.parent):
+        return _exec_file(code)
+
+
+def _exec_file(code: UserCode) -> object:
     digest = hashlib.sha256(str(code.file).encode()).hexdigest()[:12]
     name = f"pilotlab_user_{code.file.stem}_{digest}"     # unique per path: two mine.py never clash
     spec = importlib.util.spec_from_file_location(name, code.file)
@@ -148,10 +194,8 @@ def _package_folders(file: Path) -> list[Path]:
 
 
 def _import_module(code: UserCode, base: Path) -> object:
-    if str(base) not in sys.path:
-        sys.path.insert(0, str(base))
     try:
-        with _own_argv(Path(code.module)):
+        with _from_root(Path(base).resolve()), _own_argv(Path(code.module)):
             return importlib.import_module(code.module)
     except ModuleNotFoundError as error:
         if error.name is not None and (code.module == error.name or code.module.startswith(error.name + ".")):

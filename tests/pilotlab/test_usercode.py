@@ -174,3 +174,37 @@ def test_an_unreadable_module_the_file_imports_is_a_one_line_error(brains, monke
     monkeypatch.setattr(Path, "read_bytes", refuse)
     with pytest.raises(UserCodeError, match="helpers.py: cannot read it"):
         source_hash("brains/mine.py:MyBrain", brains)
+
+
+NET = """
+import helpers
+
+
+class Net:
+    hidden = helpers.HIDDEN
+"""
+
+
+def test_two_folders_each_with_their_own_helpers_module_never_share_one(tmp_path, monkeypatch):
+    """Outside test: a pool worker runs job after job; model b's `import helpers` got model a's helpers.py
+    (already in sys.modules), so b trained with a's layer sizes and was stored under a key that names b's
+    files. Loading from a folder now drops the modules imported from other user folders."""
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    for folder, hidden in (("netsA", 8), ("netsB", 24)):
+        write(tmp_path, f"{folder}/model.py", NET)
+        write(tmp_path, f"{folder}/helpers.py", f"HIDDEN = {hidden}\n")
+    hidden = [load_object(f"{folder}/model.py:Net", tmp_path).hidden for folder in ("netsA", "netsB", "netsA", "netsB")]
+    assert hidden == [8, 24, 8, 24]
+    assert sys.modules["helpers"].__file__ == str(tmp_path / "netsB" / "helpers.py")
+
+
+def test_two_projects_each_with_a_package_of_the_same_name_load_their_own(tmp_path, monkeypatch):
+    """Outside test: two projects, each with its package `nets/`: the second job in a worker failed with
+    "another module 'nets.model' is loaded already", or not, by which worker took which job."""
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    for project, gain in (("projA", 1.0), ("projB", 2.0)):
+        write(tmp_path, f"{project}/nets/__init__.py", "")
+        write(tmp_path, f"{project}/nets/common.py", f"GAIN = {gain}\n")
+        write(tmp_path, f"{project}/nets/model.py", "from .common import GAIN\n\n\nclass Net:\n    gain = GAIN\n")
+    gains = [load_object(f"{project}/nets/model.py:Net", tmp_path).gain for project in ("projA", "projB", "projA")]
+    assert gains == [1.0, 2.0, 1.0]
