@@ -188,14 +188,19 @@ def _not_applicable_dep(deps: dict) -> DepResult | None:
     return None
 
 
+MESSAGE_LIMIT, BUG_LIMIT = 2000, 300   # characters of a failure's line: the domain's own message, anything else
+
+
 def failure_message(error: Exception) -> str:
     """One line a user can act on: an error the domain raised on purpose (MatrixError) is its own
-    message; anything else is a bug, shown with its type (the traceback is in the failure record)."""
+    message, whole (its fix often comes last, after a listing: cut at 300 characters, the advice was
+    lost); anything else is a bug, shown with its type (the traceback is in the failure record)."""
     text = str(error).strip()
+    limit = MESSAGE_LIMIT if isinstance(error, MatrixError) and text else BUG_LIMIT
     if not isinstance(error, MatrixError) or not text:
         text = f"{type(error).__name__}: {text}" if text else type(error).__name__
-    lines = text.splitlines()
-    return lines[0][:300]
+    line = text.splitlines()[0]
+    return line if len(line) <= limit else line[:limit - 1].rstrip() + "…"
 
 
 def _fail(store: Store, spec: dict, workdir: Path, error: Exception, started: float) -> dict:

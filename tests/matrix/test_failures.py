@@ -17,7 +17,18 @@ def test_anything_else_is_a_bug_named_by_its_type_on_one_line():
     assert failure_message(OverflowError("cannot convert float infinity to integer\nmore")) == \
         "OverflowError: cannot convert float infinity to integer"
     assert failure_message(KeyError()) == "KeyError"
-    assert len(failure_message(ValueError("x" * 1000))) == 300
+    cut = failure_message(ValueError("x" * 1000))
+    assert len(cut) == 300 and cut.endswith("…")
+
+
+def test_a_long_message_raised_on_purpose_keeps_its_fix_at_the_end():
+    """Outside test: cut at 300 characters, a bag's topic listing left out "set the topic ..." and a fixed
+    batch ONNX file's message its dynamic_axes advice, in the run's line, `show` and the report."""
+    topics = ", ".join(f"/robot/sensor_{i} (sensor_msgs/msg/Image, 120 messages)" for i in range(12))
+    message = f"run.bag: the bag has no topic '/cmd_vel'; topics present: {topics}; set the command topic to one of them"
+    assert failure_message(DomainError(message)) == message
+    cut = failure_message(DomainError("y" * 5000))
+    assert len(cut) == 2000 and cut.endswith("…")
 
 
 def test_a_nan_anywhere_in_a_result_is_found():
