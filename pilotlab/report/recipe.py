@@ -185,7 +185,20 @@ def _row(job, store: Store) -> dict[str, Any]:
     row |= row_from_result(result, store.artifacts(job.key))
     if job.kind == "online" and row["status"] == "ok" and (why := _replayed_unstable(job, store)):
         row["unstable"] = {"latency_ms": why}
+    if job.kind == "offline" and row["status"] == "ok":
+        row = _artifact_figures(job, store) | row
     return row
+
+
+ARTIFACT_FIGURES = ("params", "nonzero_params", "sparsity")
+
+
+def _artifact_figures(job, store: Store) -> dict[str, Any]:
+    """The parameter counts and sparsity of the network an offline row evaluates: its optimize job's figures
+    (the offline job measures MSE and takes its timings; the columns stayed empty in every report)."""
+    artifact = job.deps.get("artifact")
+    value = ((store.result(artifact.key) if artifact is not None else None) or {}).get("value") or {}
+    return {name: value[name] for name in ARTIFACT_FIGURES if value.get(name) is not None}
 
 
 def _timed_here(row: dict[str, Any], recipe: Recipe, host: Host) -> dict[str, Any]:

@@ -100,3 +100,19 @@ def test_the_reports_host_has_this_machines_os_only_when_the_timings_are_this_ma
         data = build_report_data(recipe, jobs, store)
         assert (data.host.cpu, data.host.os) == (host["cpu"], os_name)
     assert platform.platform(terse=True)
+
+
+def test_an_offline_row_shows_the_parameter_counts_of_the_network_it_evaluates(tmp_path):
+    """Outside test: params, nonzero_params and sparsity were empty in every report (and results.csv):
+    the optimize job has them, the offline row read only the offline job's result."""
+    recipe, store = load_recipe(QUICKSTART, DOMAIN), Store(tmp_path / "store")
+    jobs = [status.job for status in make_plan(recipe, DOMAIN, store).statuses]
+    offline = next(job for job in jobs if job.kind == "offline" and job.labels["strategy"] == "structured_prune_int8")
+    optimize = offline.deps["artifact"]
+
+    def commit(job, value: dict) -> None:
+        store.commit(job.key, store.new_workdir(job.key), job.spec(), {"status": "ok", "value": value})
+    commit(optimize, {"params": 832016, "nonzero_params": 832016, "params_before": 1595528, "size_mb": 0.82})
+    commit(offline, {"mse": 0.0035, "size_mb": 0.82, "latency_ms": 0.19})
+    row = next(r for r in build_report_data(recipe, jobs, store).rows if r.job_keys.get("offline") == offline.key)
+    assert (row.get("params"), row.get("nonzero_params"), row.get("sparsity"), row.get("mse")) == (832016, 832016, None, 0.0035)
