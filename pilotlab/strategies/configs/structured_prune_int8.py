@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 from pilotlab.strategies.configs.checks import check_distill, check_fraction, check_multiple, check_subsample
 from pilotlab.strategies.registry import register_strategy
@@ -17,7 +18,7 @@ class StructuredPruneInt8Config:
     lr: float = 1e-3
     batch_size: int = 64
     calibration_frames: int = 512    # training frames fed to ONNX Runtime's calibrator
-    calibrate_method: str = "minmax"  # minmax | entropy | percentile
+    calibrate_method: Literal["minmax", "entropy", "percentile"] = "minmax"   # checked at plan (a typo failed after the fine-tune)
     float_first_conv: bool = True    # the 3-channel input conv stays fp32 (faster here)
     distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs (0-1)
 

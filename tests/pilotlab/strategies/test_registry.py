@@ -45,6 +45,14 @@ def test_wrong_type_is_an_error_naming_the_option():
         make_strategy_config("global_prune", {"amount": "lots"})
 
 
+@pytest.mark.parametrize("name", ["onnxruntime_int8", "structured_prune_int8"])
+def test_a_calibration_method_is_checked_where_the_recipe_names_it(name):
+    """Outside test: structured_prune_int8's `calibrate_method: foo` passed the plan and failed after its
+    fine-tune, naming no recipe key (onnxruntime_int8's was refused at once)."""
+    with pytest.raises(PilotlabError, match=f"strategies.{name}: calibrate_method.*'minmax', 'entropy' or 'percentile'"):
+        make_strategy_config(name, {"calibrate_method": "foo"})
+
+
 def test_unknown_strategy_suggests_the_closest():
     with pytest.raises(UnknownNameError, match="did you mean 'local_prune'"):
         make_strategy_config("local_prun", {})
