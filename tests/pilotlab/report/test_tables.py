@@ -168,3 +168,28 @@ def test_the_summary_names_the_fastest_method_that_keeps_its_accuracy_and_its_la
     assert found["Fastest on cpu1"].startswith("worse — 0.100 ms")
     assert found["Fastest within 1.2× the baseline's MSE on cpu1"] == (
         "kept — 0.500 ms per image, 4.00× faster than baseline, MSE 1.10× baseline's, 1 of 1 laps completed")
+
+
+def test_the_deployment_line_is_always_said_and_judges_laps_against_the_baseline_s():
+    """Outside test: the "Fastest within 1.2×" line vanished without a word when the baseline itself lost a
+    circuit (every method lost it: none qualified), or when a method that could never qualify had a
+    disturbed timing."""
+    from pilotlab.report.summary import summarise
+    from tests.pilotlab.report.toy import online_row
+    label = "Fastest within 1.2× the baseline's MSE on cpu1"
+
+    def lap(strategy, circuit, completed):
+        return online_row(strategy, lap_completed=completed) | {"circuit": circuit}
+    offline = [offline_row("baseline", mse=0.010, latency_ms=2.0), offline_row("int8", mse=0.010, latency_ms=0.5),
+               offline_row("pruned", mse=0.019, latency_ms=0.2)]
+    laps = [lap(s, "simple_circuit", s != "pruned") for s in ("baseline", "int8", "pruned")] + \
+           [lap(s, "nurburgring", False) for s in ("baseline", "int8", "pruned")]
+    found = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(offline + laps)))}
+    assert found[label] == ("int8 — 0.500 ms per image, 4.00× faster than baseline, MSE 1.00× baseline's, "
+                            "1 of 2 laps completed (the baseline lost the other 1 too)")
+    disturbed = offline[:2] + [offline_row("pruned", mse=0.019, latency_ms=0.2, unstable={"latency_ms": DISTURBED})]
+    found = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(disturbed + laps)))}
+    assert found[label].startswith("int8 — 0.500 ms per image")          # the disturbed one could not qualify
+    candidate = offline[:1] + [offline_row("int8", mse=0.010, latency_ms=0.5, unstable={"latency_ms": DISTURBED})]
+    found = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(candidate + laps[:2])))}
+    assert found[label].startswith(f"not drawn: int8 (cpu1): unstable: {DISTURBED}; rerun")
