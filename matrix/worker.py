@@ -46,6 +46,9 @@ def init_worker(kind_modules: Iterable[str], progress_queue: Any = None, threads
     global _progress_sink, _capture_fds
     _capture_fds = True
     _die_with_parent()
+    # Idle, a worker ignores Ctrl-C (the pool's shutdown ends it; it printed a traceback from its queue wait,
+    # one per idle worker); a job it runs is interrupted as before (execute_job)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     for variable in THREAD_VARIABLES if threads else ():
         os.environ.setdefault(variable, str(threads))
     for module in kind_modules:
@@ -72,6 +75,24 @@ def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = (), r
     `replaces` (a forced rerun) names the stored result to run again: that one does not count as done.
 
     Returns {"status": ok | not_applicable | failed | busy | done_elsewhere, "reason", "duration_s"}."""
+    with _interruptible():
+        return _execute(store_root, spec, kind_modules, replaces)
+
+
+@contextlib.contextmanager
+def _interruptible():
+    """In a pool worker (which ignores Ctrl-C while idle), Ctrl-C interrupts the job it runs."""
+    if not _capture_fds:   # not our pool's worker (the driver, a Dask worker's thread): as it is
+        yield
+        return
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _execute(store_root: str, spec: dict, kind_modules: Iterable[str], replaces: str | None) -> dict:
     for module in kind_modules:
         importlib.import_module(module)
     store, key = Store(store_root), spec["key"]

@@ -137,3 +137,21 @@ def test_an_interrupt_the_driver_alone_gets_stops_the_running_jobs(tmp_path):
     assert not any(alive(pid) for pid in workers)
     stored = list(Store(store).keys())             # the sources (no sleep) done; no 30 s job stored half done
     assert len(stored) < 13 and all(Store(store).result(key)["status"] == "ok" for key in stored)
+
+
+def test_ctrl_c_with_an_idle_worker_prints_no_traceback(tmp_path):
+    """Outside test: Ctrl-C (the whole process group, as a terminal sends it) while one worker was idle
+    printed a 20-line traceback from that worker's queue wait before "interrupted". An idle worker ignores
+    it now; the busy one's job is interrupted as before."""
+    recipe, store = tmp_path / "r.yaml", tmp_path / "store"
+    recipe.write_text("name: idle\nsleep: 0\nsources:\n  a: {value: 1, sleep: 30}\n  b: {value: 2}\n"
+                      "matrix:\n  source: [a, b]\n  power: [1]\n")
+    process = toy("run", str(recipe), "--store", str(store), "-j", "2")
+    deadline = time.time() + 60
+    while time.time() < deadline and len(list(Store(store).keys())) < 2:   # source b and power b^1 done
+        time.sleep(0.1)
+    time.sleep(0.5)
+    os.killpg(process.pid, signal.SIGINT)
+    _, err = process.communicate(timeout=30)
+    assert process.returncode != 0 and "KeyboardInterrupt" in err          # the driver's (the toy CLI has no handler)
+    assert "Process SpawnProcess" not in err and "call_queue.get" not in err, err   # no worker's
