@@ -12,6 +12,8 @@ def register(subparsers) -> None:
     inspect = commands.add_parser("inspect", help="topics, types, counts, duration, image size, v/w ranges")
     inspect.add_argument("bag", help="a ROS1 .bag, a ROS2 bag folder, or a DeepLearningStudio dataset folder")
     inspect.add_argument("--command-topic", default=None, help="topic of the commands (default /F1ROS/cmd_vel)")
+    inspect.add_argument("--image-topic", default=None, help="the image topic to check, as a recipe's dataset "
+                                                             "reads it (default: every image topic)")
     inspect.add_argument("--json", action="store_true", help="print JSON instead of a table")
     inspect.set_defaults(func=run_inspect)
 
@@ -32,12 +34,15 @@ def run_inspect(args: argparse.Namespace) -> int:
     from pilotlab.data.topics import COMMAND_TOPIC
 
     with _ImageProgress() as progress:
-        info = inspect_recording(args.bag, args.command_topic or COMMAND_TOPIC, progress=progress.update)
+        info = inspect_recording(args.bag, args.command_topic or COMMAND_TOPIC, progress=progress.update,
+                                 image_topic=args.image_topic)
     if args.json:
         print(json.dumps(info, indent=1))
     else:
         print_inspection(info)
-    return 1 if any(image.get("unreadable") for image in info["images"].values()) else 0   # frames would fail
+    images = info["images"].values()
+    # frames would fail: an unreadable image of a folder, or no image topic it can decode
+    return 1 if any(image.get("unreadable") for image in images) or all(image.get("problem") for image in images) else 0
 
 
 def print_inspection(info: dict) -> None:
@@ -54,6 +59,8 @@ def print_inspection(info: dict) -> None:
         console.print(table)
     for name, image in info["images"].items():
         console.print(_images_line(name, image), highlight=False)
+        if image.get("problem"):
+            console.print(f"[bold red]cannot be read:[/] {image['problem']}", highlight=False)
         if image.get("unreadable"):
             console.print(f"[bold red]{image['unreadable']} image(s) named in {name} cannot be read[/] (first: "
                           f"{', '.join(image['unreadable_first'])}): the frames job stops at the first; replace "

@@ -11,7 +11,7 @@ import numpy as np
 
 from pilotlab.data.bags import COMMAND_TYPES, bag_format, find_topic, messages, open_bag, read_commands
 from pilotlab.data.folder_rows import is_dataset_folder, read_rows
-from pilotlab.data.images import IMAGE_TYPES, encoding_of, image_size
+from pilotlab.data.images import COMPRESSED, IMAGE_TYPES, encoding_of, image_size, raw_pixels
 from pilotlab.data.topics import COMMAND_TOPIC
 from pilotlab.errors import BagError
 
@@ -21,19 +21,23 @@ def _range(values: np.ndarray) -> list[float] | None:
 
 
 def inspect_recording(path: Path | str, command_topic: str = COMMAND_TOPIC,
-                      progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+                      progress: Callable[[int, int], None] | None = None, image_topic: str | None = None) -> dict[str, Any]:
     path = Path(path)
-    return inspect_folder(path, progress) if is_dataset_folder(path) else inspect_bag(path, command_topic)
+    return inspect_folder(path, progress) if is_dataset_folder(path) else inspect_bag(path, command_topic, image_topic)
 
 
-def inspect_bag(path: Path, command_topic: str = COMMAND_TOPIC) -> dict[str, Any]:
+def inspect_bag(path: Path, command_topic: str = COMMAND_TOPIC, image_topic: str | None = None) -> dict[str, Any]:
+    """`image_topic`: the one image topic to check, as the frames job reads it (its errors if it is missing
+    or of another type); else every image topic, each with the `problem` that stops the frames job reading
+    it (an encoding it does not decode), if any."""
     with open_bag(path) as reader:
         seconds = reader.duration / 1e9
         topics = [{"name": name, "type": info.msgtype, "count": info.msgcount,
                    # N messages over the bag's span make N - 1 intervals (3 frames at 20 Hz read 30 Hz)
                    "rate_hz": round((info.msgcount - 1) / seconds, 2) if seconds > 0 and info.msgcount > 1 else None}
                   for name, info in sorted(reader.topics.items())]
-        images = {t["name"]: _first_image(reader, path, t["name"]) for t in topics if t["type"] in IMAGE_TYPES}
+        names = [image_topic] if image_topic else [t["name"] for t in topics if t["type"] in IMAGE_TYPES]
+        images = {name: _first_image(reader, path, name) for name in names}
         commands = None
         if reader.topics.get(command_topic) and reader.topics[command_topic].msgtype in COMMAND_TYPES:
             _, labels, damage = read_commands(reader, path, command_topic)
@@ -55,7 +59,13 @@ def _first_image(reader, path: Path, topic: str) -> dict[str, Any]:
                        f"record the bag again, or repair it with `ros2 bag reindex`")
     msg = first[1]
     where = f"{path}, topic {name}"
-    return {"type": msgtype, "encoding": encoding_of(msg, msgtype), "size": list(image_size(msg, msgtype, where))}
+    found = {"type": msgtype, "encoding": encoding_of(msg, msgtype), "size": list(image_size(msg, msgtype, where))}
+    if msgtype != COMPRESSED:   # a compressed one was decoded for its size
+        try:
+            raw_pixels(msg, where)
+        except BagError as error:
+            found["problem"] = str(error)
+    return found
 
 
 SHOWN_UNREADABLE = 5

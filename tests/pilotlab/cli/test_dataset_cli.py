@@ -41,6 +41,25 @@ def test_inspect_a_bad_bag_prints_one_line_and_fails(tmp_path, capsys):
     assert err.startswith(f"pilotlab: error: {tmp_path}/bad.bag: cannot read the bag") and err.count("\n") == 1
 
 
+def test_inspect_says_which_image_topic_the_frames_job_could_not_decode(tmp_path, capsys):
+    """Outside test: inspect showed "640×480 rgba8" and exited 0 for a bag whose frames job then failed
+    ("image encoding 'rgba8' is not supported"); and the frames job's message named --image-topic, an
+    option no command that reads bags had."""
+    with RawBag(tmp_path / "c.bag", "ros1") as bag:
+        bag.twist(10**9, 2.0, 0.5)
+        bag.image(10**9 + 1, images(1)[0], encoding="rgba8", topic="/depth")
+        bag.image(10**9 + 2, images(1)[0], topic="/camera/image_raw")
+    assert main(["dataset", "inspect", str(tmp_path / "c.bag")]) == 0      # one image topic frames can read
+    out = capsys.readouterr().out
+    assert "cannot be read:" in out and "'rgba8' is not" in out
+    assert main(["dataset", "inspect", str(tmp_path / "c.bag"), "--image-topic", "/depth"]) == 1
+    capsys.readouterr()
+    assert main(["dataset", "inspect", str(tmp_path / "c.bag"), "--image-topic", "/camera/image_raw", "--json"]) == 0
+    assert list(json.loads(capsys.readouterr().out)["images"]) == ["/camera/image_raw"]
+    assert main(["dataset", "inspect", str(tmp_path / "c.bag"), "--image-topic", "/nope"]) == 2
+    assert "the bag has no topic '/nope'" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("kind, damage", [("sqlite3", "no messages"), ("mcap", "type changed")])
 def test_inspect_an_image_topic_announced_but_not_readable_is_one_line(tmp_path, capsys, kind, damage):
     path = tmp_path / "run"
