@@ -293,7 +293,7 @@ def draw_world_shift(data: ReportData):
         worlds = sorted({c.world for c in chosen}, key=lambda w: (not any(c.training and c.world == w for c in chosen), w))
         strategies = [s for s in data.strategies() if any(c.strategy == s for c in chosen)]
         for ax, metric, label in ((left, "mse", "offline MSE × training world"),
-                                  (right, "bm_position_deviation_mae", "BM deviation × training world")):
+                                  (right, DEVIATION, "BM deviation × training world")):
             _shift_bars(ax, chosen, cells, worlds, strategies, colours, metric)
             ax.set(ylabel=label, title=f"{model}: {label.split(' ×')[0]}")
             heights = [patch.get_height() for patch in ax.patches]
@@ -303,9 +303,14 @@ def draw_world_shift(data: ReportData):
     shown = [s for s in data.strategies() if any(c.strategy == s for c in cells)]   # the reference rows are not
     handles = [Patch(color=colours[s], label=s) for s in shown]
     handles.append(Patch(facecolor="white", edgecolor="0.3", hatch="///", label="lap not completed"))
+    handles.append(Line2D([], [], marker="x", ls="", ms=9, mew=2, color="0.3",
+                          label="a lap lost: no deviation ratio"))
     figure.legend(handles=handles, loc="outside right upper", frameon=False)
     figure.suptitle("World shift: each world against the training world (above 1× is worse)", x=0.01, ha="left")
     return figure
+
+
+DEVIATION = "bm_position_deviation_mae"
 
 
 def _shift_bars(ax, chosen: list[WorldCell], cells: list[WorldCell], worlds, strategies, colours, metric) -> None:
@@ -318,7 +323,12 @@ def _shift_bars(ax, chosen: list[WorldCell], cells: list[WorldCell], worlds, str
             if value is None:
                 continue
             lost = cell.metric("lap_completed") is False
-            ax.bar(j + (i - (len(strategies) - 1) / 2) * width, value, width, color=colours[strategy],
+            x = j + (i - (len(strategies) - 1) / 2) * width
+            if metric == DEVIATION and not cell.training and (lost or base.metric("lap_completed") is False):
+                # as the table: a lost lap's deviation grows without bound, a ratio to it says nothing
+                ax.plot(x, 1.0, marker="x", ls="", ms=9, mew=2, color=colours[strategy])
+                continue
+            ax.bar(x, value, width, color=colours[strategy],
                    hatch="///" if lost else None, edgecolor="0.3" if lost else colours[strategy])
     ax.set_xticks(range(len(worlds)), [w.replace("simple_circuit_", "").replace("_", " ") for w in worlds],
                   rotation=20, ha="right")

@@ -63,3 +63,15 @@ def test_no_section_without_a_shifted_world():
                                  "rows": rows("baseline", "simple_circuit", 0.02, 2.0, True),
                                  "training_worlds": {"pilotnet": ["simple_circuit"]}})
     assert world_tables(only) == [] and shift_summary(only) == []
+
+
+def test_the_plot_draws_no_deviation_ratio_to_a_lost_lap():
+    """Outside test: the table refused a lost lap's deviation ratio ("says nothing"), the plot drew it as a
+    bar (0.44×, reading better than the training world): now a cross marks it, as the table's "lap lost"."""
+    from pilotlab.report.plots import draw_world_shift
+    figure = draw_world_shift(data(int8_completes=False))
+    mse_axis, deviation_axis = figure.axes[:2]
+    assert len(mse_axis.patches) == 4                              # every MSE ratio, the lost lap's hatched
+    assert len(deviation_axis.patches) == 3                        # not the lost lap's deviation ratio
+    crosses = [line for line in deviation_axis.get_lines() if line.get_marker() == "x"]
+    assert len(crosses) == 1 and list(crosses[0].get_ydata()) == [1.0]
