@@ -200,12 +200,14 @@ def _cells_with_reason(data: ReportData, reason: str, rows: list[ReportRow]) -> 
 
 
 def _ties(data: ReportData, rows: list[ReportRow], winner: ReportRow, metric: str) -> str:
-    """' (tied with a, b)' for the other strategies whose value reads the same as the winner's."""
+    """' (a, b read the same)' for the other strategies whose value reads the same as the winner's, to the
+    digits shown (a difference below them, as the MSE's against the baseline, is said apart: "tied" with a
+    non-zero difference beside it read as a contradiction)."""
     shown = format_value(metric, winner.get(metric))
     same = dict.fromkeys(method_label(r, data) for r in rows
                          if r.get(metric) is not None and format_value(metric, r.get(metric)) == shown)
     same.pop(method_label(winner, data), None)
-    return f" (tied with {', '.join(same)})" if same else ""
+    return f" ({', '.join(same)} read{'s' if len(same) == 1 else ''} the same)" if same else ""
 
 
 def _versus(data: ReportData, row: ReportRow, metric: str, word: str) -> str:

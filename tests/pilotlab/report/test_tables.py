@@ -193,3 +193,11 @@ def test_the_deployment_line_is_always_said_and_judges_laps_against_the_baseline
     candidate = offline[:1] + [offline_row("int8", mse=0.010, latency_ms=0.5, unstable={"latency_ms": DISTURBED})]
     found = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(candidate + laps[:2])))}
     assert found[label].startswith(f"not drawn: int8 (cpu1): unstable: {DISTURBED}; rerun")
+
+
+def test_values_that_read_the_same_are_not_called_a_tie_beside_their_difference():
+    """Outside test: "Lowest MSE: dynamic_quant (tied with baseline) — 0.155 (−0.00035 against baseline)"."""
+    from pilotlab.report.summary import summarise
+    rows = [offline_row("baseline", mse=0.1550, latency_ms=2.0), offline_row("dq", mse=0.15465, latency_ms=1.0)]
+    found = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(rows)))}
+    assert found["Lowest MSE"] == "dq (baseline reads the same) — 0.155 (−0.00035 against baseline)"
