@@ -271,7 +271,7 @@ def check_source(spec: str, base: Path, options: Mapping[str, Any] | None = None
         classes = sorted(n for n, node in defined.items() if isinstance(node, ast.ClassDef) and not n.startswith("_"))
         raise UserCodeError(f"{code.where} has no {top!r}{did_you_mean(top, classes)}; it defines: "
                             f"{', '.join(classes) or '(no classes)'}")
-    if options and "." not in code.name:
+    if options is not None and "." not in code.name:
         _check_options(defined[top], options)
 
 
@@ -304,9 +304,17 @@ def _check_options(cls: ast.ClassDef, options: Mapping[str, Any]) -> None:
     init = next((n for n in cls.body if isinstance(n, ast.FunctionDef) and n.name == "__init__"), None)
     if init is None or init.args.kwarg is not None:
         return
-    takes = [a.arg for a in init.args.posonlyargs + init.args.args][1:] + [a.arg for a in init.args.kwonlyargs]
+    args = init.args
+    positional = [a.arg for a in args.posonlyargs + args.args][1:]
+    takes = positional + [a.arg for a in args.kwonlyargs]
     if problem := options_not_taken(cls.name, takes, options):
         raise UserCodeError(problem)
+    # those with no default must be given (outside test: a missing one was found only when the job ran)
+    required = positional[:len(positional) - len(args.defaults)] + [
+        a.arg for a, default in zip(args.kwonlyargs, args.kw_defaults) if default is None]
+    if missing := [name for name in required if name not in options]:
+        raise UserCodeError(f"options: {cls.name}({', '.join(takes)}) needs {', '.join(missing)}, which has no "
+                            f"default: give {'it' if len(missing) == 1 else 'them'} under options")
 
 
 def options_not_taken(name: str, takes: list[str], options: Mapping[str, Any]) -> str | None:

@@ -84,10 +84,12 @@ def load_weights(model: nn.Module, path: Path) -> None:
         first = re.sub(r"\x1b\[[0-9;]*m", "", str(error).splitlines()[0]) if str(error) else type(error).__name__
         raise PilotlabError(f"{path.name} is not a state dict torch.load(weights_only=True) can read: {first}") \
             from None
-    if isinstance(state, dict) and isinstance(state.get("state_dict"), dict):
-        state = state["state_dict"]                # a checkpoint that wraps its state dict
+    wrapped = next((key for key in WRAPPING_KEYS if isinstance(state, dict) and isinstance(state.get(key), dict)), None)
+    if wrapped is not None:
+        state = state[wrapped]                     # a checkpoint that wraps its state dict (PyTorch's tutorials')
     if not isinstance(state, dict) or not all(isinstance(v, torch.Tensor) for v in state.values()):
-        raise PilotlabError(f"{path.name} is not a state dict (a mapping of names to tensors); save one with "
+        holds = f" (it holds {_listed([str(k) for k in state])})" if isinstance(state, dict) else ""
+        raise PilotlabError(f"{path.name} is not a state dict (a mapping of names to tensors){holds}; save one with "
                             "torch.save(model.state_dict(), path)")
     own = model.state_dict()
     if not set(state) & set(own) and {k.split(".")[0] for k in state} <= set(DLS_PILOTNET_NAMES):
@@ -95,6 +97,10 @@ def load_weights(model: nn.Module, path: Path) -> None:
     if problem := weights_problem(own, state):
         raise PilotlabError(f"{path.name} does not fit {type(model).__name__}: {problem}")
     model.load_state_dict(state)
+
+
+# where a checkpoint keeps its state dict: pilotlab's and Lightning's, PyTorch's "saving a general checkpoint"
+WRAPPING_KEYS = ("state_dict", "model_state_dict", "model")
 
 
 def weights_problem(own: dict[str, torch.Tensor], given: dict[str, torch.Tensor]) -> str | None:
@@ -128,11 +134,17 @@ def check_output(model: nn.Module, input_shape: tuple[int, int, int], what: str)
         place = (f"{type(error).__name__}: {library_message(error)}" if isinstance(model, _Program)
                  else usercode.error_line(error, what))
         raise PilotlabError(f"{what} fails on an input {shape} (the preprocessed camera image): {place}") from None
-    got = list(output.shape) if isinstance(output, torch.Tensor) else type(output).__name__
+    if not isinstance(output, torch.Tensor):
+        pair = isinstance(output, (tuple, list)) and len(output) == 2
+        raise PilotlabError(f"{what}'s output for an input {shape} is a {type(output).__name__}; a driving network "
+                            "returns one tensor [N, 2] (normalised v, w)"
+                            + ("; return torch.stack([v, w], 1)" if pair else ""))
+    got = list(output.shape)
     if got != [2, 2]:
+        hint = ("check the input size it was built for against `preprocess` (height, width)"
+                if len(got) != 2 or got[0] != 2 else "its last layer must give 2 outputs")
         raise PilotlabError(f"{what}'s output for an input {shape} is {got}; a driving network returns "
-                            "[N, 2] (normalised v, w): check the input size it was built for against "
-                            "`preprocess` (height, width)")
+                            f"[N, 2] (normalised v, w): {hint}")
 
 
 # --- whole model files -----------------------------------------------------------------------------
@@ -225,7 +237,7 @@ def read_onnx(path: Path, input_shape: tuple[int, int, int]) -> bytes:
         raise PilotlabError(f"{path.name} is not an ONNX model ({first})") from None
     graph = model.graph
     if _names(graph) & {ONNX_INPUT, ONNX_OUTPUT}:   # already named as pilotlab names them: free the names
-        onnx.compose.add_prefix_graph(graph, "user/", inplace=True)
+        onnx.compose.add_prefix_graph(graph, USER_PREFIX, inplace=True)
     initializers = {i.name for i in graph.initializer}
     inputs = [i for i in graph.input if i.name not in initializers]
     if len(inputs) != 1 or len(graph.output) != 1:
@@ -233,6 +245,9 @@ def read_onnx(path: Path, input_shape: tuple[int, int, int]) -> bytes:
                             f"this graph has {len(inputs)} and {len(graph.output)}")
     _rename_io(graph, inputs[0], _layout(inputs[0], input_shape, path))
     return model.SerializeToString()
+
+
+USER_PREFIX = "user/"   # on a graph's names where they are pilotlab's own (images, vw)
 
 
 def _names(graph) -> set[str]:
@@ -244,9 +259,10 @@ def _names(graph) -> set[str]:
 def _layout(value_info, input_shape: tuple[int, int, int], path: Path) -> str:
     dims = [d.dim_value or None for d in value_info.type.tensor_type.shape.dim]
     channels, height, width = input_shape
+    name = value_info.name.removeprefix(USER_PREFIX)   # the name in the user's file (outside test: 'user/images')
     if dims and dims[0] is not None:   # torch.onnx.export's default: the graph fixed at the example's batch
         raise PilotlabError(
-            f"{path.name}: its input {value_info.name!r} has a fixed batch size of {dims[0]} ({dims}); pilotlab "
+            f"{path.name}: its input {name!r} has a fixed batch size of {dims[0]} ({dims}); pilotlab "
             "runs a network at batch 1 in a lap and on batches of 64 to evaluate it, so export it with a dynamic "
             "batch axis: torch.onnx.export(model, example, path, input_names=['images'], output_names=['vw'], "
             "dynamic_axes={'images': {0: 'batch'}, 'vw': {0: 'batch'}}), or with dynamo=True, "
@@ -254,7 +270,7 @@ def _layout(value_info, input_shape: tuple[int, int, int], path: Path) -> str:
     if len(dims) == 4 and dims[1:] in ([height, width, channels],) and dims[3] != dims[1]:
         return "NHWC"
     if len(dims) != 4:
-        raise PilotlabError(f"{path.name}: its input {value_info.name!r} has {len(dims)} dimensions; an image "
+        raise PilotlabError(f"{path.name}: its input {name!r} has {len(dims)} dimensions; an image "
                             f"batch has 4 ([N, {channels}, {height}, {width}] or [N, {height}, {width}, {channels}])")
     return "NCHW"
 

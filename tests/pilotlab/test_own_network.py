@@ -156,6 +156,10 @@ def test_a_syntax_error_names_the_key_and_the_line(folder):
      "options: {image_shap: [200, 66, 3], num_labels: 2}, preset: dls,\n        epochs",
      "models.dls.network: options: PilotNet(image_shape, num_labels) does not take image_shap (did you mean "
      "'image_shape'?)"),
+    ("options: {image_shape: [200, 66, 3], num_labels: 2}, preset: dls,\n        epochs",
+     "options: {num_labels: 2}, preset: dls,\n        epochs",
+     "models.dls.network: options: PilotNet(image_shape, num_labels) needs image_shape, which has no default: "
+     "give it under options"),
 ])
 def test_a_class_or_option_the_source_lacks_fails_the_plan(folder, old, new, said):
     """Outside test: a typo'd class or option planned, then failed its train job in the run."""

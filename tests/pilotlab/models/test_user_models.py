@@ -226,9 +226,32 @@ def test_an_output_that_is_not_n_by_2(tmp_path, dls, frames):
     message = error_of(tmp_path, frames, {"network": "nets/pilotnet.py:PilotNet",
                                           "options": {"image_shape": [200, 66, 3], "num_labels": 3}},
                        {"network_source": dls / "nets/pilotnet.py"})
+    # outside test: every wrong output got the input-size hint, where the input was not the problem
     assert message == ("models.mine.network: PilotNet's output for an input [2, 3, 66, 200] is [2, 3]; a driving "
-                       "network returns [N, 2] (normalised v, w): check the input size it was built for against "
-                       "`preprocess` (height, width)")
+                       "network returns [N, 2] (normalised v, w): its last layer must give 2 outputs")
+
+
+def test_an_output_of_two_tensors_says_how_to_return_one(tmp_path, frames):
+    write(tmp_path, "nets/pair.py", "import torch\n\n\nclass Pair(torch.nn.Module):\n    def __init__(self):\n"
+                                    "        super().__init__()\n        self.fc = torch.nn.Linear(1, 2)\n\n"
+                                    "    def forward(self, x):\n        out = self.fc(x.mean((1, 2, 3))[:, None])\n"
+                                    "        return out[:, 0], out[:, 1]\n")
+    message = error_of(tmp_path, frames, {"network": "nets/pair.py:Pair"}, {"network_source": tmp_path / "nets/pair.py"})
+    assert message.endswith("output for an input [2, 3, 66, 200] is a tuple; a driving network returns one tensor "
+                            "[N, 2] (normalised v, w); return torch.stack([v, w], 1)")
+
+
+def test_a_general_checkpoint_s_state_dict_is_unwrapped(tmp_path, dls, frames):
+    """Outside test: a file saved as PyTorch's tutorial saves a general checkpoint, {"epoch": 3,
+    "model_state_dict": ...}, was "not a state dict"."""
+    state = torch.load(dls / "pilot_net_model_best_123.pth", weights_only=True)
+    torch.save({"epoch": 3, "model_state_dict": state, "loss": 0.1}, tmp_path / "general.pth")
+    params = {"network": "nets/pilotnet.py:PilotNet", "options": DLS_OPTIONS, "weights": "general.pth"}
+    train(tmp_path, frames, "general", params, {"network_source": dls / "nets/pilotnet.py", "weights": tmp_path / "general.pth"})
+    torch.save({"epoch": 3, "weights": state}, tmp_path / "odd.pth")
+    message = error_of(tmp_path, frames, params | {"weights": "odd.pth"},
+                       {"network_source": dls / "nets/pilotnet.py", "weights": tmp_path / "odd.pth"})
+    assert "odd.pth is not a state dict (a mapping of names to tensors) (it holds epoch, weights)" in message
 
 
 def test_a_network_that_fails_on_the_input_size(tmp_path, dls):
@@ -263,6 +286,17 @@ def test_an_onnx_graph_fixed_at_one_batch_size_is_refused_with_the_export_that_f
     assert message.startswith("models.mine.onnx: fixed.onnx: its input 'input.1' has a fixed batch size of 1 "
                               "([1, 3, 66, 200]);")
     assert "dynamic_axes" in message and "\n" not in message
+
+
+def test_an_onnx_input_is_named_as_in_the_user_s_file(tmp_path, dls, frames):
+    """Outside test: named 'images', as the fixed-batch message itself advises, it read 'user/images'."""
+    net = load_class(dls / "nets/pilotnet.py", "PilotNet")(**DLS_OPTIONS).eval()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        torch.onnx.export(net, (torch.rand(1, 3, 66, 200),), str(tmp_path / "named.onnx"), dynamo=False,
+                          input_names=["images"], output_names=["vw"])
+    named = error_of(tmp_path, frames, {"onnx": "named.onnx"}, {"onnx": tmp_path / "named.onnx"})
+    assert "its input 'images' has a fixed batch size" in named
 
 
 class _Nhwc(torch.nn.Module):
