@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 import types
 import typing
 from collections.abc import Iterable, Mapping
@@ -14,6 +15,7 @@ from typing import Any
 
 import pydantic
 
+from matrix.errors import shown
 from pilotlab.errors import PilotlabError
 
 
@@ -42,11 +44,24 @@ def spec_from_args(model: type[pydantic.BaseModel], args: argparse.Namespace, **
         return model.model_validate({**given, **values})
     except pydantic.ValidationError as error:
         first = error.errors(include_url=False)[0]
-        field = str(first["loc"][0]) if first["loc"] else ""
-        flag = getattr(args, f"_flag_{field}", None) or (option_name(field) if field else "options")
+        message = in_flags(first["msg"].removeprefix("Value error, "), model, args)
+        if not first["loc"]:   # a check across options: its message alone (the input is every option given)
+            raise PilotlabError(message) from None
+        field = str(first["loc"][0])
+        flag = getattr(args, f"_flag_{field}", None) or option_name(field)
         where = ".".join(str(part) for part in first["loc"][1:] if not _is_union_tag(part))
-        raise PilotlabError(f"{flag}{' ' + where if where else ''}: {first['msg'].removeprefix('Value error, ')}"
-                            f" (got {first.get('input')!r:.60})") from None
+        raise PilotlabError(f"{flag}{' ' + where if where else ''}: {message} (got {shown(first.get('input'), 60)})") \
+            from None
+
+
+def in_flags(message: str, model: type[pydantic.BaseModel], args: argparse.Namespace) -> str:
+    """`message` with the fields it names as the command line names them (fixed_inference_ms ->
+    --fixed-inference-ms, rate_hz -> --rate): a person typed the flags (outside test)."""
+    for name in sorted((n for n in model.model_fields if "_" in n), key=len, reverse=True):   # not prose words
+        flag = getattr(args, f"_flag_{name}", None)
+        if flag is not None:
+            message = re.sub(rf"(?<![\w-]){re.escape(name)}(?!\w)", flag, message)
+    return message
 
 
 def _is_union_tag(part) -> bool:

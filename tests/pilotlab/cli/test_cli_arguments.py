@@ -15,6 +15,10 @@ from pilotlab.cli import main
     (["drive", "--brain", "explicit", "--circuit", "simple_circuit", "--laps", "nan"], "--laps: Input should be a finite"),
     (["drive", "--brain", "explicit", "--circuit", "simple_circuit", "--timeout", "inf"], "--timeout: Input should be a finite"),
     (["drive", "--brain", "explicit", "--circuit", "nosuch"], "unknown circuit 'nosuch'"),
+    # outside test: a check across options read "options: fixed_inference_ms ... (got {'timing': 'lockstep', ..."
+    (["drive", "--brain", "expert", "--circuit", "simple_circuit", "--timing", "lockstep", "--fixed-inference-ms", "80"],
+     "pilotlab: error: --fixed-inference-ms only means something in the replay and measured timing modes, "
+     "not 'lockstep'\n"),
 ])
 def test_bad_arguments_are_one_line_before_anything_starts(tmp_path, capsys, argv, message):
     out = tmp_path / ("run.bag" if argv[0] == "record" else "lap")
