@@ -150,6 +150,7 @@ class ReportRow(_Frozen):
     tolerance: tuple[TolerancePoint, ...] = ()              # online rows: the laps of the tolerance search
     tolerance_at_least: bool = False         # the lap was still completed at the search's largest latency
     latency_source: str | None = None        # online rows: where the replayed latencies came from
+    trained_on: tuple[str, ...] = ()         # offline rows: test recordings the network was trained on too
 
     @model_validator(mode="before")
     @classmethod

@@ -187,7 +187,24 @@ def _row(job, store: Store) -> dict[str, Any]:
         row["unstable"] = {"latency_ms": why}
     if job.kind == "offline" and row["status"] == "ok":
         row = _artifact_figures(job, store) | row
+        if trained_on := _trained_on(job):
+            row["trained_on"] = trained_on
     return row
+
+
+def _trained_on(job) -> tuple[str, ...]:
+    """The offline job's test recordings (frames jobs) that its network was trained on too."""
+    test = {dep.key: dep.name.removeprefix("frames ") for dep in job.deps.get("test", ())}
+    stack, seen = [job.deps.get("artifact")], set()
+    while stack:
+        dep = stack.pop()
+        if dep is None or dep.key in seen:
+            continue
+        seen.add(dep.key)
+        if dep.kind == "train":
+            return tuple(sorted(test[frames.key] for frames in dep.deps.get("frames", ()) if frames.key in test))
+        stack.extend(dep.dep_jobs())
+    return ()
 
 
 ARTIFACT_FIGURES = ("params", "nonzero_params", "sparsity")

@@ -263,8 +263,15 @@ def _table(data: ReportData, kind: str, hardware: str, place: str, rows: list[Re
         notes += tuple(f"{UNSTABLE} {method_label(r, data)}: no verdict from this lap: {reason}."
                        for r in rows if (reason := r.unstable_reason("latency_ms")))
         return Table(title, kind, hardware, place, headers, table_rows, notes)
-    notes += tuple(_timing_notes(data, rows, baselines))
+    notes += tuple(_timing_notes(data, rows, baselines)) + _training_data_notes(rows)
     return Table(title, kind, hardware, place, headers, table_rows, notes, timing_method(rows))
+
+
+def _training_data_notes(rows: list[ReportRow]) -> tuple[str, ...]:
+    """Outside test: a test set that is (partly) the training data was evaluated without a word."""
+    seen = dict.fromkeys((r.model, r.trained_on) for r in rows if r.trained_on)
+    return tuple(f"{UNSTABLE} {model}: the test set holds recordings it was trained on ({', '.join(names)}): its MSE "
+                 "here is partly on training data; give the recipe a test set of other recordings" for model, names in seen)
 
 
 def _timing_notes(data: ReportData, rows: list[ReportRow], baselines: dict[str, ReportRow]) -> list[str]:

@@ -116,3 +116,27 @@ def test_an_offline_row_shows_the_parameter_counts_of_the_network_it_evaluates(t
     commit(offline, {"mse": 0.0035, "size_mb": 0.82, "latency_ms": 0.19})
     row = next(r for r in build_report_data(recipe, jobs, store).rows if r.job_keys.get("offline") == offline.key)
     assert (row.get("params"), row.get("nonzero_params"), row.get("sparsity"), row.get("mse")) == (832016, 832016, None, 0.0035)
+
+
+def test_a_test_set_the_network_was_trained_on_is_said_under_the_offline_table(tmp_path):
+    """Outside test: `test:` the same recordings as `train:` was evaluated without a word (the offline jobs
+    reuse the training frames jobs): the MSE was on training data."""
+    from pilotlab.report.tables import build_tables
+    text = QUICKSTART.read_text().replace("test:\n    record: {circuits: [simple_circuit], directions: [cw], laps: 0.5, seed: 2}",
+                                          "test:\n    record: {circuits: [simple_circuit], directions: [cw, ccw], laps: 1, "
+                                          "noise: 0.1, seed: 1}")
+    assert "noise: 0.1, seed: 1}\nmodels" in text
+    (tmp_path / "leak.yaml").write_text(text)
+    recipe, store = load_recipe(tmp_path / "leak.yaml", DOMAIN), Store(tmp_path / "store")
+    jobs = [status.job for status in make_plan(recipe, DOMAIN, store).statuses]
+    offline = next(job for job in jobs if job.kind == "offline" and job.labels["strategy"] == "baseline")
+    store.commit(offline.key, store.new_workdir(offline.key), offline.spec(), {"status": "ok", "value": {"mse": 0.001}})
+    data = build_report_data(recipe, jobs, store)
+    row = next(r for r in data.rows if r.job_keys.get("offline") == offline.key)
+    assert [name.split("/")[-1] for name in row.trained_on] == ["simple_circuit ccw", "simple_circuit cw"]
+    (table,) = build_tables(data, "offline")
+    assert any(f"pilotnet: the test set holds recordings it was trained on ({', '.join(row.trained_on)}): its MSE "
+               "here is partly on training data" in note for note in table.notes)
+    clean = load_recipe(QUICKSTART, DOMAIN)
+    clean_jobs = [status.job for status in make_plan(clean, DOMAIN, store).statuses]
+    assert all(not r.trained_on for r in build_report_data(clean, clean_jobs, store).rows)
