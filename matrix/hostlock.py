@@ -19,7 +19,7 @@ import fcntl
 import os
 import socket
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
@@ -37,22 +37,32 @@ def lock_path() -> Path:
 
 
 @contextmanager
-def host_slot(exclusive: bool) -> Iterator[None]:
-    """Hold the host's job lock (shared, or exclusive for a timing job) while the block runs."""
+def host_slot(exclusive: bool, waiting: Callable[[], None] | None = None) -> Iterator[None]:
+    """Hold the host's job lock (shared, or exclusive for a timing job) while the block runs; `waiting` is
+    called first where another run holds it (so the job can say why it has not started)."""
     with ExitStack() as stack:
         main, turnstile = _open(lock_path(), stack), _open(lock_path().with_suffix(".turnstile"), stack)
         if main is None or turnstile is None:
             yield                        # nowhere to keep a lock (a read-only home): run unguarded
             return
-        fcntl.flock(turnstile, fcntl.LOCK_EX)
+        _flock(turnstile, fcntl.LOCK_EX, waiting)
         try:
-            fcntl.flock(main, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+            _flock(main, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH, waiting)
         finally:
             fcntl.flock(turnstile, fcntl.LOCK_UN)
         try:
             yield
         finally:
             fcntl.flock(main, fcntl.LOCK_UN)
+
+
+def _flock(file, mode: int, waiting: Callable[[], None] | None) -> None:
+    try:
+        fcntl.flock(file, mode | fcntl.LOCK_NB)
+    except BlockingIOError:
+        if waiting is not None:
+            waiting()
+        fcntl.flock(file, mode)
 
 
 def _open(path: Path, stack: ExitStack):

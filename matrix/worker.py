@@ -104,7 +104,8 @@ def _execute(store_root: str, spec: dict, kind_modules: Iterable[str], replaces:
         if kept:
             return {"status": DONE_ELSEWHERE, "reason": kept if isinstance(kept, str) else done.get("reason", ""),
                     "duration_s": 0.0}
-        with host_slot(exclusive=KINDS.get(spec["kind"]).runs_alone(spec["params"])):   # timings: the host to itself
+        waiting = lambda: _progress_for(key)(completed=0, total=None, description=HOST_BUSY)   # noqa: E731
+        with host_slot(exclusive=KINDS.get(spec["kind"]).runs_alone(spec["params"]), waiting=waiting):   # timings: alone
             return _run_locked(store, spec)
 
 
@@ -209,6 +210,7 @@ def _not_applicable_dep(deps: dict) -> DepResult | None:
     return None
 
 
+HOST_BUSY = "waiting for this host: another run holds it (a job there must run alone, or runs beside one)"
 MESSAGE_LIMIT, BUG_LIMIT = 2000, 300   # characters of a failure's line: the domain's own message, anything else
 
 
