@@ -210,7 +210,7 @@ def _not_applicable_dep(deps: dict) -> DepResult | None:
     return None
 
 
-HOST_BUSY = "waiting for this host: another run holds it (a job there must run alone, or runs beside one)"
+HOST_BUSY = "waiting for this host: another run is using it, and this job or one of its jobs must run alone"
 MESSAGE_LIMIT, BUG_LIMIT = 2000, 300   # characters of a failure's line: the domain's own message, anything else
 
 
