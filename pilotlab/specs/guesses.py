@@ -116,10 +116,9 @@ guess_kind("offline", typical_for=guess_here(lambda params: OFFLINE_S))
 guess_kind("online", typical_for=guess_here(online_seconds))
 
 # Measured, not made: left out of a result's outputs token (matrix.store), so a job run again (--force) that
-# made the same recording, frames, network or artifact leaves what stands on it fresh. (A training's
-# history.json, an artifact, still holds each epoch's seconds: a forced training reruns what stands on it.)
+# made the same recording, frames, network or artifact leaves what stands on it fresh.
 measured_keys("record", "wall_seconds")
 measured_keys("frames", "decode_fps")
-measured_keys("train", "seconds")
+measured_keys("train", "seconds", "epoch_seconds")
 measured_keys("prepare", "seconds")      # each fine-tune epoch's, in its "finetune" history
 measured_keys("optimize", "seconds")
