@@ -60,6 +60,18 @@ def connect(scheduler: str | None, workers: int = 2):
     return distributed.Client(cluster)
 
 
+def check_single_threaded(client) -> None:
+    """One job at a time per worker process: a job sets process-wide state (its threads' count, the
+    modules it imports), so two jobs in one process's threads would run with each other's."""
+    workers = client.scheduler_info().get("workers", {})
+    threaded = sorted(f"{address} ({info.get('nthreads')} threads)" for address, info in workers.items()
+                      if (info.get("nthreads") or 1) > 1)
+    if threaded:
+        raise MatrixError(f"Dask worker(s) {', '.join(threaded)} run several jobs at once in one process, which "
+                          "jobs do not allow (each sets its process's thread count and imports): start workers "
+                          "with `dask worker ADDRESS --nthreads 1` (--nworkers N for more processes)")
+
+
 def run_task(store_root: str, spec: dict, kind_modules: tuple, replaces: str | None) -> dict:
     """The Dask task: run the job (locked, atomic); wait while another run holds it."""
     while True:
@@ -76,6 +88,7 @@ def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: boo
     quiet on the worker (see the module); with `timing_resource` it also runs only on the workers that
     declare it."""
     distributed = import_distributed()
+    check_single_threaded(client)
     stale = [s.job for s in statuses if s.state != FRESH]
     summary = RunSummary(fresh=len(statuses) - len(stale))
     started = time.monotonic()

@@ -126,3 +126,16 @@ def test_force_reruns_on_dask(tmp_path, client):
     assert summary.counts() == {"ok": 6, "done_elsewhere": 1}, summary.outcomes
     executions = (store.root / "cache" / "executions.log").read_text().splitlines()
     assert executions.count("power a^2") == 2 and executions.count("total") == 1
+
+
+def test_a_worker_running_jobs_in_several_threads_is_refused_before_anything_runs(tmp_path):
+    """Two jobs in one worker process would share its thread count and imports (a user's module of
+    one job's folder seen by the other): the run says how to start workers instead."""
+    from matrix.dask_executor import run_dask
+    from matrix.errors import MatrixError
+    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=True, dashboard_address=None)
+    store = Store(tmp_path / "s")
+    with cluster, distributed.Client(cluster) as threaded:
+        with pytest.raises(MatrixError, match=r"2 threads.*--nthreads 1"):
+            run_dask(plan_of(tmp_path, store).statuses, store, threaded, kind_modules=TOY.kind_modules)
+    assert not list(store.keys())

@@ -26,11 +26,13 @@ measures: true
 """
 
 
-def host(name: str, resource: str, locks) -> dict:
-    """A worker process that is host `name` to the engine: two threads, so a job could run beside a
-    timing job on it if the host lock let it."""
+def host(name: str, resource: str, locks, process: int) -> dict:
+    """One of the worker processes of host `name` to the engine (single-threaded, as `dask worker --nthreads
+    1 --nworkers 2` starts them): two per host, so a job could run beside a timing job there if the host
+    lock let it."""
     env = {"MATRIX_HOST": name, "MATRIX_HOST_LOCK": str(locks / f"{name}.lock")}
-    return {"cls": distributed.Nanny, "options": {"nthreads": 2, "resources": {resource: 1}, "env": env, "name": name}}
+    return {"cls": distributed.Nanny, "options": {"nthreads": 1, "resources": {resource: 1}, "env": env,
+                                                  "name": f"{name}-{process}"}}
 
 
 def overlap(one, other) -> bool:
@@ -43,7 +45,8 @@ def test_a_timing_job_has_its_host_alone_and_the_other_host_goes_on(tmp_path):
     path.write_text(RECIPE)
     store = Store(tmp_path / "store")
     plan = engine.make_plan(load_recipe(path, TOY), TOY, store)
-    workers = {"a": host("host-a", "ON_A", tmp_path), "b": host("host-b", "ON_B", tmp_path)}
+    workers = {f"{side}{process}": host(f"host-{side}", f"ON_{side.upper()}", tmp_path, process)
+               for side in "ab" for process in (1, 2)}
     scheduler = {"cls": distributed.Scheduler, "options": {"dashboard_address": None}}
     with distributed.SpecCluster(workers=workers, scheduler=scheduler) as cluster, distributed.Client(cluster) as client:
         summary = run_dask(plan.statuses, store, client, kind_modules=TOY.kind_modules)
