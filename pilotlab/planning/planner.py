@@ -117,10 +117,28 @@ class Planner:
         for i, path in enumerate(spec.bags + spec.folders):
             where = ["datasets", name, "bags" if i < len(spec.bags) else "folders"]
             source = self.path(path, where, "recording")
+            if i < len(spec.bags):
+                self.remembered(("bag topics", name, str(source)), lambda: self._check_topics(name, spec, path, source, i))
             label = f"{name}/{Path(path).name}"
             jobs.append(job("frames", f"frames {label}{shown}", frames_spec,
                             inputs={"bag": self._recording_input(source, where)}))
         return jobs
+
+    def _check_topics(self, name: str, spec: DatasetSpec, value: str, source: Path, i: int) -> None:
+        """The dataset's topics are in this bag (its index only; pilotlab.data.bag_topics), else a recipe error
+        naming every one it lacks, at the key to change."""
+        from pilotlab.data.bag_topics import bag_topics, listing, missing_topics
+        from pilotlab.data.folder_rows import is_dataset_folder
+        topics = None if is_dataset_folder(source) else bag_topics(source)
+        missing = [] if topics is None else missing_topics(topics, spec.topics.image, spec.topics.command)
+        if not missing:
+            return
+        lacks = " and ".join(phrase for _, phrase in missing)
+        given = [role for role, _ in missing if getattr(spec.topics, role) is not None]
+        where = ["datasets", name] + (["topics", given[0]] if len(given) == 1 else ["topics"] if given else ["bags", i])
+        raise self.recipe.error(f"bag {value}: {lacks}; topics present: {listing(topics)}; name the bag's topics in "
+                                f"the dataset (topics: {{image: NAME, command: NAME}}), or give a bag with other "
+                                "topic names a dataset of its own", where)
 
     def _recording_input(self, source: Path, where: list) -> InputFile:
         """A bag is hashed whole; a DeepLearningStudio folder by what reading it reads (data.csv and the

@@ -527,3 +527,47 @@ def test_gc_keeps_the_jobs_planned_for_another_host():
     assert planned_on_another_host({"params": {"circuit": "simple_circuit"}}) is None
     other = planned_on_another_host({"params": {"host": {**here, "cores": here["cores"] + 1}}})
     assert other.startswith("planned for another host (") and f"{here['cores'] + 1} cores" in other
+
+
+BAG_DATASET = "train: {bags: [run.bag]%s, record: {circuits: [simple_circuit],"
+
+
+@pytest.mark.parametrize("kind", ["ros1", "mcap"])
+@pytest.mark.parametrize("topics, message", [
+    # outside test: plan passed, the run failed minutes later on the command topic, then on the image one
+    (", topics: {image: /cam/image_raw, command: /cmd_vel}",
+     ":3: datasets.train.topics: bag run.bag: no image topic '/cam/image_raw' and no command topic '/cmd_vel'; "
+     "topics present: /F1ROS/cameraL/image_raw (sensor_msgs/msg/Image), /F1ROS/cmd_vel (geometry_msgs/msg/Twist)"),
+    (", topics: {command: /cmd_vel}", ":3: datasets.train.topics.command: bag run.bag: no command topic '/cmd_vel'"),
+    (", topics: {image: /F1ROS/cameraL/image_raw, command: /cmd_vel}",
+     ":3: datasets.train.topics.command: bag run.bag: no command topic '/cmd_vel';"),
+])
+def test_a_dataset_topic_its_bag_lacks_fails_the_plan_at_the_key_to_change(tmp_path, kind, topics, message):
+    from tests.pilotlab.data.bagfiles import drive_bag, images
+    bag = tmp_path / ("run.bag" if kind == "ros1" else "run")
+    drive_bag(bag, kind, images(3))
+    text = RECIPE.replace("train: {record: {circuits: [simple_circuit],", BAG_DATASET.replace("run.bag", bag.name) % topics)
+    with pytest.raises(RecipeError) as caught:
+        engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
+    assert message.replace("run.bag", bag.name) in str(caught.value)
+    assert "name the bag's topics in the dataset" in str(caught.value) and "\n" not in str(caught.value)
+
+
+def test_a_bag_without_the_default_topics_points_at_the_bag_and_one_with_them_plans(tmp_path):
+    from tests.pilotlab.data.bagfiles import RawBag, drive_bag, images
+    drive_bag(tmp_path / "run.bag", "ros1", images(3))
+    text = RECIPE.replace("train: {record: {circuits: [simple_circuit],", BAG_DATASET % "")
+    assert any(job.kind == "frames" and "run.bag" in job.name for job in engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN))
+    (tmp_path / "run.bag").unlink()
+    with RawBag(tmp_path / "run.bag", "ros1") as bag:
+        bag.twist(10**9, 1.0, 0.0, topic="/cmd_vel")
+    with pytest.raises(RecipeError, match=r":3: datasets\.train\.bags\.0: bag run\.bag: none of the default image "
+                                          r"topics \(/F1ROS/.*\) and no command topic '/F1ROS/cmd_vel'; topics "
+                                          r"present: /cmd_vel \(geometry_msgs/msg/Twist\)"):
+        engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
+
+
+def test_a_damaged_bag_is_left_to_the_frames_job_that_says_how(tmp_path):
+    (tmp_path / "run.bag").write_bytes(b"#ROSBAG V2.0\n" + b"\0" * 100)
+    text = RECIPE.replace("train: {record: {circuits: [simple_circuit],", BAG_DATASET % "")
+    assert any("run.bag" in job.name for job in engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN))
