@@ -71,8 +71,9 @@ def load_recipe(path: Path | str, domain: Domain) -> Recipe:
         raise RecipeError(error.message, file=file,
                           line=line_of(lines, error.path), path=error.path) from None
     if not grid.combinations:
-        raise RecipeError("the matrix has no combinations left after `exclude`", file=file,
-                          line=line_of(lines, ("matrix",)), path=["matrix"])
+        why = ("has no combinations left after `exclude`" if grid.axes else
+               "names no axis: give each axis a list of values (`model: [a, b]`), or entries in `include`")
+        raise RecipeError(f"the matrix {why}", file=file, line=line_of(lines, ("matrix",)), path=["matrix"])
     recipe = Recipe(config.name, config.description, file, text, config, grid.combinations, lines, grid)
     _check_combinations(recipe, domain)
     return recipe

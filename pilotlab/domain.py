@@ -31,12 +31,12 @@ def _hardware(recipe: Recipe) -> list[str]:
 
 
 def _circuits(recipe: Recipe) -> list[str]:
-    """Circuit names, and the CSV paths the matrix writes that name a file (relative to the recipe)."""
+    """Circuit names, and the paths the matrix writes (the planner says which name no file, and where it looked)."""
     from pilotlab.circuits import all_circuit_names
-    from pilotlab.circuits.registry import csv_file
+    from pilotlab.circuits.lookup import names_a_path
     folder = Path(recipe.file).resolve().parent
     paths = {value for _, axis, value in declared_values(recipe.config.matrix) if axis == "circuit" and
-             isinstance(value, str) and value.endswith(".csv") and csv_file(value, folder) is not None}
+             isinstance(value, str) and names_a_path(value)}
     return sorted(set(all_circuit_names(folder)) | set(recipe.config.circuits) | paths)
 
 

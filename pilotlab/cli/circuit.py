@@ -64,9 +64,9 @@ def list_circuits(args: argparse.Namespace) -> int:
 
 
 def show_circuit(args: argparse.Namespace) -> int:
-    from pilotlab.circuits.load import get_circuit
     from pilotlab.circuits.draw import draw_map
-    circuit = get_circuit(args.name, args.direction)
+    from pilotlab.circuits.lookup import load_named
+    circuit = load_named(args.name, args.direction)
     path = draw_map(circuit, _map_path(args.out, circuit.name))
     print(f"{circuit.name} ({circuit.direction}, {circuit.length:.1f} m): map written to {path}")
     return 0

@@ -122,12 +122,12 @@ def run(args: argparse.Namespace) -> int:
     from pilotlab.predictor import load_predictor
     from pilotlab.report import pick_metrics
 
-    from pilotlab.circuits.load import get_circuit
+    from pilotlab.circuits.lookup import load_named
     check_arguments(args)
     place, assets, world = place_of(args)
     spec = spec_from_args(OnlineSpec, args, **place, **brain_params(args.brain, world), tolerance=args.tolerance)
     if world is None:
-        get_circuit(spec.circuit, spec.direction)   # an unknown or broken circuit: before the progress bar
+        load_named(spec.circuit, spec.direction)   # an unknown or broken circuit: before the progress bar
     profile = make_profile(args.hardware)
     check_available(profile)
     brain = (NetworkBrain(load_predictor(args.artifact, profile)) if args.artifact is not None

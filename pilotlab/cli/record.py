@@ -66,7 +66,7 @@ def check_out(path: Path, format: str) -> None:
 def run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from pilotlab.circuits.load import get_circuit
+    from pilotlab.circuits.lookup import load_named
     from pilotlab.sim.env import describe_end
     from pilotlab.sim.record import record
     from pilotlab.sim.record import bag_path, check_rates
@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     check_out(bag_path(args.out, spec.format), spec.format)
     columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:.0f} m"),
                TextColumn("{task.fields[frames]} frames"), TimeElapsedColumn(), TimeRemainingColumn())
-    circuit = world.circuit(spec.direction) if world is not None else get_circuit(spec.circuit, spec.direction)
+    circuit = world.circuit(spec.direction) if world is not None else load_named(spec.circuit, spec.direction)
     with Progress(*columns) as progress:
         task = progress.add_task(f"recording {spec.world or spec.circuit} {spec.direction}",
                                  total=circuit.length * spec.laps, frames=0)

@@ -178,6 +178,9 @@ class Planner:
             csv = self.path(self.config.circuits[circuit].csv, ["circuits", circuit, "csv"], "file")
         else:
             from pilotlab.circuits import csv_path_of
+            from pilotlab.circuits.lookup import missing_csv
+            if problem := missing_csv(circuit, self.folder):
+                raise self.recipe.error(problem, where)
             try:
                 found = csv_path_of(circuit, self.folder)
             except MatrixError as error:
@@ -350,6 +353,16 @@ class Planner:
                    deps={"artifact": optimize, "frames": optimize.deps["calibration"]},
                    labels={"model": model, "strategy": strategy, "hardware": hardware})
 
+    def _check_test_set(self) -> None:
+        """The default test set ("test") missing from a recipe that never named one: say what it is for."""
+        name = self.config.offline.data
+        if name not in self.config.datasets and "data" not in self.config.offline.model_fields_set:
+            raise self.recipe.error(
+                f"the offline evaluation (MSE, size, timing) needs a test set, and dataset {name!r} is not defined "
+                f"(datasets: {', '.join(self.config.datasets) or 'none'}); add one, e.g. `{name}: {{record: "
+                "{circuits: [simple_circuit], laps: 0.5, seed: 2}}`, or measure on another dataset with `offline: "
+                "{data: NAME}`", ["datasets"])
+
     def offline(self, optimize: Job, timing: Job, combination: dict, hardware: str) -> Job:
         """The offline job of a combination: one per (model, strategy, hardware, world), whatever the circuit."""
         model, strategy, world = combination["model"], combination["strategy"], combination.get("world")
@@ -357,6 +370,7 @@ class Planner:
                                lambda: self._offline(optimize, timing, model, strategy, world, hardware))
 
     def _offline(self, optimize: Job, timing: Job, model: str, strategy: str, world: Any, hardware: str) -> Job:
+        self._check_test_set()
         test = self.dataset(self.config.offline.data, ["offline", "data"], self.config.models[model].preprocess,
                             world=None if world is None else str(world))
         labels = {"model": model, "strategy": strategy, "hardware": hardware,

@@ -116,6 +116,13 @@ def test_everything_excluded(tmp_path):
     assert "no combinations left" in message
 
 
+def test_an_empty_matrix_says_it_names_no_axis_not_that_exclude_removed_everything(tmp_path):
+    """outside test: `matrix: {}` was blamed on an `exclude` the recipe did not have."""
+    message = error_of(tmp_path, GOOD.split("matrix:")[0] + "matrix: {}\n")
+    assert ":5: matrix: the matrix names no axis: give each axis a list of values" in message
+    assert "exclude" not in message
+
+
 def test_not_a_mapping(tmp_path):
     assert "a recipe is a mapping" in error_of(tmp_path, "- just\n- a list\n")
 

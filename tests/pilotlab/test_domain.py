@@ -571,3 +571,29 @@ def test_a_damaged_bag_is_left_to_the_frames_job_that_says_how(tmp_path):
     (tmp_path / "run.bag").write_bytes(b"#ROSBAG V2.0\n" + b"\0" * 100)
     text = RECIPE.replace("train: {record: {circuits: [simple_circuit],", BAG_DATASET % "")
     assert any("run.bag" in job.name for job in engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN))
+
+
+def test_a_recipe_without_a_test_set_is_told_what_one_is_for_at_its_datasets(tmp_path):
+    """outside test: the error named `offline.data`, a key the recipe did not have, at line 1, with no fix."""
+    text = "\n".join(line for line in RECIPE.splitlines() if not line.startswith("  test:")) + "\n"
+    with pytest.raises(RecipeError) as caught:
+        engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
+    message = str(caught.value)
+    assert ":2: datasets: the offline evaluation (MSE, size, timing) needs a test set, and dataset 'test' is not " \
+           "defined (datasets: train); add one, e.g. `test: {record:" in message and "offline: {data: NAME}" in message
+    named = text.replace("matrix:", "offline: {data: spare}\nmatrix:")
+    with pytest.raises(RecipeError, match=r":\d+: offline\.data: dataset 'spare' is not defined; datasets: train"):
+        engine.plan_jobs(recipe_at(tmp_path, named), DOMAIN)
+
+
+@pytest.mark.parametrize("old, new, where", [
+    ("circuit: [simple_circuit]", "circuit: [circuits/nope.csv]", ":15: matrix.circuit"),
+    ("train: {record: {circuits: [simple_circuit]", "train: {record: {circuits: [data/nope.csv]",
+     ":3: datasets.train.record.circuits"),
+])
+def test_a_circuit_path_that_names_no_file_says_where_it_was_looked_for(tmp_path, old, new, where):
+    """outside test: `unknown circuit 'data/nope.csv'; ... or give the path of a CSV` to a user who gave one."""
+    with pytest.raises(RecipeError) as caught:
+        engine.plan_jobs(recipe_at(tmp_path, RECIPE.replace(old, new)), DOMAIN)
+    name = new.split("[")[-1].rstrip("]")
+    assert f"{where}: circuit {name!r}: no such CSV file (looked for {tmp_path / name})" in str(caught.value)

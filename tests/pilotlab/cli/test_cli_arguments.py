@@ -15,6 +15,9 @@ from pilotlab.cli import main
     (["drive", "--brain", "explicit", "--circuit", "simple_circuit", "--laps", "nan"], "--laps: Input should be a finite"),
     (["drive", "--brain", "explicit", "--circuit", "simple_circuit", "--timeout", "inf"], "--timeout: Input should be a finite"),
     (["drive", "--brain", "explicit", "--circuit", "nosuch"], "unknown circuit 'nosuch'"),
+    # outside test: a path that names no file was told to give the path of a CSV
+    (["drive", "--brain", "explicit", "--circuit", "data/nope.csv"], "circuit 'data/nope.csv': no such CSV file (looked for /"),
+    (["record", "--circuit", "data/nope.csv"], "circuit 'data/nope.csv': no such CSV file (looked for /"),
     # outside test: a check across options read "options: fixed_inference_ms ... (got {'timing': 'lockstep', ..."
     (["drive", "--brain", "expert", "--circuit", "simple_circuit", "--timing", "lockstep", "--fixed-inference-ms", "80"],
      "pilotlab: error: --fixed-inference-ms only means something in the replay and measured timing modes, "
