@@ -64,7 +64,8 @@ def replayed_samples(args: argparse.Namespace, spec: OnlineSpec, brain) -> tuple
     if args.artifact is not None:
         samples = measure_samples(brain)
         return samples, describe(samples, "predict timed here before the lap")
-    return np.zeros(1), {}
+    from pilotlab.jobs.online import CHARGED_NOTHING
+    return np.zeros(1), describe(np.zeros(1), CHARGED_NOTHING)
 
 
 def check_arguments(args: argparse.Namespace) -> None:
@@ -123,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
     from pilotlab.report import pick_metrics
 
     from pilotlab.circuits.lookup import load_named
+    from pilotlab.jobs.online import CHARGED_NOTHING, without_uncharged_inference
     check_arguments(args)
     place, assets, world = place_of(args)
     spec = spec_from_args(OnlineSpec, args, **place, **brain_params(args.brain, world), tolerance=args.tolerance)
@@ -147,9 +149,13 @@ def run(args: argparse.Namespace) -> int:
             shutil.rmtree(args.out, ignore_errors=True)
         raise
     result = {**result, **replayed, "hardware": profile.as_dict()}
+    if replayed.get("latency_source") == CHARGED_NOTHING:   # as the online job: no inference time to report
+        result = without_uncharged_inference(result)
     (args.out / "result.json").write_text(json.dumps(result, indent=1))
     console = Console()
     for name, value in pick_metrics(result).items():
+        if value is None:   # not measured (a reference brain's inference time): said nowhere, as in the report
+            continue
         console.print(f"  {name:28s} {value:.4g}" if isinstance(value, float) else f"  {name:28s} {value}")
     console.print(f"wrote {args.out / result['trajectory']} and {args.out / 'result.json'}")
     return 0

@@ -16,6 +16,19 @@ def test_drive_a_reference_brain_from_the_command_line(tmp_path, capsys):
     assert "position_deviation_mae_m" in capsys.readouterr().out
 
 
+def test_a_reference_brain_replayed_reports_no_inference_time_as_its_lap_job_does(tmp_path, capsys):
+    """outside test: `drive --brain explicit` wrote mean_inference_ms 0 where the online job writes none."""
+    out = tmp_path / "run"
+    assert main(["drive", "--brain", "explicit", "--circuit", "simple_circuit", "--timeout", "2", "--hardware", "cpu1",
+                 "--out", str(out)]) == 0
+    result = json.loads((out / "result.json").read_text())
+    assert result["timing"] == "replay" and result["latency_source"].startswith("none: a reference brain")
+    assert result["mean_inference_ms"] is None and result["bm_mean_inference_ms"] is None
+    assert result["runs"][0]["mean_inference_ms"] is None and result["measured_inference_ms"] >= 0
+    shown = capsys.readouterr().out
+    assert "mean_inference_ms" not in shown and "None" not in shown and "position_deviation_mae_m" in shown
+
+
 def test_drive_names_a_missing_artifact(tmp_path, capsys):
     assert main(["drive", "--artifact", str(tmp_path / "nope"), "--circuit", "simple_circuit",
                  "--out", str(tmp_path / "run")]) == 2
