@@ -70,8 +70,12 @@ def check_arch(recipe, name: str, spec) -> None:
                            f"(e.g. network: nets/mine.py:MyNet) instead of `arch`", ["models", name, "arch"])
     try:
         make_config(spec.arch, spec.options)
-    except UnknownNameError as error:   # the registry's words, said of the arch key
-        raise recipe.error(str(error), ["models", name, "arch"]) from None
+    except UnknownNameError:   # the recipe's archs, not the registry's (which holds the checkpoints of user models)
+        from pilotlab.models import MODELS
+        archs = [arch for arch in MODELS.names() if arch not in IMPORTED_ARCHS]
+        raise recipe.error(f"unknown arch {spec.arch!r}{did_you_mean(spec.arch, archs)}; built-in archs: "
+                           f"{', '.join(archs)} (or bring your own: network, torchscript or onnx instead of arch, "
+                           "docs/own-network.md)", ["models", name, "arch"]) from None
     except MatrixError as error:
         raise recipe.error(str(error), ["models", name]) from None
 

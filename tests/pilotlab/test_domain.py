@@ -132,7 +132,7 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
     (("hardware: [cpu, cpu1]", "hardware: [cpu, gpu]"),
      ":14: matrix.hardware.1: unknown hardware 'gpu'"),
     (("small: {epochs: 1}", "small: {epochs: 1, arch: pilotnett}"),
-     ":6: models.small.arch: unknown model 'pilotnett' (did you mean 'pilotnet'?)"),
+     ":6: models.small.arch: unknown arch 'pilotnett' (did you mean 'pilotnet'?); built-in archs: pilotnet, pilotnet_stacked (or bring your own"),
     (("small: {epochs: 1}", "small: {epochs: 1, options: {dropuot: 0.1}}"),
      ":6: models.small: model 'pilotnet': unknown option(s) dropuot (did you mean 'dropout'?)"),
     (("train: {record: {circuits: [simple_circuit],", "train: {bags: [missing.bag], record: {circuits: [simple_circuit],"),
