@@ -27,7 +27,19 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in _command_modules(argv):
         importlib.import_module(f"{__name__}.{name}").register(subparsers)
+    _verbose_anywhere(parser)
     return parser
+
+
+def _verbose_anywhere(parser: argparse.ArgumentParser) -> None:
+    """-v after the command too (`pilotlab plan R -v`), on every command and sub-command: not given there, it
+    leaves the one before the command as it was."""
+    for action in parser._subparsers._group_actions if parser._subparsers else ():
+        for command in {id(p): p for p in (action.choices or {}).values()}.values():   # aliases: one parser
+            if "--verbose" not in command._option_string_actions:
+                command.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                                     help="show tracebacks and debug logs")
+            _verbose_anywhere(command)
 
 
 def _command_modules(argv: list[str] | None) -> list[str]:

@@ -118,3 +118,17 @@ def test_a_reader_that_stops_early_ends_the_command_quietly(tmp_path):
         child.stdout.readline()
         child.stdout.close()                       # as `head -1` does after its line
         assert child.wait(timeout=60) != 2 and child.stderr.read() == b""
+
+
+@pytest.mark.parametrize("argv", [["-v", "circuit", "show", "nope_circ"], ["circuit", "show", "nope_circ", "-v"],
+                                  ["circuit", "show", "--verbose", "nope_circ"]])
+def test_verbose_is_taken_before_or_after_the_command(tmp_path, capsys, argv):
+    """outside test: `pilotlab plan r.yaml -v` was refused (unrecognized arguments: -v)."""
+    assert main(argv + ["-o", str(tmp_path / "m.png")]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" in err and err.endswith("pilotlab: error: " + err.split("pilotlab: error: ")[-1])
+
+
+def test_without_verbose_an_error_is_one_line(tmp_path, capsys):
+    assert main(["circuit", "show", "nope_circ", "-o", str(tmp_path / "m.png")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
