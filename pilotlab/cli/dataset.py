@@ -31,10 +31,9 @@ def register(subparsers) -> None:
 
 def run_inspect(args: argparse.Namespace) -> int:
     from pilotlab.data.inspect import inspect_recording
-    from pilotlab.data.topics import COMMAND_TOPIC
 
     with _ImageProgress() as progress:
-        info = inspect_recording(args.bag, args.command_topic or COMMAND_TOPIC, progress=progress.update,
+        info = inspect_recording(args.bag, args.command_topic, progress=progress.update,
                                  image_topic=args.image_topic)
     if args.json:
         print(json.dumps(info, indent=1))

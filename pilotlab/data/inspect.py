@@ -20,17 +20,20 @@ def _range(values: np.ndarray) -> list[float] | None:
     return [float(values.min()), float(values.max())] if len(values) else None
 
 
-def inspect_recording(path: Path | str, command_topic: str = COMMAND_TOPIC,
+def inspect_recording(path: Path | str, command_topic: str | None = None,
                       progress: Callable[[int, int], None] | None = None, image_topic: str | None = None) -> dict[str, Any]:
     path = Path(path)
     return inspect_folder(path, progress) if is_dataset_folder(path) else inspect_bag(path, command_topic, image_topic)
 
 
-def inspect_bag(path: Path, command_topic: str = COMMAND_TOPIC, image_topic: str | None = None) -> dict[str, Any]:
-    """`image_topic`: the one image topic to check, as the frames job reads it (its errors if it is missing
-    or of another type); else every image topic, each with the `problem` that stops the frames job reading
-    it (an encoding it does not decode), if any."""
+def inspect_bag(path: Path, command_topic: str | None = None, image_topic: str | None = None) -> dict[str, Any]:
+    """`image_topic`, `command_topic`: the topics to check, as the frames job reads them (its errors if one is
+    missing or of another type); else every image topic, each with the `problem` that stops the frames job
+    reading it (an encoding it does not decode), if any, and the default command topic if the bag has it."""
     with open_bag(path) as reader:
+        if command_topic is not None:
+            find_topic(reader, path, command_topic, "command", COMMAND_TYPES)
+        command_topic = command_topic or COMMAND_TOPIC
         seconds = reader.duration / 1e9
         topics = [{"name": name, "type": info.msgtype, "count": info.msgcount,
                    # N messages over the bag's span make N - 1 intervals (3 frames at 20 Hz read 30 Hz)

@@ -58,6 +58,13 @@ def test_inspect_says_which_image_topic_the_frames_job_could_not_decode(tmp_path
     assert list(json.loads(capsys.readouterr().out)["images"]) == ["/camera/image_raw"]
     assert main(["dataset", "inspect", str(tmp_path / "c.bag"), "--image-topic", "/nope"]) == 2
     assert "the bag has no topic '/nope'" in capsys.readouterr().err
+    # outside test: a wrong --command-topic printed "no commands" and exited 0 (a wrong --image-topic was an error)
+    assert main(["dataset", "inspect", str(tmp_path / "c.bag"), "--command-topic", "/F1ROS/cmd_vell"]) == 2
+    err = capsys.readouterr().err
+    assert "the bag has no topic '/F1ROS/cmd_vell'; topics present: " in err and err.count("\n") == 1
+    assert main(["dataset", "inspect", str(tmp_path / "c.bag"), "--command-topic", "/depth"]) == 2
+    assert "topic '/depth' carries sensor_msgs/msg/Image, not geometry_msgs/msg/Twist" in capsys.readouterr().err
+    assert main(["dataset", "inspect", str(tmp_path / "c.bag"), "--command-topic", "/F1ROS/cmd_vel"]) == 0
 
 
 @pytest.mark.parametrize("kind, damage", [("sqlite3", "no messages"), ("mcap", "type changed")])
