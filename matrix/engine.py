@@ -30,8 +30,14 @@ TRASH_GRACE_S = 60.0
 
 
 def open_store(domain: Domain, root: str | Path | None = None) -> Store:
-    """The store at `root`, else $<domain.store_env>, else the domain's default folder."""
-    return Store(root or os.environ.get(domain.store_env) or domain.default_store)
+    """The store at `root`, else $<domain.store_env>, else the domain's default folder; a file there is an error
+    (every command would read it as an empty store, and `run` fail to make its folders)."""
+    given = root or os.environ.get(domain.store_env)
+    folder = Path(given or domain.default_store)
+    if folder.exists() and not folder.is_dir():
+        how = "--store" if root else f"${domain.store_env}" if given else "the default store"
+        raise MatrixError(f"{how} {folder}: a file, not a store folder; give a folder (a new one is made)")
+    return Store(folder)
 
 
 def register_kinds(domain: Domain) -> None:

@@ -200,3 +200,13 @@ def test_status_of_a_store_that_is_not_there_says_so(tmp_path, capsys, monkeypat
     monkeypatch.chdir(tmp_path)
     code, out, err = cli(capsys, "status")
     assert code == 0 and "yet: `run RECIPE` makes it" in out
+
+
+@pytest.mark.parametrize("command", ["plan", "run", "status"])
+def test_a_store_that_is_a_file_is_said_to_be_one(recipe, tmp_path, capsys, command):
+    """outside test: `plan --store r.yaml` said 'no such folder yet, every job is new', `run` then failed
+    on 'locks: Not a directory' and `status` said 'no such folder'."""
+    args = [command, str(recipe)] if command != "status" else [command]
+    code, out, err = cli(capsys, *args, "--store", str(recipe))
+    assert code == 2 and f"--store {recipe}: a file, not a store folder; give a folder" in err
+    assert err.count("\n") == 1 and recipe.read_text() == RECIPE % 3
