@@ -19,6 +19,18 @@ def test_report_refuses_a_store_without_any_result_and_writes_nothing(tmp_path, 
     assert not (tmp_path / "reports").exists()
 
 
+def test_report_refuses_a_store_holding_only_a_recording_another_recipe_shares(tmp_path, monkeypatch, capsys):
+    """outside test: one fresh shared recording let `report` write '0 ok, 10 not run yet' and exit 0."""
+    from matrix.worker import execute_job
+    monkeypatch.chdir(tmp_path)
+    recipe, store = load_recipe(QUICKSTART, DOMAIN), Store(tmp_path / "store")
+    test_set = next(s.job for s in make_plan(recipe, DOMAIN, store).statuses if s.job.name == "record test/simple_circuit cw")
+    assert execute_job(str(store.root), test_set.spec(), DOMAIN.kind_modules, None)["status"] == "ok"
+    assert main(["report", str(QUICKSTART), "--store", str(store.root)]) == 2
+    assert "holds no result of recipe 'quickstart''s cells" in capsys.readouterr().err
+    assert not (tmp_path / "reports").exists()
+
+
 def test_cells_that_never_ran_are_not_run_yet_not_failed(tmp_path):
     recipe, store = load_recipe(QUICKSTART, DOMAIN), Store(tmp_path / "store")
     jobs = [status.job for status in make_plan(recipe, DOMAIN, store).statuses]
