@@ -116,10 +116,20 @@ def _recipe_error(error: pydantic.ValidationError, data: Any, lines: Lines, file
     arms = [e for e in errors if e["type"] not in ("extra_forbidden", "missing")
             and _data_path(data, e["loc"], False) == path] if first["type"] != "extra_forbidden" else []
     message = _union_message(arms, data, path) if len(arms) > 1 else _message(first, path, model)
-    more = error.error_count() - max(1, len(arms))
-    if more:
-        message += f" (and {more} more problem{'s' if more > 1 else ''})"
+    others = [e for e in errors if e is not first and e not in arms]
+    if others:
+        message += f" (and {len(others)} more problem{'s' if len(others) > 1 else ''}: {_others(others, data, model)})"
     return RecipeError(message, file=file, line=line_of(lines, tuple(path)), path=path)
+
+
+def _others(errors: list[dict], data: Any, model: type, shown_at_most: int = 3) -> str:
+    """Where the other problems are, each in a few words (the first is the message)."""
+    said = []
+    for err in errors[:shown_at_most]:
+        path = _data_path(data, err["loc"], err["type"] == "missing")
+        text = _message(err, path, model)
+        said.append(f"{'.'.join(map(str, path)) or 'the recipe'}: {text if len(text) <= 80 else text[:79] + '…'}")
+    return "; ".join(said) + ("; …" if len(errors) > shown_at_most else "")
 
 
 def _message(err: dict, path: list, model: type) -> str:
@@ -132,6 +142,8 @@ def _message(err: dict, path: list, model: type) -> str:
         return f"missing required key {path[-1]!r}"
     if kind == "value_error":  # a domain validator's own sentence
         return err["msg"].removeprefix("Value error, ")
+    if kind == "model_type":   # "...or instance of ModelSpec": a class name the recipe never shows
+        return f"{_key_of(path)}should be a mapping of keys to values ({{key: value, ...}}) (got {_given(err.get('input'))})"
     given = err.get("input")
     return f"{err['msg']} (got {_given(given)}){_literal_guess([err], given)}"
 

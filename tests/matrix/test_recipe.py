@@ -189,3 +189,17 @@ def test_identical_definitions_are_planned_once(tmp_path):
     assert sorted(job.name for job in jobs) == ["power other^1", "power other^2", "power other^3", "power s0^1",
                                                 "power s0^2", "power s0^3", "source other", "source s0", "total"]
     assert recipe.grid.same_as("source", "s0") == sources
+
+
+def test_the_other_problems_are_named_where_they_are(tmp_path):
+    """outside test: a typo'd top-level key ended '(and 1 more problem)' without saying which."""
+    message = error_of(tmp_path, GOOD.replace("sources:", "sourcse:"))
+    assert "unknown key 'sourcse' (did you mean 'sources'?)" in message
+    assert message.endswith("(and 1 more problem: sources: missing required key 'sources')")
+
+
+def test_a_value_where_a_mapping_goes_names_no_class(tmp_path):
+    """outside test: 'Input should be a valid dictionary or instance of SourceSpec' named a class of ours."""
+    message = error_of(tmp_path, GOOD.replace("a: {value: 2}", "a: two"))
+    assert ":3: sources.a: 'a' should be a mapping of keys to values ({key: value, ...}) (got 'two')" in message
+    assert "instance" not in message
