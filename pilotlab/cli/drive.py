@@ -44,7 +44,8 @@ def register(subparsers) -> None:
                              "model, strategy; docs/simulator.md); without it an artifact's predict call is timed "
                              "here once before the lap and replayed")
     parser.add_argument("--tolerance", action="store_true",
-                        help="also search the largest injected latency at which the lap is still completed")
+                        help="also search the largest injected latency at which the lap is still completed "
+                             "(on top of --extra-latency-ms, which every lap of the search carries)")
     parser.set_defaults(func=run)
 
 
@@ -157,5 +158,8 @@ def run(args: argparse.Namespace) -> int:
         if value is None:   # not measured (a reference brain's inference time): said nowhere, as in the report
             continue
         console.print(f"  {name:28s} {value:.4g}" if isinstance(value, float) else f"  {name:28s} {value}")
+    if spec.extra_latency_ms and result.get("latency_tolerance_ms") is not None:
+        console.print(f"  (the latency tolerance is on top of --extra-latency-ms {spec.extra_latency_ms:g}: the lap is "
+                      f"still completed with {spec.extra_latency_ms + result['latency_tolerance_ms']:g} ms injected in all)")
     console.print(f"wrote {args.out / result['trajectory']} and {args.out / 'result.json'}")
     return 0

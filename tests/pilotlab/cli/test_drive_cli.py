@@ -87,3 +87,14 @@ def test_drive_an_artifact_s_file_names_its_folder(tmp_path, capsys):
                  "--out", str(tmp_path / "run")]) == 2
     err = capsys.readouterr().err
     assert f"a file; give the artifact's folder ({tmp_path / 'exp'}" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_tolerance_on_top_of_an_extra_latency_says_so(tmp_path, capsys):
+    """outside test: `--extra-latency-ms 100 --tolerance` printed a tolerance of 50 for a lap completed at +100:
+    the search's laps all carry the extra latency, which nothing said."""
+    out = tmp_path / "run"
+    assert main(["drive", "--brain", "expert", "--circuit", "simple_circuit", "--laps", "0.2", "--extra-latency-ms", "50",
+                 "--tolerance", "--out", str(out)]) == 0
+    tolerance = json.loads((out / "result.json").read_text())["latency_tolerance_ms"]
+    shown = " ".join(capsys.readouterr().out.split())
+    assert f"on top of --extra-latency-ms 50: the lap is still completed with {50 + tolerance:g} ms injected in all" in shown
