@@ -61,7 +61,7 @@ def test_a_command_s_parser_loads_its_own_module_and_help_lists_every_command(ca
      "the other kind (`record --format`"),
     (["record", "--circuit", "simple_circuit", "--size", "0x0", "--out", "run"],
      "--size 0x0: width: Input should be greater than or equal to 16"),
-    (["run", "{recipe}", "--store", "{afile}"], "{afile}/"),
+    (["run", "{recipe}", "--store", "{afile}"], "--store {afile}: a file, not a store folder"),
     (["run", "{recipe}", "--executor", "dask", "--scheduler", "foo:bar"],
      "--scheduler foo:bar: not a Dask scheduler address"),
 ])
