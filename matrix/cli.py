@@ -98,7 +98,7 @@ def cmd_run(args, domain: Domain) -> int:
     out, name = display.console(), display.escape(recipe.name)
     if not plan.stale:
         out.print(f"nothing to do: all {len(plan.statuses)} jobs of {name!s} are fresh")
-        summary = engine.RunSummary(fresh=len(plan.statuses))
+        summary = engine.run_plan(plan, domain, store, executor=executor)   # runs nothing; records the run
     else:
         where = args.scheduler if args.executor == "dask" else \
             f"{args.jobs} {'Dask ' if args.executor == 'dask-local' else ''}worker{'s' if args.jobs > 1 else ''}"

@@ -19,13 +19,16 @@ workers declaring TIMING, so timings come from one class of machine.
 """
 from __future__ import annotations
 
+import signal
+import threading
 import time
 import uuid
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 
 from matrix.display import NullDisplay
 from matrix.errors import MatrixError
-from matrix.execute import BUSY_RETRY_S, Schedule, expected_seconds, record_outcome
+from matrix.execute import BUSY_RETRY_S, Schedule, _interrupt_at_safe_points, _interrupted, expected_seconds, record_outcome
 from matrix.jobs import Job
 from matrix.kinds import KINDS
 from matrix.runs import FAILED, NOT_STARTED, Outcome, RunSummary
@@ -55,9 +58,25 @@ def connect(scheduler: str | None, workers: int = 2):
         except ValueError as error:   # not an address at all (a port that is not a number, a URL)
             raise MatrixError(f"--scheduler {scheduler}: not a Dask scheduler address ({error}); give "
                               "tcp://HOST:PORT, e.g. tcp://127.0.0.1:8786") from None
-    cluster = distributed.LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
-                                       dashboard_address=None)
+    with _sigint_ignored():   # the workers it starts keep it: Ctrl-C is the driver's (it closes the cluster)
+        cluster = distributed.LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
+                                           dashboard_address=None)
     return distributed.Client(cluster)
+
+
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while processes are started (an ignored signal stays ignored in the child), so that
+    Ctrl-C, which the terminal sends to every process of the group, reaches only the driver: the workers
+    printed a traceback each."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def check_single_threaded(client) -> None:
@@ -96,25 +115,45 @@ def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: boo
     schedule, running = Schedule(stale, expected_seconds(store)), {}
     finished = distributed.as_completed()
     stopping = False
-    while running or (schedule.has_work() and not stopping):
-        while not stopping and (job := schedule.next_ready()):
-            future = submit(job)
-            running[future.key] = job
-            finished.add(future)
-        if not running:   # only jobs another run holds: they are retried after a pause
-            time.sleep(BUSY_RETRY_S)
-            continue
-        future = next(finished)
-        job = running.pop(future.key)
-        outcome = _outcome(job, future)
-        record_outcome(outcome, schedule, summary, display or NullDisplay())
-        stopping = stopping or (outcome.status == FAILED and not keep_going)
+    with _interrupt_at_safe_points():
+        while running or (schedule.has_work() and not stopping):
+            while not stopping and (job := schedule.next_ready()):
+                future = submit(job)
+                running[future.key] = job
+                finished.add(future)
+            future = _next_finished(finished, client, running)
+            if future is None:   # nothing ended yet, or only jobs another run holds (retried after a pause)
+                continue
+            job = running.pop(future.key)
+            outcome = _outcome(job, future)
+            record_outcome(outcome, schedule, summary, display or NullDisplay())
+            stopping = stopping or (outcome.status == FAILED and not keep_going)
     for job in schedule.pending():
         record_outcome(Outcome(job.key, job.name, job.kind, NOT_STARTED,
                         "not started: the run stopped at the first failure (use --keep-going)"),
                 schedule, summary, display or NullDisplay())
     summary.wall_s = time.monotonic() - started
     return summary
+
+
+def _next_finished(finished, client, running: dict):
+    """The next future to end, or None after a short wait; Ctrl-C (a flag set by the handler: raised inside
+    Dask's waits it could leave the client stuck) cancels the running jobs and interrupts the run, as the
+    local executor does: the jobs in flight are lost, not half-written (each commits atomically)."""
+    if _interrupted.is_set():
+        client.cancel(list(finished.futures))   # those not ended yet
+        raise KeyboardInterrupt
+    if finished.has_ready() or (running and _wait_for_one(finished)):
+        return next(finished)
+    time.sleep(BUSY_RETRY_S if not running else 0)
+    return None
+
+
+def _wait_for_one(finished, seconds: float = 0.1) -> bool:
+    end = time.monotonic() + seconds
+    while not finished.has_ready() and time.monotonic() < end:
+        time.sleep(0.01)
+    return finished.has_ready()
 
 
 class _Submitter:

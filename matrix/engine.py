@@ -182,6 +182,8 @@ def _record_and_run(plan: Plan, domain: Domain, store: Store, executor: Executor
     write_json_atomic(store.recipe_path(slug(plan.recipe.name)),
                       {"recipe": plan.recipe.name, "file": plan.recipe.file, "written_at": time.time(),
                        "jobs": {s.job.name: s.job.spec() for s in plan.statuses}, "before": _unfinished_before(plan)})
+    if not plan.stale:   # recorded all the same: the recipe's last run is this one (plan's reasons, status --recipe)
+        return RunSummary(fresh=len(plan.statuses))
     if display is not None:
         display.start(s.job for s in plan.stale)
     try:

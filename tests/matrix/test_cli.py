@@ -210,3 +210,18 @@ def test_a_store_that_is_a_file_is_said_to_be_one(recipe, tmp_path, capsys, comm
     code, out, err = cli(capsys, *args, "--store", str(recipe))
     assert code == 2 and f"--store {recipe}: a file, not a store folder; give a folder" in err
     assert err.count("\n") == 1 and recipe.read_text() == RECIPE % 3
+
+
+def test_a_run_with_nothing_to_do_is_the_recipe_s_last_run_and_clears_killed_runs_leftovers(recipe, tmp_path, capsys):
+    """outside test: a run that found every job fresh was not recorded (`status --recipe` of the recipe just
+    run said it never ran; plan's reasons compared with an older run) and left killed runs' tmp/ folders."""
+    store = tmp_path / "s"
+    assert cli(capsys, "run", str(recipe), "--store", str(store))[0] == 0
+    renamed = tmp_path / "renamed.yaml"
+    renamed.write_text(recipe.read_text().replace("name: toy", "name: renamed"))
+    leftover = store / "tmp" / "0123456789abcdef-99999-killed"
+    leftover.mkdir(parents=True)
+    code, out, _ = cli(capsys, "run", str(renamed), "--store", str(store))
+    assert code == 0 and "nothing to do" in out and not leftover.exists()
+    code, out, _ = cli(capsys, "status", "--store", str(store), "--times", "--recipe", "renamed")
+    assert code == 0 and "recipe renamed: 5 jobs" in out

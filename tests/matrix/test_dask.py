@@ -139,3 +139,21 @@ def test_a_worker_running_jobs_in_several_threads_is_refused_before_anything_run
         with pytest.raises(MatrixError, match=r"2 threads.*--nthreads 1"):
             run_dask(plan_of(tmp_path, store).statuses, store, threaded, kind_modules=TOY.kind_modules)
     assert not list(store.keys())
+
+
+def test_ctrl_c_interrupts_a_dask_run_and_leaves_no_half_written_job(tmp_path, client):
+    """outside test: with --executor dask-local three SIGINTs did nothing, the run went on to its end."""
+    from matrix.dask_executor import run_dask
+    store = Store(tmp_path / "s")
+    plan = plan_of(tmp_path, store, sleep="8")
+    slow = next(s.job for s in plan.statuses if s.job.name == "source b")
+    threading.Timer(2.0, os.kill, (os.getpid(), signal.SIGINT)).start()
+    started = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        run_dask(plan.statuses, store, client, kind_modules=TOY.kind_modules)
+    assert time.monotonic() - started < 6
+    assert store.result(slow.key) is None and plan_of(tmp_path, store, sleep="8").stale
+    deadline = time.monotonic() + 20   # the cancelled job is gone from the workers
+    while any(client.processing().values()) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(client.processing().values())
