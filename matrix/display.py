@@ -26,11 +26,11 @@ from rich.table import Table
 
 from matrix.errors import MatrixError
 from matrix.runs import RunSummary
-from matrix.store import ARTIFACTS, LOG, Store, read_json
+from matrix.store import ARTIFACTS, LOG, RUNS_LOCK, Store, read_json
 from matrix.times import KindStats, kind_times, recipe_keys
 
 SYMBOLS = {"ok": "[green]✓[/]", "not_applicable": "[yellow]–[/]", "failed": "[red]✗[/]",
-           "skipped": "[red]↷[/]", "not_started": "[red]·[/]", "done_elsewhere": "[green]✓[/]"}
+           "skipped": "[red]↷[/]", "not_started": "[red]·[/]", "done_elsewhere": "[green]✓[/]", "kept": "[green]✓[/]"}
 KNOWN_WEIGHT = 3          # the store's estimate of a kind counts as this many of this run's finished jobs
 NAME_WIDTH = 44           # longer job names are cut, so the times stay on the line
 PLAIN_INTERVAL_S = 10.0   # a status line this often when the output is not a terminal
@@ -322,8 +322,10 @@ def print_status(out: Console, store: Store) -> int:
         table.add_row(kind, str(counts["ok"]), str(counts["not_applicable"]), str(counts["corrupt"]))
     out.print(table if kinds else "no finished jobs yet")
     failed = sorted((store.root / "failed").glob("*.json"))
-    running = [p.stem for p in (store.root / "locks").glob("*.lock") if store.is_locked(p.stem)]
-    out.print(f"failed (will rerun): {len(failed)}; running now: {len(running)}")
+    running = [p.stem for p in (store.root / "locks").glob("*.lock") if p.name != RUNS_LOCK and store.is_locked(p.stem)]
+    # a failure is rerun by the next run of a recipe that reaches it; one no recipe reaches any more, gc removes
+    out.print(f"failed: {len(failed)} (a run of a recipe that reaches one reruns it; gc removes those none reaches); "
+              f"running now: {len(running)}")
     for index in sorted((store.root / "recipes").glob("*.json")):
         data = read_json(index) or {}
         out.print(f"recipe {escape(data.get('recipe', index.stem))}: {len(data.get('jobs', {}))} jobs "

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 # A job's status after a run: what its worker answered (matrix.worker), or what the executor decided.
 OK, NOT_APPLICABLE, FAILED, BUSY, DONE_ELSEWHERE = "ok", "not_applicable", "failed", "busy", "done_elsewhere"
+KEPT = "kept"   # its result stands: what it was made from ran again and came out the same
 SKIPPED, NOT_STARTED = "skipped", "not_started"
 
 
@@ -19,7 +20,7 @@ class Outcome:
     key: str
     name: str
     kind: str
-    status: str          # ok | not_applicable | failed | skipped | not_started | done_elsewhere
+    status: str          # ok | not_applicable | failed | skipped | not_started | done_elsewhere | kept
     reason: str = ""
     duration_s: float = 0.0
 

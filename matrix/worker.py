@@ -24,7 +24,7 @@ from matrix.errors import MatrixError, exit_message
 from matrix.hostlock import host_slot
 from matrix.jobs import spec_dep_keys
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
-from matrix.runs import BUSY, DONE_ELSEWHERE, FAILED, NOT_APPLICABLE, OK
+from matrix.runs import BUSY, DONE_ELSEWHERE, FAILED, KEPT, NOT_APPLICABLE, OK
 from matrix.stale import CONDITIONAL
 from matrix.store import INTACT, LOG, Store, outputs_token, result_token
 
@@ -74,7 +74,7 @@ def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = (), r
     """Run the job described by `spec` (see Job.spec) unless it is done or running elsewhere.
     `replaces` (a forced rerun) names the stored result to run again: that one does not count as done.
 
-    Returns {"status": ok | not_applicable | failed | busy | done_elsewhere, "reason", "duration_s"}."""
+    Returns {"status": ok | not_applicable | failed | busy | done_elsewhere | kept, "reason", "duration_s"}."""
     with _interruptible():
         return _execute(store_root, spec, kind_modules, replaces)
 
@@ -102,8 +102,8 @@ def _execute(store_root: str, spec: dict, kind_modules: Iterable[str], replaces:
         done = store.result(key)
         kept = done is not None and store.outputs_intact(key, done) and _still_stands(store, spec, done, replaces)
         if kept:
-            return {"status": DONE_ELSEWHERE, "reason": kept if isinstance(kept, str) else done.get("reason", ""),
-                    "duration_s": 0.0}
+            return {"status": KEPT, "reason": kept, "duration_s": 0.0} if isinstance(kept, str) else \
+                {"status": DONE_ELSEWHERE, "reason": done.get("reason", ""), "duration_s": 0.0}
         waiting = lambda: _progress_for(key)(completed=0, total=None, description=HOST_BUSY)   # noqa: E731
         with host_slot(exclusive=KINDS.get(spec["kind"]).runs_alone(spec["params"]), waiting=waiting):   # timings: alone
             return _run_locked(store, spec)

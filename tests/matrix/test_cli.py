@@ -49,7 +49,7 @@ def test_run_status_show_and_gc(recipe, tmp_path, capsys):
     store = str(tmp_path / "s")
     assert cli(capsys, "run", str(recipe), "--store", store)[0] == 0
     code, out, _ = cli(capsys, "status", "--store", store)
-    assert code == 0 and "source" in out and "power" in out and "failed (will rerun): 0" in out
+    assert code == 0 and "source" in out and "power" in out and "failed: 0 (a run of a recipe that reaches one reruns it" in out
     key = json.loads(cli(capsys, "plan", str(recipe), "--json", "--store", store)[1])[-1]["key"]
     code, out, _ = cli(capsys, "show", key[:8], "--store", store)
     assert code == 0 and "total" in out and "status: ok" in out and "log.txt" in out
@@ -225,3 +225,13 @@ def test_a_run_with_nothing_to_do_is_the_recipe_s_last_run_and_clears_killed_run
     assert code == 0 and "nothing to do" in out and not leftover.exists()
     code, out, _ = cli(capsys, "status", "--store", str(store), "--times", "--recipe", "renamed")
     assert code == 0 and "recipe renamed: 5 jobs" in out
+
+
+def test_status_counts_running_jobs_not_the_run_itself(recipe, tmp_path, capsys):
+    """outside test: during a -j 1 run `status` said 'running now: 2': the store's runs.lock counted as a job."""
+    from matrix.store import Store
+    store = Store(tmp_path / "s")
+    assert cli(capsys, "run", str(recipe), "--store", str(store.root))[0] == 0
+    with store.running(), store.lock(next(iter(store.keys()))):
+        code, out, _ = cli(capsys, "status", "--store", str(store.root))
+    assert code == 0 and "running now: 1" in out

@@ -123,7 +123,7 @@ def test_force_reruns_on_dask(tmp_path, client):
     forced = engine.make_plan(load_recipe(path, TOY), TOY, store, ["power"])
     summary = run_dask(forced.statuses, store, client, kind_modules=TOY.kind_modules)
     # the 6 forced; the total made from them is kept: they came out the same
-    assert summary.counts() == {"ok": 6, "done_elsewhere": 1}, summary.outcomes
+    assert summary.counts() == {"ok": 6, "kept": 1}, summary.outcomes
     executions = (store.root / "cache" / "executions.log").read_text().splitlines()
     assert executions.count("power a^2") == 2 and executions.count("total") == 1
 

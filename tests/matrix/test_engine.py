@@ -173,7 +173,7 @@ def test_a_forced_job_reruns_what_was_made_from_it_in_the_same_run_if_its_output
     assert [n for n, status in outcomes.items() if status == "ok"] == ["source a", "source b", "source c",
                                                                           "power c^2", "power c^3"]
     # same outputs (source b's run time differs: measured, not made): kept
-    assert {outcomes[n] for n in ("power a^2", "power b^3", "total")} == {"done_elsewhere"}
+    assert {outcomes[n] for n in ("power a^2", "power b^3", "total")} == {"kept"}
     reasons = {o.name: o.reason for o in summary.outcomes}
     assert reasons["total"] == "kept: its dependencies ran again with the outputs it was made from"
     executions = (store.root / "cache" / "executions.log").read_text().splitlines()
@@ -216,7 +216,7 @@ def test_corrupt_output_is_stale(tmp_path):
     plan, summary = run(recipe_file(tmp_path), store)
     assert {s.job.name: s.reason for s in plan.statuses}["source a"] == "output missing or corrupt"
     assert sorted(o.name for o in summary.outcomes if o.status == "ok") == ["source a"]
-    assert {o.status for o in summary.outcomes if o.name != "source a"} == {"done_elsewhere"}   # rebuilt the same
+    assert {o.status for o in summary.outcomes if o.name != "source a"} == {"kept"}   # rebuilt the same
 
 
 KIND_MODULE = """

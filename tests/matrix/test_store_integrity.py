@@ -53,7 +53,7 @@ def test_a_same_size_replacement_makes_the_job_stale_and_the_run_rebuilds_it(tmp
     assert (status.state, status.reason) == ("stale", "output changed")
     _, summary = plan_and_run(path, store)
     assert [o.name for o in summary.outcomes if o.status == "ok"] == ["source a"]   # what stands on it: kept
-    assert summary.counts() == {"ok": 1, "done_elsewhere": 2}
+    assert summary.counts() == {"ok": 1, "kept": 2}
     assert (store.artifacts(key) / "value.json").read_text() == "2"
     assert status_of(path, store, "source a").state == "fresh"
 
@@ -98,7 +98,7 @@ def test_an_entry_whose_spec_was_deleted_is_not_fresh_and_the_run_rebuilds_it(tm
     assert (status.state, status.reason) == ("stale", "output missing or corrupt")
     _, summary = plan_and_run(path, store)
     assert [o.name for o in summary.outcomes if o.status == "ok"] == ["source a"]   # what stands on it: kept
-    assert summary.counts() == {"ok": 1, "done_elsewhere": 2}
+    assert summary.counts() == {"ok": 1, "kept": 2}
     assert store.spec(key)["key"] == key and status_of(path, store, "source a").state == "fresh"
 
 
