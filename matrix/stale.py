@@ -161,7 +161,12 @@ def dependency_changes(job: Job, before: dict) -> list[str]:
     changed = [d.name for role, dep in job.deps.items()
                for d in (dep if isinstance(dep, tuple) else (dep,))
                if d.key not in _flat(old.get(role))]
-    return [f"dependency changed: {', '.join(dict.fromkeys(changed))}"] if changed else []
+    if changed:
+        return [f"dependency changed: {', '.join(dict.fromkeys(changed))}"]
+    # the same jobs in another order: a group's order is part of what a job is made from (a training's recordings)
+    reordered = [role for role, dep in job.deps.items() if isinstance(dep, tuple)
+                 and [d.key for d in dep] != _flat(old.get(role))]
+    return [f"dependencies reordered: {', '.join(reordered)} (a group's order is part of the job)"] if reordered else []
 
 
 def _flat(value: Any) -> list:

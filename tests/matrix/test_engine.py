@@ -67,6 +67,18 @@ def test_changing_one_parameter_reruns_exactly_its_downstream(tmp_path):
     assert reasons["power a^2"] == ""
 
 
+def test_a_group_of_the_same_dependencies_in_another_order_says_so(tmp_path):
+    """outside test: reordering a dataset's recordings retrained with the reason 'new' (a group's order is part of
+    the job: which recording a training holds out follows it)."""
+    store = Store(tmp_path / "store")
+    run(recipe_file(tmp_path), store)
+    path = recipe_file(tmp_path)
+    path.write_text(path.read_text().replace("source: [a, b, c]", "source: [c, b, a]"))
+    plan = engine.make_plan(load_recipe(path, TOY), TOY, store)
+    reasons = {s.job.name: s.reason for s in plan.statuses if s.state != "fresh"}
+    assert reasons == {"total": "dependencies reordered: parts (a group's order is part of the job)"}
+
+
 def test_a_run_stopped_before_an_edited_job_ran_leaves_the_edit_s_reasons(tmp_path, monkeypatch):
     """Outside test: after an interrupted run, `plan` said "new" for the jobs it had not reached (the
     run's record already held their new versions); it says what the edit changed until they run."""
