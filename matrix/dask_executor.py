@@ -19,6 +19,7 @@ workers declaring TIMING, so timings come from one class of machine.
 """
 from __future__ import annotations
 
+import os
 import signal
 import threading
 import time
@@ -31,10 +32,10 @@ from matrix.errors import MatrixError
 from matrix.execute import BUSY_RETRY_S, Schedule, _interrupt_at_safe_points, _interrupted, expected_seconds, record_outcome
 from matrix.jobs import Job
 from matrix.kinds import KINDS
-from matrix.runs import FAILED, NOT_STARTED, Outcome, RunSummary
+from matrix.runs import FAILED, NOT_STARTED, Outcome, RunSummary, worker_threads
 from matrix.stale import FRESH, JobStatus, results_to_replace
 from matrix.store import Store
-from matrix.worker import execute_job
+from matrix.worker import THREAD_VARIABLES, execute_job
 
 INSTALL_HINT = "the Dask executor needs Dask distributed: pip install distributed"
 
@@ -60,8 +61,16 @@ def connect(scheduler: str | None, workers: int = 2):
                               "tcp://HOST:PORT, e.g. tcp://127.0.0.1:8786") from None
     with _sigint_ignored():   # the workers it starts keep it: Ctrl-C is the driver's (it closes the cluster)
         cluster = distributed.LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
-                                           dashboard_address=None)
+                                           dashboard_address=None, env=_thread_share(workers))
     return distributed.Client(cluster)
+
+
+def _thread_share(workers: int) -> dict[str, str]:
+    """The math libraries' thread variables of a local worker, as the local executor's pool sets them
+    (matrix.worker.init_worker): each worker its share of the cores, so that two do not spin against each
+    other; a variable the user set is kept."""
+    threads = worker_threads(max(1, workers))
+    return {name: os.environ.get(name, str(threads)) for name in THREAD_VARIABLES} if threads else {}
 
 
 @contextmanager

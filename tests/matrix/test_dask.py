@@ -157,3 +157,16 @@ def test_ctrl_c_interrupts_a_dask_run_and_leaves_no_half_written_job(tmp_path, c
     while any(client.processing().values()) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not any(client.processing().values())
+
+
+def test_dask_local_workers_get_their_share_of_the_cores_as_the_local_pool_s(monkeypatch):
+    """Two workers each running torch on every core spin against each other; the local pool sets the math
+    libraries' thread variables per worker, dask-local did not."""
+    from matrix.dask_executor import connect
+    from matrix.runs import worker_threads
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    with connect(None, workers=2) as local:
+        seen = set(local.run(lambda: os.environ.get("OMP_NUM_THREADS")).values())
+        local.cluster.close()
+    share = worker_threads(2)
+    assert seen == {None if share is None else str(share)}
