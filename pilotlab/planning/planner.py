@@ -23,6 +23,7 @@ from matrix.inputhash import hash_files
 from matrix.jobs import InputFile, Job, Params, input_file
 from matrix.recipe import Recipe
 from pilotlab.errors import PilotlabError
+from pilotlab.planning.checks import check_bag_topics, check_test_set
 from pilotlab.planning.laps import online_jobs, reference_jobs
 from pilotlab.planning.worlds import world_param
 from pilotlab.recipe import DatasetSpec, ModelSpec, RecordingsSpec
@@ -118,27 +119,12 @@ class Planner:
             where = ["datasets", name, "bags" if i < len(spec.bags) else "folders"]
             source = self.path(path, where, "recording")
             if i < len(spec.bags):
-                self.remembered(("bag topics", name, str(source)), lambda: self._check_topics(name, spec, path, source, i))
+                self.remembered(("bag topics", name, str(source)),
+                                lambda: check_bag_topics(self.recipe, name, spec, path, source, i))
             label = f"{name}/{Path(path).name}"
             jobs.append(job("frames", f"frames {label}{shown}", frames_spec,
                             inputs={"bag": self._recording_input(source, where)}))
         return jobs
-
-    def _check_topics(self, name: str, spec: DatasetSpec, value: str, source: Path, i: int) -> None:
-        """The dataset's topics are in this bag (its index only; pilotlab.data.bag_topics), else a recipe error
-        naming every one it lacks, at the key to change."""
-        from pilotlab.data.bag_topics import bag_topics, listing, missing_topics
-        from pilotlab.data.folder_rows import is_dataset_folder
-        topics = None if is_dataset_folder(source) else bag_topics(source)
-        missing = [] if topics is None else missing_topics(topics, spec.topics.image, spec.topics.command)
-        if not missing:
-            return
-        lacks = " and ".join(phrase for _, phrase in missing)
-        given = [role for role, _ in missing if getattr(spec.topics, role) is not None]
-        where = ["datasets", name] + (["topics", given[0]] if len(given) == 1 else ["topics"] if given else ["bags", i])
-        raise self.recipe.error(f"bag {value}: {lacks}; topics present: {listing(topics)}; name the bag's topics in "
-                                f"the dataset (topics: {{image: NAME, command: NAME}}), or give a bag with other "
-                                "topic names a dataset of its own", where)
 
     def _recording_input(self, source: Path, where: list) -> InputFile:
         """A bag is hashed whole; a DeepLearningStudio folder by what reading it reads (data.csv and the
@@ -353,16 +339,6 @@ class Planner:
                    deps={"artifact": optimize, "frames": optimize.deps["calibration"]},
                    labels={"model": model, "strategy": strategy, "hardware": hardware})
 
-    def _check_test_set(self) -> None:
-        """The default test set ("test") missing from a recipe that never named one: say what it is for."""
-        name = self.config.offline.data
-        if name not in self.config.datasets and "data" not in self.config.offline.model_fields_set:
-            raise self.recipe.error(
-                f"the offline evaluation (MSE, size, timing) needs a test set, and dataset {name!r} is not defined "
-                f"(datasets: {', '.join(self.config.datasets) or 'none'}); add one, e.g. `{name}: {{record: "
-                "{circuits: [simple_circuit], laps: 0.5, seed: 2}}`, or measure on another dataset with `offline: "
-                "{data: NAME}`", ["datasets"])
-
     def offline(self, optimize: Job, timing: Job, combination: dict, hardware: str) -> Job:
         """The offline job of a combination: one per (model, strategy, hardware, world), whatever the circuit."""
         model, strategy, world = combination["model"], combination["strategy"], combination.get("world")
@@ -370,7 +346,7 @@ class Planner:
                                lambda: self._offline(optimize, timing, model, strategy, world, hardware))
 
     def _offline(self, optimize: Job, timing: Job, model: str, strategy: str, world: Any, hardware: str) -> Job:
-        self._check_test_set()
+        self.remembered(("test set",), lambda: check_test_set(self.recipe, self.config))
         test = self.dataset(self.config.offline.data, ["offline", "data"], self.config.models[model].preprocess,
                             world=None if world is None else str(world))
         labels = {"model": model, "strategy": strategy, "hardware": hardware,
