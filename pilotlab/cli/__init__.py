@@ -31,6 +31,15 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def _command_parser(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.ArgumentParser:
+    """The parser of the (sub-)command `argv` names."""
+    for token in argv:
+        commands = parser._subparsers._group_actions[0].choices if parser._subparsers else {}
+        if token in commands:
+            parser = commands[token]
+    return parser
+
+
 def _verbose_anywhere(parser: argparse.ArgumentParser) -> None:
     """-v after the command too (`pilotlab plan R -v`), on every command and sub-command: not given there, it
     leaves the one before the command as it was."""
@@ -62,7 +71,10 @@ def main(argv: list[str] | None = None) -> int:
     if argv is None:   # the program itself (not a caller's main([...])): `pilotlab plan R | head` ends quietly,
         signal.signal(signal.SIGPIPE, signal.SIG_DFL)   # as Unix tools do, when head stops reading
     argv = sys.argv[1:] if argv is None else argv
-    args = build_parser(argv).parse_args(argv)
+    parser = build_parser(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:   # said by the command's own parser, with its usage (argparse's top-level one showed pilotlab's)
+        _command_parser(parser, argv).error(f"unrecognized arguments: {' '.join(unknown)}")
     try:
         return int(args.func(args) or 0)
     except (MatrixError, pydantic.ValidationError) as error:

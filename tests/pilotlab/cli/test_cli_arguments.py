@@ -132,3 +132,13 @@ def test_verbose_is_taken_before_or_after_the_command(tmp_path, capsys, argv):
 def test_without_verbose_an_error_is_one_line(tmp_path, capsys):
     assert main(["circuit", "show", "nope_circ", "-o", str(tmp_path / "m.png")]) == 2
     assert capsys.readouterr().err.count("\n") == 1
+
+
+@pytest.mark.parametrize("argv, usage", [(["plan", "r.yaml", "--bogus"], "usage: pilotlab plan "),
+                                         (["circuit", "show", "simple_circuit", "--nope"], "usage: pilotlab circuit show ")])
+def test_an_unknown_flag_is_said_with_its_command_s_usage(capsys, argv, usage):
+    """outside test: a sub-command's unknown flag showed pilotlab's own usage (`pilotlab [-h] [-v] COMMAND ...`)."""
+    with pytest.raises(SystemExit) as exited:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exited.value.code == 2 and err.startswith(usage) and f"unrecognized arguments: {argv[-1]}" in err
