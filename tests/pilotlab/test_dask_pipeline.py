@@ -97,10 +97,17 @@ def test_a_profile_times_on_the_dask_worker_of_its_machine_and_its_lap_replays_t
     store = Store(tmp_path / "store")
     plan = engine.make_plan(load_recipe(path, DOMAIN), DOMAIN, store)
     workers = {"jetson": worker("jetson", {"JETSON": 1}), "lab": worker("lab", {})}
-    with distributed.SpecCluster(workers=workers, scheduler={"cls": distributed.Scheduler, "options": {
-            "dashboard_address": None}}) as cluster, distributed.Client(cluster) as client:
-        from matrix.dask_executor import run_dask
-        summary = run_dask(plan.statuses, store, client, kind_modules=DOMAIN.kind_modules)
+    summary = None
+    try:
+        with distributed.SpecCluster(workers=workers, scheduler={"cls": distributed.Scheduler, "options": {
+                "dashboard_address": None}}) as cluster, distributed.Client(cluster) as client:
+            from matrix.dask_executor import run_dask
+            summary = run_dask(plan.statuses, store, client, kind_modules=DOMAIN.kind_modules)
+    except TimeoutError:
+        # closing the cluster, not the run: in CI this suite runs at nice 19 beside the README's pytest, and a
+        # starved worker process took longer than distributed's fixed 5 s (Nanny.close) to exit
+        if summary is None:
+            raise
     assert not summary.failed, summary.outcomes
     done = results(store, plan)
     timing = done["timing pilotnet/baseline on jetson"]["value"]
