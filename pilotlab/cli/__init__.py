@@ -31,24 +31,26 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def _commands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    """A parser's sub-commands by name (argparse keeps them in its one sub-parsers action)."""
+    return parser._subparsers._group_actions[0].choices if parser._subparsers else {}
+
+
 def _command_parser(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.ArgumentParser:
     """The parser of the (sub-)command `argv` names."""
     for token in argv:
-        commands = parser._subparsers._group_actions[0].choices if parser._subparsers else {}
-        if token in commands:
-            parser = commands[token]
+        parser = _commands(parser).get(token, parser)
     return parser
 
 
 def _verbose_anywhere(parser: argparse.ArgumentParser) -> None:
     """-v after the command too (`pilotlab plan R -v`), on every command and sub-command: not given there, it
     leaves the one before the command as it was."""
-    for action in parser._subparsers._group_actions if parser._subparsers else ():
-        for command in {id(p): p for p in (action.choices or {}).values()}.values():   # aliases: one parser
-            if "--verbose" not in command._option_string_actions:
-                command.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
-                                     help="show tracebacks and debug logs")
-            _verbose_anywhere(command)
+    for command in {id(p): p for p in _commands(parser).values()}.values():   # aliases: one parser
+        if "--verbose" not in command._option_string_actions:
+            command.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                                 help="show tracebacks and debug logs")
+        _verbose_anywhere(command)
 
 
 def _command_modules(argv: list[str] | None) -> list[str]:
