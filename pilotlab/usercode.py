@@ -360,6 +360,18 @@ def source_hash(spec: str, base: Path) -> str:
     return _combined_hash(files, [_code_text(file) for file in files])
 
 
+def base_of(spec: str, file: Path) -> Path:
+    """A folder that `spec` is read relative to and names `file` from (the file of its `source_input`):
+    a job keeps the spec as written and finds its folder again from its input, whose path is no part of
+    its key, so a project moved or cloned elsewhere keeps the results its user code made."""
+    target, file = spec.rpartition(":")[0], Path(file).resolve()
+    if target.endswith(".py") or "/" in target or "\\" in target:
+        return next((folder for folder in file.parents if (folder / Path(target).expanduser()).resolve() == file),
+                    file.parent)
+    depth = len(target.split(".")) + (file.name == "__init__.py")   # a package's module, or the package
+    return file.parents[min(depth, len(file.parents)) - 1]
+
+
 def source_input(spec: str, base: Path) -> InputFile:
     """The job input of the user's code `spec`: its file, `source_hash`, and each file's own hash (named
     relative to `base`, the recipe's folder), so that `plan` names the module that changed."""

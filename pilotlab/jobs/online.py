@@ -32,7 +32,7 @@ import numpy as np
 
 from matrix.hostlock import host_name
 from matrix.kinds import JobContext
-from pilotlab import predictor
+from pilotlab import predictor, usercode
 from pilotlab.errors import PilotlabError
 from pilotlab.hardware import check_available, check_host, profile_from_dict, within_share
 from pilotlab.online import brains, evaluate
@@ -60,7 +60,9 @@ def make_brain(ctx: JobContext, spec: OnlineSpec, profile) -> tuple[brains.Brain
                             f"brain: one of {names}, or user (with user_brain)")
     if spec.brain == "user":
         mine = spec.user_brain
-        return brains.UserBrain(mine.spec, Path(mine.base), name=mine.name), mine.name
+        source = ctx.inputs.get("brain_source")
+        base = usercode.base_of(mine.spec, source) if source is not None else Path(mine.base)
+        return brains.UserBrain(mine.spec, base, name=mine.name), mine.name
     return brains.make_reference_brain(spec.brain, reference_options(ctx, spec)), spec.brain
 
 

@@ -139,7 +139,8 @@ def reference_brain(planner, reference: str | dict[str, str], index: int) -> tup
         source = usercode.source_input(spec, planner.folder)
     except MatrixError as error:
         raise planner.recipe.error(str(error), ["online", "references", index, name]) from None
-    brain = {"brain": "user", "user_brain": {"name": name, "spec": spec, "base": str(planner.folder)}}
+    # the recipe's folder is not in the key (the lap finds it from its input): a moved project keeps its laps
+    brain = {"brain": "user", "user_brain": {"name": name, "spec": spec}}
     return name, brain, {"brain_source": source}
 
 

@@ -146,7 +146,9 @@ class UserBrainSpec(Spec):
     (pilotlab.usercode.source_hash: the file and the local modules it imports), so an edit reruns it."""
     name: str = Field(min_length=1, description="the report row's name")
     spec: str = Field(pattern=r".:[A-Za-z_][\w.]*$", description="file.py:Class or module:Class")
-    base: str = Field(".", description="the folder a relative file is in (the recipe's)")
+    base: str = Field(".", description="the folder a relative file is in, for a job without the input "
+                                       "brain_source (`drive --brain`: the current one); a recipe's lap finds "
+                                       "it from that input, so that a moved project keeps its laps")
 
 
 class OnlineSpec(LapSettings, InWorld):

@@ -1,6 +1,7 @@
 """A brain the user wrote, through the recipe path (planner -> online job in the store -> report) and
 through `pilotlab drive --brain`: a proportional controller on the red line, written by the test."""
 import json
+import shutil
 
 import pytest
 
@@ -49,7 +50,8 @@ def test_the_planner_makes_a_reference_lap_keyed_by_the_brain_s_source(tmp_path)
     assert lap.name == "online mine on cpu at simple_circuit cw"
     assert lap.labels == {"model": "reference", "strategy": "mine", "hardware": "cpu",
                           "circuit": "simple_circuit", "direction": "cw"}
-    assert lap.params["user_brain"] == {"name": "mine", "spec": SPEC, "base": str(tmp_path.resolve())}
+    # the recipe's folder is not in the key (the lap finds it from its input brain_source)
+    assert lap.params["user_brain"] == {"name": "mine", "spec": SPEC, "base": "."}
     assert lap.inputs["brain_source"].sha256 == source_hash(SPEC, tmp_path)
     keys = {job.name: job.key for job in jobs}
     brain = tmp_path / "brains" / "mine.py"
@@ -83,6 +85,22 @@ def run_user_laps(tmp_path, timeout_s: float | None):
     (lap,) = [status.job for status in mine.statuses]
     write_recipe_report(recipe, store, [status.job for status in plan.statuses])
     return store.result(lap.key)["value"], report_folder(recipe)
+
+
+def test_a_moved_project_keeps_its_user_brain_s_lap_which_runs_from_the_new_folder(tmp_path):
+    """Outside test: the lap was keyed by the recipe's absolute folder, so a project moved (or a second
+    clone sharing the store) drove its user brains' laps again."""
+    recipe_at(tmp_path / "a", timeout_s=0.5)
+    (before,) = user_laps(engine.plan_jobs(load_recipe(tmp_path / "a" / "mine.yaml", DOMAIN), DOMAIN))
+    shutil.move(tmp_path / "a", tmp_path / "b")
+    recipe = load_recipe(tmp_path / "b" / "mine.yaml", DOMAIN)
+    store = engine.open_store(DOMAIN, tmp_path / "store")
+    plan = engine.make_plan(recipe, DOMAIN, store)
+    (moved,) = user_laps([status.job for status in plan.statuses])
+    assert moved.key == before.key and moved.inputs["brain_source"].path == str(tmp_path / "b" / "brains" / "mine.py")
+    summary = run_plan(Plan(recipe, [status for status in plan.statuses if status.job is moved]), DOMAIN, store)
+    assert [outcome.status for outcome in summary.outcomes] == ["ok"], summary
+    assert store.result(moved.key)["value"]["brain"] == "mine"
 
 
 @pytest.mark.slow   # a lap through the store and a report, ~13 s; test_pilotlab_drive_with_a_user_brain drives one

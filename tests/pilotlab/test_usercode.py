@@ -1,12 +1,13 @@
 """Loading code users write (file.py:Name, module:Name): the object, one-line errors naming the file
 and line, and the source hash that goes into job keys."""
+import shutil
 import sys
 import textwrap
 from pathlib import Path
 
 import pytest
 
-from pilotlab.usercode import UserCodeError, load_object, source_files, source_hash
+from pilotlab.usercode import UserCodeError, base_of, load_object, source_files, source_hash, source_input
 
 BRAIN = """
 import numpy as np
@@ -208,3 +209,16 @@ def test_two_projects_each_with_a_package_of_the_same_name_load_their_own(tmp_pa
         write(tmp_path, f"{project}/nets/model.py", "from .common import GAIN\n\n\nclass Net:\n    gain = GAIN\n")
     gains = [load_object(f"{project}/nets/model.py:Net", tmp_path).gain for project in ("projA", "projB", "projA")]
     assert gains == [1.0, 2.0, 1.0]
+
+
+@pytest.mark.parametrize("spec", ["brains/mine.py:MyBrain", "./brains/../brains/mine.py:MyBrain", "userpkg.drivers:Slow",
+                                  "userpkg:Slow", "flat:Slow"])
+def test_the_folder_a_spec_is_read_from_is_found_again_from_its_input_file(brains, spec):
+    write(brains, "userpkg/__init__.py", "class Slow:\n    pass\n")
+    write(brains, "userpkg/drivers.py", "class Slow:\n    pass\n")
+    write(brains, "flat.py", "class Slow:\n    pass\n")
+    moved = brains.with_name(brains.name + "_moved")
+    shutil.copytree(brains, moved)
+    file = Path(source_input(spec, moved).path)
+    assert source_files(spec, base_of(spec, file)) == source_files(spec, moved)
+    assert base_of(spec, file) == moved.resolve() or "/" in spec
