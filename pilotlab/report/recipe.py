@@ -45,7 +45,7 @@ def write_recipe_report(recipe: Recipe, store: Store, jobs: list, force: bool = 
     The report is written into a new folder beside the old one, then swapped in: a reader (or a
     second run writing the same report) never sees half a report. Writers of one folder take turns."""
     folder = report_folder(recipe)
-    _check_replaceable(folder, recipe.name)
+    _check_replaceable(folder, recipe)
     stamp = _stamp(recipe, jobs, store)
     if not force and _shown(folder) == stamp:
         return None
@@ -55,7 +55,7 @@ def write_recipe_report(recipe: Recipe, store: Store, jobs: list, force: bool = 
             return None                   # another run wrote this very report while we waited
         write_report(build_report_data(recipe, jobs, store), staging)
         (staging / STAMP).write_text(json.dumps({**stamp, "files": _files(staging)}))
-        _swap(staging, folder, recipe.name)
+        _swap(staging, folder, recipe)
     return folder
 
 
@@ -100,23 +100,24 @@ def _writing(folder: Path) -> Iterator[Path]:
         lock.close()
 
 
-def _check_replaceable(folder: Path, name: str) -> None:
+def _check_replaceable(folder: Path, recipe: Recipe) -> None:
     """A report replaces only this recipe's report (a folder holding our stamp, naming the recipe) or an
     empty folder: never a file or a folder of the user's that happens to sit where the recipe's name and
     report.folder point, nor the report of another recipe whose name makes the same folder name."""
+    name = recipe.name
     if not (folder.exists() or folder.is_symlink()):
         return
     if folder.is_dir() and not folder.is_symlink() and (folder / STAMP).is_file():
         other = _stamped_recipe(folder, name)
         if other == name:
             return
-        raise PilotlabError(f"report.folder: {folder} holds the report of recipe {other!r}, and recipe {name!r} makes "
-                            "the same folder name; give one of them another name or report.folder")
+        raise recipe.error(f"{folder} holds the report of recipe {other!r}, and recipe {name!r} makes the same "
+                           "folder name; give one of them another name or report.folder", ["report", "folder"])
     if folder.is_dir() and not folder.is_symlink() and not any(folder.iterdir()):
         return
     what = "a folder that is not a pilotlab report (it has no .stamp)" if folder.is_dir() else "not a folder"
-    raise PilotlabError(f"report.folder: {folder} is {what}, and writing the report would replace it; move it "
-                        "away, or give the recipe another name or report.folder")
+    raise recipe.error(f"{folder} is {what}, and writing the report would replace it; move it away, or give the "
+                       "recipe another name or report.folder", ["report", "folder"])
 
 
 def _stamped_recipe(folder: Path, name: str) -> str:
@@ -126,9 +127,9 @@ def _stamped_recipe(folder: Path, name: str) -> str:
     return stamp.get("recipe", name) if isinstance(stamp, dict) else name
 
 
-def _swap(staging: Path, folder: Path, name: str) -> None:
+def _swap(staging: Path, folder: Path, recipe: Recipe) -> None:
     """Put `staging` where `folder` is: the old report moves aside first, then goes."""
-    _check_replaceable(folder, name)   # again, under the writers' lock: a folder may have appeared since
+    _check_replaceable(folder, recipe)   # again, under the writers' lock: a folder may have appeared since
     old = folder.parent / f".{folder.name}.old-{os.getpid()}"
     if folder.exists():
         _keep_users_files(folder, staging)

@@ -74,6 +74,7 @@ def test_a_report_replaces_only_a_report_never_a_folder_or_file_of_yours(tmp_pat
     assert main(["report", str(recipe), "--store", str(store)]) == 2
     err = capsys.readouterr().err
     assert "not a pilotlab report" in err and "another name or report.folder" in err and len(err.splitlines()) == 1
+    assert f"error: {recipe}:" in err and ": report.folder: " in err   # outside test: it had no file:line
     assert (mine / "src" / "main.py").read_text() == "print(1)\n"
     (mine / "src" / "main.py").unlink()
     (mine / "src").rmdir()
