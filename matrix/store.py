@@ -73,17 +73,18 @@ def outputs_token(result: dict) -> str:
 def outputs_hash(result: dict, measured: Collection[str] = ()) -> str:
     """sha256 of the result's status, value and file manifest, leaving out the value's `measured` keys at any
     depth (how long the run took: a rerun differs there, whatever it made)."""
-    outputs = {"status": result.get("status"), "value": _without(result.get("value"), frozenset(measured)),
+    outputs = {"status": result.get("status"), "value": without_keys(result.get("value"), frozenset(measured)),
                "manifest": result.get("manifest")}
     return hashlib.sha256(json.dumps(outputs, sort_keys=True).encode()).hexdigest()
 
 
-def _without(value: Any, keys: frozenset[str]) -> Any:
+def without_keys(value: Any, keys: frozenset[str]) -> Any:
+    """JSON-like `value` less the entries named `keys`, at any depth (measured figures, wall times)."""
     if not keys:
         return value
     if isinstance(value, dict):
-        return {k: _without(v, keys) for k, v in value.items() if k not in keys}
-    return [_without(v, keys) for v in value] if isinstance(value, list) else value
+        return {k: without_keys(v, keys) for k, v in value.items() if k not in keys}
+    return [without_keys(v, keys) for v in value] if isinstance(value, list) else value
 
 
 def read_json(path: Path) -> Any | None:

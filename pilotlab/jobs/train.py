@@ -24,6 +24,7 @@ import torch
 
 from matrix.kinds import JobContext
 from matrix.runs import cores
+from matrix.store import without_keys
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.data.split import Split, split_validation
 from pilotlab.errors import PilotlabError
@@ -147,13 +148,11 @@ def run_train(ctx: JobContext) -> dict[str, Any]:
     return result
 
 
-WALL_TIMES = ("seconds", "epoch_seconds")
+WALL_TIMES = frozenset({"seconds", "epoch_seconds"})
 
 
 def without_wall_times(value: Any) -> Any:
     """`value` less its wall times: a checkpoint (and history.json) holds what the inputs determine, so the
     same training gives the same bytes (and the same compressed size) on every run; the times stay in
     result.json (seconds, epoch_seconds)."""
-    if isinstance(value, dict):
-        return {k: without_wall_times(v) for k, v in value.items() if k not in WALL_TIMES}
-    return [without_wall_times(v) for v in value] if isinstance(value, list) else value
+    return without_keys(value, WALL_TIMES)
