@@ -29,7 +29,8 @@ from contextlib import contextmanager
 
 from matrix.display import NullDisplay
 from matrix.errors import MatrixError
-from matrix.execute import BUSY_RETRY_S, Schedule, _interrupt_at_safe_points, _interrupted, expected_seconds, record_outcome
+from matrix.execute import (BUSY_RETRY_S, INTERRUPTED, Schedule, expected_seconds, interrupt_at_safe_points,
+                            record_outcome)
 from matrix.jobs import Job
 from matrix.kinds import KINDS
 from matrix.runs import FAILED, NOT_STARTED, Outcome, RunSummary, worker_threads
@@ -124,7 +125,7 @@ def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: boo
     schedule, running = Schedule(stale, expected_seconds(store)), {}
     finished = distributed.as_completed()
     stopping = False
-    with _interrupt_at_safe_points():
+    with interrupt_at_safe_points():
         while running or (schedule.has_work() and not stopping):
             while not stopping and (job := schedule.next_ready()):
                 future = submit(job)
@@ -149,7 +150,7 @@ def _next_finished(finished, client, running: dict):
     """The next future to end, or None after a short wait; Ctrl-C (a flag set by the handler: raised inside
     Dask's waits it could leave the client stuck) cancels the running jobs and interrupts the run, as the
     local executor does: the jobs in flight are lost, not half-written (each commits atomically)."""
-    if _interrupted.is_set():
+    if INTERRUPTED.is_set():
         client.cancel(list(finished.futures))   # those not ended yet
         raise KeyboardInterrupt
     if finished.has_ready() or (running and _wait_for_one(finished)):

@@ -222,17 +222,17 @@ def run_local(statuses: list[JobStatus], store: Store, *, jobs: int = 1, keep_go
     started = time.monotonic()
     if stale:
         replacing = results_to_replace(statuses)
-        with _Pool(store, max(1, jobs), tuple(kind_modules), display, replacing) as pool, _interrupt_at_safe_points():
+        with _Pool(store, max(1, jobs), tuple(kind_modules), display, replacing) as pool, interrupt_at_safe_points():
             _drive(Schedule(stale, expected_seconds(store)), pool, summary, keep_going, display)
     summary.wall_s = time.monotonic() - started
     return summary
 
 
-_interrupted = threading.Event()
+INTERRUPTED = threading.Event()   # set by SIGINT inside interrupt_at_safe_points; the executors poll it
 
 
 @contextmanager
-def _interrupt_at_safe_points() -> Iterator[None]:
+def interrupt_at_safe_points() -> Iterator[None]:
     """SIGINT sets a flag that the driving loop turns into KeyboardInterrupt between two waits: raised
     anywhere (inside concurrent.futures' wait, holding its locks) it could leave the pool unable to shut
     down, and the run hung. A second SIGINT interrupts at once, as Python's default does."""
@@ -241,10 +241,10 @@ def _interrupt_at_safe_points() -> Iterator[None]:
         return
 
     def interrupted(signum, frame):
-        _interrupted.set()
+        INTERRUPTED.set()
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
-    _interrupted.clear()
+    INTERRUPTED.clear()
     previous = signal.signal(signal.SIGINT, interrupted)
     try:
         yield
@@ -256,7 +256,7 @@ def _drive(schedule: Schedule, pool: _Pool, summary: RunSummary, keep_going: boo
     running: dict[Future, Job] = {}
     stopping = False
     while running or (schedule.has_work() and not stopping):
-        if _interrupted.is_set():
+        if INTERRUPTED.is_set():
             raise KeyboardInterrupt
         exclusive = any(map(runs_alone, running.values()))
         while not stopping and (job := schedule.take(exclusive, len(running), pool.slots)):
