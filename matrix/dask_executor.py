@@ -30,7 +30,7 @@ from contextlib import contextmanager
 from matrix.display import NullDisplay
 from matrix.errors import MatrixError
 from matrix.execute import (BUSY_RETRY_S, INTERRUPTED, Schedule, expected_seconds, interrupt_at_safe_points,
-                            record_outcome)
+                            raise_interrupt, record_outcome)
 from matrix.jobs import Job
 from matrix.kinds import KINDS
 from matrix.runs import FAILED, NOT_STARTED, Outcome, RunSummary, worker_threads
@@ -152,7 +152,7 @@ def _next_finished(finished, client, running: dict):
     local executor does: the jobs in flight are lost, not half-written (each commits atomically)."""
     if INTERRUPTED.is_set():
         client.cancel(list(finished.futures))   # those not ended yet
-        raise KeyboardInterrupt
+        raise_interrupt()
     if finished.has_ready() or (running and _wait_for_one(finished)):
         return next(finished)
     time.sleep(BUSY_RETRY_S if not running else 0)

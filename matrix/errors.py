@@ -14,6 +14,11 @@ class MatrixError(Exception):
     """Root of every error a user can cause: bad recipe, bad input file, failed job, unknown name."""
 
 
+class Terminated(KeyboardInterrupt):
+    """The run was asked to stop by SIGTERM (`kill PID`, `timeout`, a batch system): it stops as at Ctrl-C,
+    the jobs in flight lost, nothing half-written."""
+
+
 def exit_message(exit_: SystemExit) -> str:
     """What to say when code run for a job or command (a user's network module, a brain) called
     sys.exit(): left alone, it would end the whole run with its code and no word."""

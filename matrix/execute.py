@@ -22,6 +22,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 from matrix.dag import critical_paths, dependents
 from matrix.display import Display, NullDisplay
+from matrix.errors import Terminated
 from matrix.jobs import Job
 from matrix.kinds import KINDS
 from matrix.runs import BUSY, DONE_ELSEWHERE, FAILED, NOT_STARTED, SKIPPED, Outcome, RunSummary, worker_threads
@@ -228,28 +229,39 @@ def run_local(statuses: list[JobStatus], store: Store, *, jobs: int = 1, keep_go
     return summary
 
 
-INTERRUPTED = threading.Event()   # set by SIGINT inside interrupt_at_safe_points; the executors poll it
+INTERRUPTED = threading.Event()   # set by SIGINT or SIGTERM inside interrupt_at_safe_points; the executors poll it
+_STOP_SIGNAL = [signal.SIGINT]      # which of the two set it
 
 
 @contextmanager
 def interrupt_at_safe_points() -> Iterator[None]:
-    """SIGINT sets a flag that the driving loop turns into KeyboardInterrupt between two waits: raised
-    anywhere (inside concurrent.futures' wait, holding its locks) it could leave the pool unable to shut
-    down, and the run hung. A second SIGINT interrupts at once, as Python's default does."""
+    """SIGINT (and SIGTERM, `kill PID`) set a flag that the driving loop turns into KeyboardInterrupt
+    (`Terminated` for SIGTERM) between two waits: raised anywhere (inside concurrent.futures' wait,
+    holding its locks) it could leave the pool unable to shut down, and the run hung; left to SIGTERM's
+    default, the run died without a word and multiprocessing warned of leaked semaphores. A second
+    signal stops at once, as Python's defaults do."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def interrupted(signum, frame):
+        _STOP_SIGNAL[0] = signum
         INTERRUPTED.set()
         signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
     INTERRUPTED.clear()
-    previous = signal.signal(signal.SIGINT, interrupted)
+    previous = {number: signal.signal(number, interrupted) for number in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+
+
+def raise_interrupt() -> None:
+    """Raise what the signal that set INTERRUPTED means: KeyboardInterrupt, or Terminated for SIGTERM."""
+    raise Terminated() if _STOP_SIGNAL[0] == signal.SIGTERM else KeyboardInterrupt()
 
 
 def _drive(schedule: Schedule, pool: _Pool, summary: RunSummary, keep_going: bool, display: Display) -> None:
@@ -257,7 +269,7 @@ def _drive(schedule: Schedule, pool: _Pool, summary: RunSummary, keep_going: boo
     stopping = False
     while running or (schedule.has_work() and not stopping):
         if INTERRUPTED.is_set():
-            raise KeyboardInterrupt
+            raise_interrupt()
         exclusive = any(map(runs_alone, running.values()))
         while not stopping and (job := schedule.take(exclusive, len(running), pool.slots)):
             display.job_started(job)
@@ -298,6 +310,10 @@ def record_outcome(outcome: Outcome, schedule: Schedule, summary: RunSummary, di
 def _outcome(job: Job, future: Future) -> Outcome:
     try:
         answer = future.result()
+    except KeyboardInterrupt:      # the job was interrupted: so is the run (what stopped it, said as such)
+        if INTERRUPTED.is_set():
+            raise_interrupt()
+        raise
     except BrokenProcessPool:
         answer = {"status": FAILED, "reason": "the worker process died (out of memory or a crash)"}
     except Exception as error:  # an error in the engine's own worker code

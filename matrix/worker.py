@@ -46,9 +46,11 @@ def init_worker(kind_modules: Iterable[str], progress_queue: Any = None, threads
     global _progress_sink, _capture_fds
     _capture_fds = True
     _die_with_parent()
-    # Idle, a worker ignores Ctrl-C (the pool's shutdown ends it; it printed a traceback from its queue wait,
-    # one per idle worker); a job it runs is interrupted as before (execute_job)
+    # Idle, a worker ignores Ctrl-C and a SIGTERM sent to the run's process group (`timeout`, a batch system):
+    # the driver stops the pool (an idle worker printed a traceback from its queue wait; killed by SIGTERM,
+    # it was reported as crashed, its job as failed); a job it runs is interrupted (execute_job)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _sigterm_when_idle)
     for variable in THREAD_VARIABLES if threads else ():
         os.environ.setdefault(variable, str(threads))
     for module in kind_modules:
@@ -57,10 +59,24 @@ def init_worker(kind_modules: Iterable[str], progress_queue: Any = None, threads
         _progress_sink = lambda key, update: progress_queue.put((key, update))
 
 
+def _sigterm_when_idle(signum, frame) -> None:
+    if os.getppid() != _parent[0]:    # the run died (PR_SET_PDEATHSIG): go with it
+        os._exit(1)
+
+
+def _sigterm_in_a_job(signum, frame) -> None:
+    _sigterm_when_idle(signum, frame)
+    raise KeyboardInterrupt           # the run stops: the job is interrupted as at Ctrl-C
+
+
+_parent = [0]
+
+
 def _die_with_parent() -> None:
     """On Linux, the worker gets SIGTERM when the run that started it dies (killed by a job manager, a
     timeout or `kill`), instead of running its job on as an orphan holding a core. (Ctrl-C reaches
     the workers anyway: they are in the run's process group.)"""
+    _parent[0] = os.getppid()
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
@@ -81,15 +97,17 @@ def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = (), r
 
 @contextlib.contextmanager
 def _interruptible():
-    """In a pool worker (which ignores Ctrl-C while idle), Ctrl-C interrupts the job it runs."""
+    """In a pool worker (which ignores Ctrl-C and SIGTERM while idle), either interrupts the job it runs."""
     if not _capture_fds:   # not our pool's worker (the driver, a Dask worker's thread): as it is
         yield
         return
     signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _sigterm_in_a_job)
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, _sigterm_when_idle)
 
 
 def _execute(store_root: str, spec: dict, kind_modules: Iterable[str], replaces: str | None) -> dict:

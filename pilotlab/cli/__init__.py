@@ -15,7 +15,7 @@ import traceback
 
 import pydantic
 
-from matrix.errors import MatrixError, exit_message
+from matrix.errors import MatrixError, Terminated, exit_message
 from pilotlab.specs.base import spec_problem
 
 
@@ -97,6 +97,9 @@ def main(argv: list[str] | None = None) -> int:
             traceback.print_exc()
         print(f"pilotlab: error: {exit_message(exit_)}", file=sys.stderr)
         return 2
+    except Terminated:
+        print("pilotlab: terminated (SIGTERM): the jobs that finished are kept; run again to go on", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print("pilotlab: interrupted", file=sys.stderr)
         return 130

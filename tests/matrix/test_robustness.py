@@ -139,6 +139,22 @@ def test_an_interrupt_the_driver_alone_gets_stops_the_running_jobs(tmp_path):
     assert len(stored) < 13 and all(Store(store).result(key)["status"] == "ok" for key in stored)
 
 
+def test_sigterm_stops_the_run_as_an_interrupt_does(tmp_path):
+    """Outside test: `kill PID` (SIGTERM, as `timeout` and batch systems send it) ended the run at once with
+    multiprocessing's "leaked semaphore objects" warning and no word of ours. It now stops as at Ctrl-C:
+    the running jobs interrupted, nothing half-written, Terminated raised (the CLI says so, exit 143)."""
+    process, workers, store = run_with_two_workers(tmp_path)
+    time.sleep(1.0)
+    started = time.time()
+    process.send_signal(signal.SIGTERM)
+    _, err = process.communicate(timeout=25)
+    assert time.time() - started < 10 and process.returncode != 0
+    assert "Terminated" in err and "leaked semaphore" not in err, err
+    assert not any(alive(pid) for pid in workers)
+    stored = list(Store(store).keys())
+    assert len(stored) < 13 and all(Store(store).result(key)["status"] == "ok" for key in stored)
+
+
 def test_ctrl_c_with_an_idle_worker_prints_no_traceback(tmp_path):
     """Outside test: Ctrl-C (the whole process group, as a terminal sends it) while one worker was idle
     printed a 20-line traceback from that worker's queue wait before "interrupted". An idle worker ignores

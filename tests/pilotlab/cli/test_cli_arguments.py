@@ -142,3 +142,17 @@ def test_an_unknown_flag_is_said_with_its_command_s_usage(capsys, argv, usage):
         main(argv)
     err = capsys.readouterr().err
     assert exited.value.code == 2 and err.startswith(usage) and f"unrecognized arguments: {argv[-1]}" in err
+
+
+def test_a_run_stopped_by_sigterm_says_so_and_exits_143(monkeypatch, capsys):
+    """Outside test: `kill PID` ended a run without a word of ours (matrix stops it as at Ctrl-C now,
+    raising Terminated: tests/matrix/test_robustness.py)."""
+    from matrix import cli as engine_cli
+    from matrix.errors import Terminated
+
+    def stopped(*_args, **_kwargs):
+        raise Terminated()
+    monkeypatch.setattr(engine_cli, "cmd_run", stopped)
+    assert main(["run", "recipes/quickstart.yaml"]) == 143
+    assert capsys.readouterr().err == ("pilotlab: terminated (SIGTERM): the jobs that finished are kept; run "
+                                       "again to go on\n")
