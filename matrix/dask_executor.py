@@ -101,8 +101,11 @@ def check_single_threaded(client) -> None:
                           "with `dask worker ADDRESS --nthreads 1` (--nworkers N for more processes)")
 
 
-def run_task(store_root: str, spec: dict, kind_modules: tuple, replaces: str | None) -> dict:
-    """The Dask task: run the job (locked, atomic); wait while another run holds it."""
+def run_task(store_root: str, spec: dict, kind_modules: tuple, replaces: str | None, topic: str | None = None) -> dict:
+    """The Dask task: run the job (locked, atomic); wait while another run holds it. With `topic`, the
+    job's start and its progress go to the driver as events on it (its display shows what runs)."""
+    if topic is not None:
+        _send_progress_to(topic, spec["key"])
     while True:
         answer = execute_job(store_root, spec, kind_modules, replaces)
         if answer["status"] != "busy":  # another run holds the job: wait for it, then read its result
@@ -116,34 +119,43 @@ def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: boo
     """Submit each stale job once its dependencies are done; a timing (exclusive) job keeps its own host
     quiet on the worker (see the module); with `timing_resource` it also runs only on the workers that
     declare it."""
-    distributed = import_distributed()
     check_single_threaded(client)
+    display = display or NullDisplay()
     stale = [s.job for s in statuses if s.state != FRESH]
     summary = RunSummary(fresh=len(statuses) - len(stale))
     started = time.monotonic()
     submit = _Submitter(client, store, tuple(kind_modules), timing_resource, results_to_replace(statuses))
-    schedule, running = Schedule(stale, expected_seconds(store)), {}
-    finished = distributed.as_completed()
-    stopping = False
-    with interrupt_at_safe_points():
-        while running or (schedule.has_work() and not stopping):
-            while not stopping and (job := schedule.next_ready()):
-                future = submit(job)
-                running[future.key] = job
-                finished.add(future)
-            future = _next_finished(finished, client, running)
-            if future is None:   # nothing ended yet, or only jobs another run holds (retried after a pause)
-                continue
-            job = running.pop(future.key)
-            outcome = _outcome(job, future)
-            record_outcome(outcome, schedule, summary, display or NullDisplay())
-            stopping = stopping or (outcome.status == FAILED and not keep_going)
+    schedule = Schedule(stale, expected_seconds(store))
+    events = _ProgressEvents(client, display, {job.key: job for job in stale}, submit.topic)
+    try:
+        with interrupt_at_safe_points():
+            _drive(schedule, submit, client, summary, keep_going, display, events)
+    finally:
+        events.close()
     for job in schedule.pending():
         record_outcome(Outcome(job.key, job.name, job.kind, NOT_STARTED,
                         "not started: the run stopped at the first failure (use --keep-going)"),
-                schedule, summary, display or NullDisplay())
+                schedule, summary, display)
     summary.wall_s = time.monotonic() - started
     return summary
+
+
+def _drive(schedule: Schedule, submit, client, summary: RunSummary, keep_going: bool, display, events) -> None:
+    finished, running = import_distributed().as_completed(), {}
+    stopping = False
+    while running or (schedule.has_work() and not stopping):
+        while not stopping and (job := schedule.next_ready()):
+            future = submit(job)
+            running[future.key] = job
+            finished.add(future)
+        future = _next_finished(finished, client, running)
+        if future is None:   # nothing ended yet, or only jobs another run holds (retried after a pause)
+            continue
+        job = running.pop(future.key)
+        events.job_finished(job.key)
+        outcome = _outcome(job, future)
+        record_outcome(outcome, schedule, summary, display)
+        stopping = stopping or (outcome.status == FAILED and not keep_going)
 
 
 def _next_finished(finished, client, running: dict):
@@ -159,6 +171,48 @@ def _next_finished(finished, client, running: dict):
     return None
 
 
+def _send_progress_to(topic: str, key: str) -> None:
+    """Events for the driver (Client.subscribe_topic): the job started, then its progress updates
+    (matrix.worker's progress sink: one job at a time in a worker process, check_single_threaded)."""
+    import distributed
+    from matrix import worker
+    dask_worker = distributed.get_worker()
+    worker._progress_sink = lambda job_key, update: dask_worker.log_event(topic, (job_key, update))
+    dask_worker.log_event(topic, (key, {STARTED: True}))
+
+
+STARTED = "started"
+
+
+class _ProgressEvents:
+    """The driver's side of the tasks' events: the display learns which jobs run and how far they are
+    (Dask hands a job to a worker when it sees fit; submitted is not running). An event that arrives
+    after its job's result is dropped."""
+
+    def __init__(self, client, display, jobs: dict[str, Job], topic: str):
+        self.client, self.display, self.jobs, self.topic = client, display, jobs, topic
+        self.finished: set[str] = set()
+        self.lock = threading.Lock()
+        client.subscribe_topic(topic, self.on_event)
+
+    def on_event(self, event) -> None:
+        key, update = event[1]
+        with self.lock:
+            if key in self.finished or key not in self.jobs:
+                return
+            if update.get(STARTED):
+                self.display.job_started(self.jobs[key])
+            else:
+                self.display.job_progress(key, **update)
+
+    def job_finished(self, key: str) -> None:
+        with self.lock:
+            self.finished.add(key)
+
+    def close(self) -> None:
+        self.client.unsubscribe_topic(self.topic)
+
+
 def _wait_for_one(finished, seconds: float = 0.1) -> bool:
     end = time.monotonic() + seconds
     while not finished.has_ready() and time.monotonic() < end:
@@ -172,9 +226,13 @@ class _Submitter:
         self.client, self.kind_modules, self.timing_resource = client, kind_modules, timing_resource
         self.root, self.run, self.replacing = str(store.root.resolve()), uuid.uuid4().hex[:12], replacing
 
+    @property
+    def topic(self) -> str:
+        return f"matrix-progress-{self.run}"
+
     def __call__(self, job: Job):
         return self.client.submit(run_task, self.root, job.spec(), self.kind_modules, self.replacing.get(job.key),
-                                  key=_task_key(job, self.run), pure=False,
+                                  self.topic, key=_task_key(job, self.run), pure=False,
                                   resources=_resources(job, self.timing_resource) or None)
 
 

@@ -57,6 +57,41 @@ def test_dask_gives_the_same_keys_and_results_as_the_local_executor(tmp_path, cl
     assert not plan_of(tmp_path, remote).stale
 
 
+class Recorded:
+    """A display that notes what it is told."""
+
+    def __init__(self):
+        self.started, self.progress, self.finished = [], [], []
+
+    def job_started(self, job):
+        self.started.append(job.name)
+
+    def job_waiting(self, job):
+        pass
+
+    def job_progress(self, key, **update):
+        self.progress.append((key, update))
+
+    def job_finished(self, outcome):
+        self.finished.append(outcome.name)
+
+
+def test_the_display_learns_which_jobs_run_on_dask_and_their_progress(tmp_path, client):
+    """Outside test: under Dask the progress line named no running job (the local pool's display is told
+    when each starts, and its progress); the tasks now send both to the driver as Dask events."""
+    from matrix.dask_executor import run_dask
+    store = Store(tmp_path / "s")
+    plan = plan_of(tmp_path, store, sleep="0.3")
+    display = Recorded()
+    run_dask(plan.statuses, store, client, kind_modules=TOY.kind_modules, display=display)
+    assert sorted(display.finished) == sorted(s.job.name for s in plan.statuses)
+    # a job's start is told 0.3 s before its result; its last progress update races the result (and is
+    # dropped when it loses: the job is no longer shown)
+    assert {"source a", "source b", "source c", "total"} <= set(display.started)
+    sources = {s.job.key for s in plan.statuses if s.job.kind == "source"}
+    assert all(key in sources and update["description"] == "written" for key, update in display.progress)
+
+
 def test_a_failure_on_dask_skips_dependents(tmp_path, client):
     from matrix.dask_executor import run_dask
     path = tmp_path / "r.yaml"
