@@ -87,7 +87,10 @@ class Planner:
     def dataset(self, name: str, used_by: list, preprocess: PreprocessConfig | None = None,
                 world: str | None = None) -> list[Job]:
         """The frames jobs of a dataset, preprocessed as `preprocess` says (default: pilotlab's); with
-        `world`, a recorded dataset is recorded in that BM world instead (the same settings and seeds)."""
+        `world`, a recorded dataset is recorded in that BM world instead (the same settings and seeds).
+        A dataset is the set of its recordings: its jobs come in the order of their keys, so that the
+        same recordings listed in another order are the same dataset (the same training; which recording
+        is held out for validation is drawn by seed, pilotlab.data.split, not by the order)."""
         return self.remembered(("dataset", name, preprocess, world), lambda: self._dataset(name, used_by, preprocess, world))
 
     def _dataset(self, name: str, used_by: list, preprocess: PreprocessConfig | None, world: str | None) -> list[Job]:
@@ -124,7 +127,7 @@ class Planner:
             label = f"{name}/{Path(path).name}"
             jobs.append(job("frames", f"frames {label}{shown}", frames_spec,
                             inputs={"bag": self._recording_input(source, where)}))
-        return jobs
+        return sorted(jobs, key=lambda frames: frames.key)
 
     def _recording_input(self, source: Path, where: list) -> InputFile:
         """A bag is hashed whole; a DeepLearningStudio folder by what reading it reads (data.csv and the

@@ -90,6 +90,17 @@ def test_renaming_a_dataset_names_its_jobs_anew_and_reruns_none(tmp_path):
     assert {job.key for job in jobs} == before
 
 
+def test_the_same_recordings_listed_in_another_order_are_the_same_dataset(tmp_path):
+    """Outside test: listing a dataset's recordings in another order retrained every network ("dependencies
+    reordered"): a dataset is the set of its recordings (its frames in the order of their keys)."""
+    two = RECIPE.replace("circuits: [simple_circuit], directions: [cw, ccw]", "circuits: [simple_circuit, "
+                         "many_curves], directions: [cw, ccw]")
+    before = {job.name: job.key for job in engine.plan_jobs(recipe_at(tmp_path, two), DOMAIN)}
+    swapped = two.replace("[simple_circuit, many_curves], directions: [cw, ccw]",
+                          "[many_curves, simple_circuit], directions: [ccw, cw]")
+    assert {job.name: job.key for job in engine.plan_jobs(recipe_at(tmp_path, swapped), DOMAIN)} == before
+
+
 def test_changing_a_strategy_option_changes_only_its_jobs(tmp_path):
     before = {job.name: job.key for job in engine.plan_jobs(recipe_at(tmp_path), DOMAIN)}
     edited = recipe_at(tmp_path, RECIPE.replace("{use: local_prune, conv: 0.5}", "{use: local_prune, conv: 0.6}"))
