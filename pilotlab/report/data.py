@@ -151,6 +151,8 @@ class ReportRow(_Frozen):
     tolerance_at_least: bool = False         # the lap was still completed at the search's largest latency
     latency_source: str | None = None        # online rows: where the replayed latencies came from
     trained_on: tuple[str, ...] = ()         # offline rows: test recordings the network was trained on too
+    runs: str | None = None                  # the built-in strategy that made the row's network (a recipe's
+    options: dict[str, Any] = Field(default_factory=dict)   # name may stand for another: `use:`), its options
 
     @model_validator(mode="before")
     @classmethod

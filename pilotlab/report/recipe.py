@@ -178,7 +178,7 @@ def training_worlds(recipe: Recipe) -> dict[str, list[str]]:
 def _row(job, store: Store) -> dict[str, Any]:
     identity = dict(job.labels)
     result = store.result(job.key)
-    row = {**identity, "kind": job.kind, "job_keys": {job.kind: job.key}}
+    row = {**identity, "kind": job.kind, "job_keys": {job.kind: job.key}, **_made_by(job)}
     if result is None:
         failure = store.failure(job.key)
         reason = failure["error"] if failure else _why_not_run(job, store)
@@ -191,6 +191,14 @@ def _row(job, store: Store) -> dict[str, Any]:
         if trained_on := _trained_on(job):
             row["trained_on"] = trained_on
     return row
+
+
+def _made_by(job) -> dict[str, Any]:
+    """The built-in strategy (and its options) of the optimize job that made the row's network."""
+    artifact = job.deps.get("artifact")
+    if artifact is None or artifact.kind != "optimize":
+        return {}
+    return {"runs": artifact.params["strategy"], "options": dict(artifact.params.get("options") or {})}
 
 
 def _trained_on(job) -> tuple[str, ...]:

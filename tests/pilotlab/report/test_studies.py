@@ -47,6 +47,19 @@ def test_laps_decide_the_closed_loop_claims():
     assert verdict == "holds" and "fastest offline: qat" in text
 
 
+def test_the_fastest_model_losing_the_lap_where_the_baseline_loses_it_too_is_judged_by_how_far_it_went():
+    """Outside test: "does not hold" for a fastest row that lost the lap at 2 % with a lower deviation than the
+    baseline's, which lost it at the same 2 %."""
+    claim = "The fastest models drive the lap at least as well as the original"
+    rows = [offline_row("baseline", latency_ms=2.6), offline_row("qat", latency_ms=0.5),
+            online_row("baseline", lap_completed=False, percentage_completed=2.0, position_deviation_mae_m=0.5),
+            online_row("qat", lap_completed=False, percentage_completed=2.0, position_deviation_mae_m=0.4)]
+    verdict, text = verdicts(rows)[claim]
+    assert verdict == "holds" and "lap lost at 2 %" in text and "(its lap lost at 2 %)" in text
+    rows[3]["percentage_completed"] = 1.0
+    assert verdicts(rows)[claim][0] == "does not hold"
+
+
 def test_tensorrt_is_judged_by_its_speed_up_on_the_same_gpu():
     claim = "TensorRT int8 is about 33× faster than the original model"
     slow = [offline_row("baseline", "cuda", latency_ms=1.0), offline_row("tensorrt", "cuda", latency_ms=0.2)]
@@ -58,6 +71,21 @@ def test_tensorrt_is_judged_by_its_speed_up_on_the_same_gpu():
     three = slow + [offline_row("tensorrt_fp32", "cuda", latency_ms=0.3), offline_row("tensorrt_int8", "cuda",
                                                                                       latency_ms=0.05)]
     assert verdicts(three)[claim] == ("holds", "tensorrt_int8 on cuda: 0.05 ms, 20.0× the baseline's speed")
+
+
+def test_a_study_name_given_to_another_strategy_is_not_the_study_s_row():
+    """Outside test: `tensorrt_int8: {use: onnxruntime_int8}` on a CPU was judged as TensorRT, and
+    `trt8: {use: tensorrt, precision: int8}` was not found: rows are matched by the strategy that made them."""
+    claim = "TensorRT int8 is about 33× faster than the original model"
+    base = offline_row("baseline", "cuda", latency_ms=1.0) | {"runs": "baseline"}
+    onnx = offline_row("tensorrt_int8", "cuda", latency_ms=0.2) | {"runs": "onnxruntime_int8"}
+    trt8 = offline_row("trt8", "cuda", latency_ms=0.05) | {"runs": "tensorrt", "options": {"precision": "int8"}}
+    trt = offline_row("trt", "cuda", latency_ms=0.04) | {"runs": "tensorrt", "options": {"precision": "fp16"}}
+    assert verdicts([base, onnx])[claim] == ("not testable here", "no tensorrt rows")
+    assert verdicts([base, onnx, trt, trt8])[claim] == ("holds", "trt8 on cuda: 0.05 ms, 20.0× the baseline's speed")
+    quant = "Static quantization makes PilotNet about 4× smaller"
+    other = offline_row("static_quant", size_mb=1.6) | {"runs": "onnxruntime_int8"}
+    assert verdicts([offline_row("baseline", size_mb=6.1), other])[quant][0] == "not testable here"
 
 
 def test_no_verdict_is_drawn_from_an_unstable_timing():
@@ -96,6 +124,13 @@ def test_the_montreal_claim_is_judged_from_the_latency_tolerance():
     assert verdict == "does not hold" and "so at 124 ms it keeps Montreal" in found
     assert verdicts([online_row("baseline", lap_completed=True) | {"circuit": "montreal"}])[claim][0] == \
         "not testable here"
+    # outside test: with no version at half the baseline's latency, every other one was called "faster"
+    slower = [montreal("baseline", 121.0, None, completed=False), montreal("global_prune", 138.0, None, completed=False),
+              montreal("qat", 90.0, 40.0)]
+    verdict, found = verdicts(slower)[claim]
+    assert verdict == "holds" and "qat 90 ms" in found and "global_prune" not in found
+    verdict, found = verdicts(slower[:2])[claim]
+    assert verdict == "not testable here" and "no version faster than the baseline (121 ms)" in found
 
 
 def test_the_tf_lite_claims_are_judged_on_the_litert_rows():
@@ -125,7 +160,7 @@ def test_clustering_is_judged_among_the_litert_rows():
             offline_row("pqat_litert_int8", mse=0.0437), offline_row("cqat_litert_int8", mse=0.0394),
             offline_row("pcqat_litert_int8", mse=0.0392)]
     verdict, found = verdicts(rows)[claim]          # the PyTorch baseline's lower MSE is not a TF Lite row
-    assert verdict == "holds" and found.startswith("lowest MSE of the LiteRT rows: pcqat_litert_int8 0.0392")
+    assert verdict == "holds" and found.startswith("lowest MSE of the study's TF Lite rows on LiteRT: pcqat_litert_int8 0.0392")
     rows[1] = offline_row("litert", mse=0.0300)
     assert verdicts(rows)[claim][0] == "does not hold"
     assert verdicts(rows[:2])[claim][0] == "not testable here"
