@@ -9,7 +9,6 @@ number of distinct values per layer (config: configs/cluster.py).
 """
 from __future__ import annotations
 
-from pilotlab.errors import PilotlabError
 from pilotlab.strategies.common import finetune, save_float_model, weight_layers
 from pilotlab.strategies.configs.cluster import ClusterConfig
 from pilotlab.strategies.kmeans import cluster_weights, share_gradients, snap_to_centroids
@@ -17,8 +16,6 @@ from pilotlab.strategies.apply import StrategySource
 
 
 def cluster(config: ClusterConfig, source: StrategySource) -> dict:
-    if not 2 <= config.clusters <= 256:
-        raise PilotlabError(f"clusters: {config.clusters} must be between 2 and 256")
     model = source.load_model()
     assignments = {name: cluster_weights(layer.weight, config.clusters, config.iterations)
                    for name, layer in weight_layers(model)}

@@ -132,6 +132,9 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
      ":10: strategies.prune_more.use: unknown strategy 'local_prun' (did you mean 'local_prune'?)"),
     (("{use: local_prune, conv: 0.5}", "{use: local_prune, conv: 1.5}"),
      ":10: strategies.prune_more: conv: 1.5 is not a fraction in [0, 1) (an option of local_prune)"),
+    # outside test: checked only when the optimize job ran, without file or key
+    (("{use: local_prune, conv: 0.5}", "{use: cluster, clusters: 100000}"),
+     ":10: strategies.prune_more: clusters: 100000 must be between 2 and 256 (int8 has 256 values) (an option of cluster)"),
     (("{use: local_prune, conv: 0.5}", "{use: local_prune, conv: lots}"),
      ":10: strategies.prune_more: conv: Input should be a valid number, unable to parse string as a number (got 'lots')"),
     (("local_prune: {finetune_epochs: 1}", "local_prune: {use: global_prune}"),

@@ -25,3 +25,8 @@ def check_subsample(subsample_stem: int) -> None:
     if subsample_stem < 0:
         raise PilotlabError(f"subsample_stem: {subsample_stem} must be an integer ≥ 0 (how many of the first "
                             "convolutions run at twice their stride; 0: none)")
+
+
+def check_clusters(clusters: int) -> None:
+    if not 2 <= clusters <= 256:
+        raise PilotlabError(f"clusters: {clusters} must be between 2 and 256 (int8 has 256 values)")

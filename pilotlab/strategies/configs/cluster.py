@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from pilotlab.strategies.configs.checks import check_clusters
 from pilotlab.strategies.registry import register_strategy
 
 
@@ -16,6 +17,9 @@ class ClusterConfig:
     lr: float = 1e-4
     batch_size: int = 64
     format: Literal["checkpoint", "torchscript", "onnx"] = "checkpoint"
+
+    def __post_init__(self) -> None:
+        check_clusters(self.clusters)   # when the recipe is read (it failed the optimize job in the run)
 
 
 register_strategy("cluster", ClusterConfig, "pilotlab.strategies.cluster:cluster")

@@ -5,8 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pilotlab.errors import PilotlabError
-from pilotlab.strategies.configs.checks import check_distill, check_fraction
+from pilotlab.strategies.configs.checks import check_clusters, check_distill, check_fraction
 from pilotlab.strategies.edge import EXTRA, LITERT_CONVERTER
 from pilotlab.strategies.registry import register_strategy
 
@@ -68,11 +67,6 @@ class PcqatConfig(PqatConfig):
     def __post_init__(self) -> None:
         super().__post_init__()
         check_clusters(self.clusters)
-
-
-def check_clusters(clusters: int) -> None:
-    if not 2 <= clusters <= 256:
-        raise PilotlabError(f"clusters: {clusters} must be between 2 and 256 (int8 has 256 values)")
 
 
 _HANDLERS = "pilotlab.strategies.mot"
