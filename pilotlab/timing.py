@@ -119,7 +119,7 @@ class Measurement:
         """"wall", or "thread_cpu" where too few calls were clean and each call's work ran on the thread
         that made it (a single-thread profile): that thread's CPU time does not grow while it waits for
         a core, so it stands for the call where the wall clock cannot."""
-        if self.stable or not self.cpu_clock or not self.calls:
+        if self.stable or not self.cpu_clock or self.calls < self.min_calls:   # (a figure of 1 call was taken)
             return "wall"
         cpu = self.cpu_times()
         waited = np.asarray([w for b in self.blocks for w in b.waited_ns], np.int64)
@@ -155,7 +155,8 @@ class Measurement:
             + (f" (steal {load['steal_cores']:.2f})" if (load["steal_cores"] or 0) >= 0.005 else "")
             + f" beside the {self.needed_cores} this timing needs")
         return (f"only {self.clean_calls} of {self.calls} calls ({share_text} %) ran with no thread of this "
-                f"process waiting for a CPU in {seconds:.1f} s of measuring and re-measuring{others}")
+                f"process waiting for a CPU (a stable figure needs {self.min_calls} such calls, and "
+                f"{self.limits.min_clean_share:.0%} of all) in {seconds:.1f} s of measuring and re-measuring{others}")
 
     def summary(self) -> dict:
         """How the figure was measured: blocks, calls set aside, this process's CPU time over wall time,

@@ -78,6 +78,12 @@ def test_a_disturbed_single_thread_figure_is_its_thread_cpu_time_with_the_reason
     quiet = Measurement(2, 1, Limits(), min_calls=4, cpu_clock=True,
                         blocks=[Block([3_000_000] * 8, [True] * 8, QUIET, cpu_ns=[1_000_000] * 8)])
     assert quiet.clock == "wall" and list(quiet.samples_ns()) == [3_000_000] * 8      # the default when quiet
+    # outside test: a throughput figure of one batch call was taken as CPU time, unmarked; fewer calls than
+    # a figure needs are an unstable figure, whatever the clock, and the reason says what it needs
+    one = Measurement(2, 1, Limits(), min_calls=4, blocks=[Block(
+        [3_000_000], [False], BUSY, cpu_ns=[1_000_000], waited_ns=[2_000_000])], cpu_clock=True)
+    assert one.clock == "wall" and not one.stable
+    assert "(a stable figure needs 4 such calls, and 25% of all)" in one.reason()
 
 
 def spin(microseconds: int):
