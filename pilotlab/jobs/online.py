@@ -12,7 +12,8 @@ result:
     wrote, its user_brain.name), hardware (profile),
     host, hostname (the host that drove it), circuit, direction, circuit_length_m, laps, timeout_s, timing, control_hz, extra_latency_ms,
     fixed_inference_ms (if set), measured_inference_ms (the real mean, without artificial latency),
-    wall_seconds; BehaviorMetrics' metrics (pilotlab.columns.BEHAVIORMETRICS, bm_*) against the
+    wall_seconds; unstable ({"latency_ms": why}, where a lap timed on this host's clock shared the cores
+    its brain needed with other processes: disturbed_lap); BehaviorMetrics' metrics (pilotlab.columns.BEHAVIORMETRICS, bm_*) against the
     expert's perfect lap, and perfect_lap_checkpoints; in replay timing latency_source,
     replayed_latency_ms, replayed_latency_p90_ms, replayed_latency_samples (and latency_scale when
     scaled); with tolerance: latency_tolerance_ms, tolerance_at_least, tolerance_fixed_ms,
@@ -32,7 +33,7 @@ import numpy as np
 
 from matrix.hostlock import host_name
 from matrix.kinds import JobContext
-from pilotlab import predictor, usercode
+from pilotlab import predictor, timing, usercode
 from pilotlab.errors import PilotlabError
 from pilotlab.hardware import check_available, check_host, profile_from_dict, within_share
 from pilotlab.online import brains, evaluate
@@ -118,6 +119,19 @@ def tolerance_hint(ctx: JobContext) -> dict[str, Any]:
     return {} if found is None else {"tolerance_hint_ms": float(found), "tolerance_hint_from": neighbour.name}
 
 
+def disturbed_lap(before: timing.Snapshot, profile, mode: str) -> str | None:
+    """Why a lap timed on this host's clock (measured, realtime) does not show this machine's own speed:
+    other processes took cores its brain needed (it runs alone among pilotlab's jobs, not beside a
+    user's), so its latencies, and the driving that rests on them, were inflated. None when quiet."""
+    load = timing.load_between(before, timing.snapshot())
+    cores, needs = len(timing.our_cpus()), profile.cpu_threads
+    if load.others_cores is None or load.others_cores <= max(0, cores - needs) + timing.Limits().max_other_cores:
+        return None
+    return (f"other processes used {load.others_cores:.2f} of {cores} cores during this lap, beside the {needs} its "
+            f"{mode} timing needs: its inference times, and the driving that rests on them, are not this "
+            "machine's own (replay timing does not depend on the load)")
+
+
 def run_online(ctx: JobContext) -> dict[str, Any]:
     spec: OnlineSpec = with_circuit_file(ctx.spec, ctx.inputs)
     profile = profile_from_dict(spec.hardware)
@@ -132,10 +146,13 @@ def run_online(ctx: JobContext) -> dict[str, Any]:
     samples, replayed = replayed_latency(ctx, spec, brain)
     checkpoints = perfect_lap(spec.circuit, spec.direction, cache=ctx.cache / "perfect_laps")
     hint = tolerance_hint(ctx)
+    before = timing.snapshot()
     result = evaluate.evaluate_online(brain, spec, ctx.out, progress=lambda done, total, what: ctx.progress(
         done, total, what), latency_ms=samples, tolerance=spec.tolerance, checkpoints=checkpoints,
         assets=world_assets(ctx.inputs)[0], tolerance_hint_ms=hint.get("tolerance_hint_ms"))
     result |= replayed | (hint if spec.tolerance is not None else {})
+    if timed_live(ctx.params) and (reason := disturbed_lap(before, compute, spec.timing)):
+        result["unstable"] = {"latency_ms": reason}   # the report marks the lap ⚠ and draws nothing from it
     if replayed.get("latency_source") == CHARGED_NOTHING:
         result = without_uncharged_inference(result)
     ctx.log.info("%s: %s", strategy, ", ".join(f"{run['termination']} after {run['sim_seconds']:.1f} s"

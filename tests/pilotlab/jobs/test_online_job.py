@@ -142,3 +142,24 @@ def test_the_kind_runs_alone_on_the_hosts_clock_only_and_asks_for_a_gpu_only_for
 def test_params_are_checked(tmp_path, artifact_dep, params, deps, message):
     with pytest.raises(PilotlabError, match=message):
         run(tmp_path, "online-bad", params, deps={"artifact": artifact_dep} if deps else None)
+
+
+def test_a_lap_on_this_host_s_clock_beside_other_processes_is_marked_unstable():
+    """Outside test: a measured lap beside two CPU hogs read 712 ms of inference (2 ms quiet), the car
+    crawled, and nothing said so. The lap now says how many cores others took; the report marks it ⚠."""
+    from dataclasses import replace
+    from pilotlab import timing
+    from pilotlab.hardware import profile_from_dict
+    from pilotlab.jobs.online import disturbed_lap
+    profile = profile_from_dict({"name": "cpu", "threads": 1})
+    now = timing.snapshot()
+    if now.busy is None:
+        pytest.skip("no /proc/stat here")
+    cores = len(timing.our_cpus())
+    busy = replace(now, wall=now.wall - 1.0, process=now.process - 1.0, busy=now.busy - 1.0 - cores)
+    reason = disturbed_lap(busy, profile, "measured")
+    assert reason.startswith(f"other processes used {cores:.2f}") and "beside the 1 its measured timing needs" in reason
+    assert ReportRow(model="m", strategy="s", hardware="cpu", kind="online", unstable={"latency_ms": reason}) \
+        .unstable_reason("latency_ms") == reason
+    quiet = replace(now, wall=now.wall - 1.0, process=now.process - 1.0, busy=now.busy - 1.0)
+    assert disturbed_lap(quiet, profile, "measured") is None
