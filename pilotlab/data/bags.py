@@ -12,6 +12,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import apsw
 import numpy as np
@@ -198,6 +199,7 @@ def read_bag(path: Path | str, preprocess: PreprocessConfig, topics: Topics = To
         raise BagError(f"{path}: no image on {name!r} at or after the first command on {topics.command!r}; "
                        "the recording has no labelled frames, record it again")
     index = np.searchsorted(cmd_stamps, stamps, side="right") - 1
+    stale = _stale_commands(path, name, topics.command, stamps, cmd_stamps[index])
     meta = {"source": str(path), "format": bag_format(path), "image_topic": name, "image_type": msgtype,
             "encoding": encoding, "image_size": size, "command_topic": topics.command,
             "frames": len(stamps), "dropped": before, "start_ns": int(stamps[0]),
@@ -205,7 +207,29 @@ def read_bag(path: Path | str, preprocess: PreprocessConfig, topics: Topics = To
     damaged = [d.summary() for d in (damage, command_damage) if d.count]
     if damaged:
         meta["damaged"] = damaged
+    if stale:
+        meta["stale_commands"] = stale
     return FrameSet(frames, commands[index], np.zeros(len(stamps), np.int32), meta)
+
+
+STALE_COMMAND_S = 1.0   # a frame whose command in force is older: the command stream had stopped
+
+
+def _stale_commands(path: Path, image_topic: str, command_topic: str, stamps: np.ndarray,
+                    in_force: np.ndarray) -> dict[str, Any] | None:
+    """The frames labelled by a command older than STALE_COMMAND_S (None when none is): kept, and said.
+    When every frame is, the two topics do not belong together (commands stamped by another clock, or
+    recorded long before the images): an error, as the labels would be one stale command."""
+    ages = (stamps - in_force) / 1e9
+    stale = ages > STALE_COMMAND_S
+    if not stale.any():
+        return None
+    if stale.all():
+        raise BagError(f"{path}: every image on {image_topic!r} comes {ages.min():.1f} s or more after the last "
+                       f"command on {command_topic!r} before it, so every frame would be labelled by a stale "
+                       "command; the commands are stamped by another clock or recorded apart from the images: "
+                       "give the bag whose commands drive these images")
+    return {"frames": int(stale.sum()), "max_age_s": round(float(ages.max()), 3), "limit_s": STALE_COMMAND_S}
 
 
 Decoded = tuple[np.ndarray, np.ndarray, str, list[int]]   # frames, time stamps, encoding, [h, w]

@@ -13,7 +13,8 @@ hand: a planned job is labelled by its name, which is not in its key).
 
 artifacts: a FrameSet (frames.npy uint8 [N, 66, 200, 3] RGB, labels.npy float32 [N, 2] physical v, w,
 recording.npy, meta.json), loaded by `FrameSet.load(dep.artifacts)`.
-result: frames, dropped (images before the first command), damaged (per topic: count, times_s,
+result: frames, dropped (images before the first command), stale_commands ({frames, max_age_s, limit_s}: frames
+labelled by a command older than pilotlab.data.bags.STALE_COMMAND_S; absent when none), damaged (per topic: count, times_s,
 reason of the messages left out as damaged; absent when none), source, format (ros1 | ros2-sqlite3 |
 ros2-mcap | folder), image_topic, command_topic, encoding, image_size [h, w], duration_s,
 v_range, w_range, preprocess (settings), decode_fps, label.
@@ -62,7 +63,7 @@ def job_topics(ctx: JobContext) -> Topics:
 
 def summary(frameset, seconds: float) -> dict[str, Any]:
     labels, meta = np.asarray(frameset.labels), frameset.meta
-    keys = ("frames", "dropped", "damaged", "source", "format", "image_topic", "command_topic", "encoding",
+    keys = ("frames", "dropped", "damaged", "stale_commands", "source", "format", "image_topic", "command_topic", "encoding",
             "image_size", "preprocess")
     return {**{k: meta[k] for k in keys if k in meta},
             "duration_s": round((meta["end_ns"] - meta["start_ns"]) / 1e9, 3),
@@ -89,4 +90,8 @@ def run_frames(ctx: JobContext) -> dict[str, Any]:
     for damage in result.get("damaged", []):   # left out: under pilotlab.data.damage.MAX_SHARE of the topic
         ctx.log.warning("%s: %d damaged message(s) left out on %s (at %s s: %s)", path, damage["count"],
                         damage["topic"], damage["times_s"], damage["reason"])
+    if stale := result.get("stale_commands"):    # the command stream stopped for a while: said, not hidden
+        ctx.log.warning("%s: %d frame(s) labelled by a command more than %g s old (up to %.1f s): the commands on %s "
+                        "stopped while images went on", path, stale["frames"], stale["limit_s"], stale["max_age_s"],
+                        topics.command)
     return result

@@ -141,6 +141,31 @@ def test_no_image_after_the_first_command(tmp_path):
         "'/F1ROS/cmd_vel'; the recording has no labelled frames, record it again")
 
 
+def test_commands_stamped_long_before_every_image_are_refused_and_a_gap_is_said(tmp_path):
+    """Outside test: commands stamped 1000 s before the images labelled every frame with the last one,
+    silently (a constant label to train on). Now an error; a stream that stops for a while is said."""
+    frames = images(30)
+    with RawBag(tmp_path / "apart.bag", "ros1") as bag:
+        for i, rgb in enumerate(frames):
+            bag.twist(10**9 + i * 10**8, 1.0, 0.1 * i)
+            bag.image(1001 * 10**9 + i * 10**8, rgb)
+    assert message(tmp_path / "apart.bag") == (
+        f"{tmp_path}/apart.bag: every image on '/F1ROS/cameraL/image_raw' comes 997.1 s or more after the last "
+        "command on '/F1ROS/cmd_vel' before it, so every frame would be labelled by a stale command; the commands "
+        "are stamped by another clock or recorded apart from the images: give the bag whose commands drive these "
+        "images")
+    with RawBag(tmp_path / "gap.bag", "ros1") as bag:   # commands stop after 1 s; images go on 2 s more
+        for i, rgb in enumerate(frames):
+            stamp = 10**9 + i * 10**8
+            if i < 10:
+                bag.twist(stamp - 10**6, 1.0, 0.0)
+            bag.image(stamp, rgb)
+    read = read_frames(tmp_path / "gap.bag", CONFIG)
+    assert len(read) == 30 and read.meta["stale_commands"] == {"frames": 11, "max_age_s": 2.001, "limit_s": 1.0}
+    drive_bag(tmp_path / "ok.bag", "ros1", images(3))
+    assert "stale_commands" not in read_frames(tmp_path / "ok.bag", CONFIG).meta
+
+
 def test_paths_that_are_not_bags(tmp_path):
     assert message(tmp_path / "missing.bag") == (
         f"{tmp_path}/missing.bag: no such bag; check the path (a ROS1 .bag file or a ROS2 bag folder)")
