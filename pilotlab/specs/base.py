@@ -4,6 +4,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import re
 import types
 import typing
 from typing import Any, Literal
@@ -17,6 +18,16 @@ from pilotlab.errors import PilotlabError
 
 CONTROL_HZ = 20.0          # BehaviorMetrics' 50 ms brain cycle: commands and odometry per simulated second
 Direction = Literal["cw", "ccw"]
+
+
+USER_CODE = re.compile(r".:[A-Za-z_][\w.]*$")   # file.py:Class or module:Class (pilotlab.usercode)
+
+
+def user_code_name(value: str | None) -> str | None:
+    """A field naming user code: the class after a colon (a regex's "should match pattern" said nothing)."""
+    if value is not None and not USER_CODE.search(value):
+        raise ValueError(f"{value!r}: name your code as file.py:Class or module:Class (the class after a colon)")
+    return value
 
 
 class Spec(pydantic.BaseModel):

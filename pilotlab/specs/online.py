@@ -17,7 +17,7 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from matrix.kinds import register_kind
-from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, InWorld, Spec
+from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, InWorld, Spec, user_code_name
 from pilotlab.specs.timing import gpu_resources, timing_resources
 
 
@@ -145,10 +145,15 @@ class UserBrainSpec(Spec):
     """A brain the user wrote (docs/brains.md). Its source hash is the job's input `brain_source`
     (pilotlab.usercode.source_hash: the file and the local modules it imports), so an edit reruns it."""
     name: str = Field(min_length=1, description="the report row's name")
-    spec: str = Field(pattern=r".:[A-Za-z_][\w.]*$", description="file.py:Class or module:Class")
+    spec: str = Field(description="file.py:Class or module:Class")
     base: str = Field(".", description="the folder a relative file is in, for a job without the input "
                                        "brain_source (`drive --brain`: the current one); a recipe's lap finds "
                                        "it from that input, so that a moved project keeps its laps")
+
+    @field_validator("spec")
+    @classmethod
+    def _spec_named(cls, spec):
+        return user_code_name(spec)
 
 
 class OnlineSpec(LapSettings, InWorld):

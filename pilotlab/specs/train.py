@@ -12,7 +12,7 @@ from pydantic import Field, field_validator, model_validator
 from matrix.fingerprint import module_closure
 from matrix.kinds import register_kind
 from pilotlab.models import MODELS
-from pilotlab.specs.base import Spec
+from pilotlab.specs.base import Spec, user_code_name
 from pilotlab.specs.frames import PreprocessConfig
 
 DEFAULT_ARCH = "pilotnet"
@@ -51,8 +51,7 @@ class TrainSpec(Spec):
     file (`torchscript`, `onnx`); paths as the recipe wrote them (their content is the job's inputs)."""
     arch: str | None = Field(None, description=f"a registered model (pilotnet, pilotnet_stacked, ...); the "
                                                f"default, {DEFAULT_ARCH}, when no other source is given")
-    network: str | None = Field(None, pattern=r".:[A-Za-z_][\w.]*$",
-                                description="the user's nn.Module class: file.py:Class or module:Class")
+    network: str | None = Field(None, description="the user's nn.Module class: file.py:Class or module:Class")
     torchscript: str | None = Field(None, min_length=1, description="a whole TorchScript model file (torch.jit.save)")
     onnx: str | None = Field(None, min_length=1, description="an ONNX model file")
     options: dict[str, Any] = Field({}, description="fields of the arch's config, e.g. {frames: 3}; with network: "
@@ -82,6 +81,11 @@ class TrainSpec(Spec):
         "auto", description="bf16: mixed precision (bfloat16 forward pass, float32 weights and loss), ~2.4x "
                             "faster a step where the CPU has AVX512-BF16 or AMX; auto: bf16 there, else fp32. "
                             "The strategies' fine-tunes follow it (QAT's stay fp32)")
+
+    @field_validator("network")
+    @classmethod
+    def _network_named(cls, network):
+        return user_code_name(network)
 
     @field_validator("labels")
     @classmethod

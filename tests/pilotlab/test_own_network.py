@@ -186,6 +186,9 @@ def test_what_the_source_cannot_say_is_left_to_loading(folder):
      "onnx models are used as they are"),
     ("builtin: {arch: pilotnet", "builtin: {arch: network", "arch 'network' names checkpoints of models you bring"),
     ("preset: dls", "preset: bls", "preset"),
+    # outside test: "String should match pattern '.:[A-Za-z_][\\w.]*$'"
+    ("dls: {network: nets/pilotnet.py:PilotNet,", "dls: {network: nets/pilotnet.py,",
+     "'nets/pilotnet.py': name your code as file.py:Class or module:Class (the class after a colon)"),
 ])
 def test_inconsistent_model_entries(folder, old, new, said):
     message = recipe_error(folder, old, new)
