@@ -78,6 +78,23 @@ def after_run(recipe: Recipe, plan, summary, store) -> None:
     written = write_recipe_report(recipe, store, [status.job for status in plan.statuses], force=False)
     readme = report_folder(recipe) / "README.md"
     print(f"report: {readme} and index.html" if written else f"report unchanged: {readme}")
+    if line := unstable_line(recipe, plan, store):
+        print(line)
+
+
+def unstable_line(recipe: Recipe, plan, store) -> str | None:
+    """What the run's terminal says of timings that stayed disturbed (the report marks them ⚠ and draws
+    nothing from them): how many, and how to measure them again; None when there are none."""
+    timed = [status.job for status in plan.statuses if status.job.kind == "timing" or
+             status.job.kind == "online" and status.job.params.get("timing") in ("measured", "realtime")]
+    disturbed = [job for job in timed if ((store.result(job.key) or {}).get("value") or {}).get("unstable")]
+    if not disturbed:
+        return None
+    kinds = sorted({job.kind for job in disturbed})
+    again = " ".join(f"--force {kind}" for kind in kinds)
+    return (f"⚠ {len(disturbed)} of {len(timed)} timings stayed disturbed (other processes used the cores): the "
+            f"report marks them and draws no conclusion from them; on a quiet machine, `pilotlab run "
+            f"{recipe.file} {again}` measures them again")
 
 
 DOMAIN = Domain(

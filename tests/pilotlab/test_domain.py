@@ -611,3 +611,22 @@ def test_a_circuit_path_that_names_no_file_says_where_it_was_looked_for(tmp_path
         engine.plan_jobs(recipe_at(tmp_path, RECIPE.replace(old, new)), DOMAIN)
     name = new.split("[")[-1].rstrip("]")
     assert f"{where}: circuit {name!r}: no such CSV file (looked for {tmp_path / name})" in str(caught.value)
+
+
+def test_the_run_says_how_many_timings_stayed_disturbed_and_how_to_measure_them_again(tmp_path):
+    """Outside test: a run whose every timing stayed disturbed ended "done: 24 ok", the report alone said so."""
+    from types import SimpleNamespace
+    from pilotlab.domain import unstable_line
+    recipe = recipe_at(tmp_path)
+    jobs = engine.plan_jobs(recipe, DOMAIN)
+    timings = [job for job in jobs if job.kind == "timing"]
+    disturbed = {timings[0].key, timings[1].key}
+    results = {job.key: {"status": "ok", "value": {"unstable": {"latency_ms": "busy"}} if job.key in disturbed else {}}
+               for job in jobs}
+    plan = SimpleNamespace(statuses=[SimpleNamespace(job=job) for job in jobs])
+    store = SimpleNamespace(result=results.get)
+    assert unstable_line(recipe, plan, store) == (
+        f"⚠ 2 of {len(timings)} timings stayed disturbed (other processes used the cores): the report marks them "
+        f"and draws no conclusion from them; on a quiet machine, `pilotlab run {recipe.file} --force timing` "
+        "measures them again")
+    assert unstable_line(recipe, plan, SimpleNamespace(result=lambda key: None)) is None
