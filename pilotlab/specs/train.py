@@ -152,4 +152,11 @@ def arch_modules(params) -> list[str]:
 # Training runs alone, on every core: beside another job torch's threads spin against it, and on one
 # core of two the quickstart's training took 58 s instead of ~30 (what could run beside it, the reference
 # laps, runs beside the fine-tunes later).
-register_kind("train", "pilotlab.jobs.train:run_train", params=TrainSpec, code_for=arch_modules, exclusive=True)
+def trains_alone(params) -> bool:
+    """A training has the host to itself (its threads use every core); a model used as it is (train: false,
+    a TorchScript or ONNX file) is only loaded and checked: it runs beside other jobs."""
+    return TrainSpec.model_validate(params).trains
+
+
+register_kind("train", "pilotlab.jobs.train:run_train", params=TrainSpec, code_for=arch_modules,
+              exclusive_for=trains_alone)

@@ -51,6 +51,13 @@ def keys(folder: Path) -> dict[str, str]:
     return {name: job.key for name, job in plan(folder).items()}
 
 
+def test_a_model_used_as_it_is_runs_beside_other_jobs_a_training_alone(folder):
+    """Outside test: a weights-only model (2.8 s of loading) waited minutes for the host like a training."""
+    from matrix.kinds import KINDS
+    alone = {name for name, job in plan(folder).items() if job.kind == "train" and KINDS.get("train").runs_alone(job.params)}
+    assert alone == {"train builtin", "train dls"}   # frozen (train: false) and graph (onnx) are used as they are
+
+
 def of_model(model: str, names) -> set[str]:
     return {n for n in names if n == f"train {model}" or f" {model}/" in n}
 
