@@ -71,9 +71,11 @@ class Damage:
             raise (self.first_error if first.startswith(str(self.path)) else
                    BagError(f"{self.path}, topic {self.topic}: {first}"))
         if self.count > MAX_SHARE * max(total, 1):
-            raise BagError(f"{self.path}, topic {self.topic}: {self.count} of {total} messages are lost "
-                           f"({self.describe()}); more than {MAX_SHARE:.0%} of a recording may not be lost: "
-                           "record it again, or repair the bag (`rosbag reindex`, `ros2 bag reindex`)")
+            # reindexing mends an index that announces absent messages, not a message's contents
+            fix = ("record it again, or repair the bag's index (`rosbag reindex`, `ros2 bag reindex`)" if self.missing
+                   else "record it again, or mend those messages")
+            raise BagError(f"{self.path}, topic {self.topic}: {self.count} of {total} messages are damaged or missing "
+                           f"({self.describe()}); more than {MAX_SHARE:.0%} of a recording may not be left out: {fix}")
 
 
 def command_problem(v: float, w: float) -> str | None:
