@@ -40,8 +40,10 @@ def run_inspect(args: argparse.Namespace) -> int:
     else:
         print_inspection(info)
     images = info["images"].values()
-    # frames would fail: an unreadable image of a folder, or no image topic it can decode
-    return 1 if any(image.get("unreadable") for image in images) or all(image.get("problem") for image in images) else 0
+    # frames would fail: an unreadable image of a folder, no image topic it can decode, or no commands
+    # (`all` of no images is true: a bag without an image topic, which exited 1 without a word)
+    unreadable = any(image.get("unreadable") for image in images) or all(image.get("problem") for image in images)
+    return 1 if unreadable or info["commands"] is None else 0
 
 
 def print_inspection(info: dict) -> None:
@@ -56,6 +58,9 @@ def print_inspection(info: dict) -> None:
         for topic in info["topics"]:
             table.add_row(topic["name"], topic["type"], str(topic["count"]), f"{topic['rate_hz'] or 0:.1f}")
         console.print(table)
+    if not info["images"]:
+        console.print("[bold red]no images:[/] the bag has no topic of type sensor_msgs/Image or CompressedImage",
+                      highlight=False)
     for name, image in info["images"].items():
         console.print(_images_line(name, image), highlight=False)
         if image.get("problem"):
@@ -73,8 +78,8 @@ def print_inspection(info: dict) -> None:
             console.print(f"[bold yellow]{damaged['count']} damaged command(s)[/] ({damaged['reason']}), "
                           "dropped with their frames when read", highlight=False)
     else:
-        console.print(f"no commands: the bag has no {info['command_topic']} of type geometry_msgs/Twist or "
-                      "TwistStamped (name the command topic with --command-topic)")
+        console.print(f"[bold red]no commands:[/] the bag has no {info['command_topic']} of type geometry_msgs/Twist "
+                      "or TwistStamped (name the command topic with --command-topic)", highlight=False)
 
 
 def _images_line(name: str, image: dict) -> str:

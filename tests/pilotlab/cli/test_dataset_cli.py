@@ -67,6 +67,19 @@ def test_inspect_says_which_image_topic_the_frames_job_could_not_decode(tmp_path
     assert main(["dataset", "inspect", str(tmp_path / "c.bag"), "--command-topic", "/F1ROS/cmd_vel"]) == 0
 
 
+def test_inspect_fails_with_a_word_where_the_frames_job_would_find_no_images_or_no_commands(tmp_path, capsys):
+    """Outside test: a bag without commands printed "no commands" and exited 0; one without images exited 1
+    without a word (`all` over no image topics)."""
+    with RawBag(tmp_path / "nocmd.bag", "ros1") as bag:
+        bag.image(10**9, images(1)[0])
+    assert main(["dataset", "inspect", str(tmp_path / "nocmd.bag")]) == 1
+    assert "no commands: the bag has no /F1ROS/cmd_vel" in capsys.readouterr().out
+    with RawBag(tmp_path / "noimg.bag", "ros1") as bag:
+        bag.twist(10**9, 2.0, 0.5)
+    assert main(["dataset", "inspect", str(tmp_path / "noimg.bag")]) == 1
+    assert "no images: the bag has no topic of type sensor_msgs/Image or CompressedImage" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("kind, damage", [("sqlite3", "no messages"), ("mcap", "type changed")])
 def test_inspect_an_image_topic_announced_but_not_readable_is_one_line(tmp_path, capsys, kind, damage):
     path = tmp_path / "run"
