@@ -121,5 +121,6 @@ def sparsity_report(model: nn.Module) -> dict:
 def require_cuda_target(source: StrategySource) -> None:
     """NotApplicable unless the optimize job targets a CUDA profile and this host has the GPU."""
     if source.hardware.device != "cuda":
-        raise NotApplicable(f"{source.strategy} runs on a CUDA hardware target; {source.hardware.name!r} is a CPU profile")
+        # (one optimize job serves every CPU profile: it cannot name the one of the cell)
+        raise NotApplicable(f"{source.strategy} runs on a CUDA hardware target, not on a CPU profile")
     check_available(source.hardware)

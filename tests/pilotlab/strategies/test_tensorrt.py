@@ -39,3 +39,14 @@ def test_int8_gives_tensorrt_a_symmetric_qdq_graph_calibrated_on_training_frames
     # symmetric int8 activations spend a bit on the sign a ReLU never uses: on this random network outputs
     # (normalised to [0, 1]) stray by up to 0.15 (0.01 asymmetric); on the study's trained PilotNet by 0.024
     np.testing.assert_allclose(quantized, exact, atol=0.2)
+
+
+def test_a_cuda_strategy_on_a_cpu_profile_is_not_applicable_without_naming_another_profile():
+    """Outside test: on cpu1 it said "'cpu' is a CPU profile" (one optimize job serves every CPU profile)."""
+    from types import SimpleNamespace
+    from matrix.kinds import NotApplicable
+    from pilotlab.hardware import BUILTIN
+    from pilotlab.strategies.common import require_cuda_target
+    with pytest.raises(NotApplicable) as caught:
+        require_cuda_target(SimpleNamespace(strategy="tensorrt", hardware=BUILTIN["cpu"]))
+    assert str(caught.value) == "tensorrt runs on a CUDA hardware target, not on a CPU profile"
