@@ -115,15 +115,15 @@ class ReportSpec(Spec):
     folder: str = "reports"
     compare_with: str | None = None   # a study whose claims are checked (pilotlab.report.studies)
 
-    @model_validator(mode="after")
-    def _known_study(self):
-        if self.compare_with is None:   # (the studies' checks are imported only for a comparison)
-            return self
+    @field_validator("compare_with")   # (a field's validator: the error is said at report.compare_with)
+    @classmethod
+    def _known_study(cls, study):
+        if study is None:   # (the studies' checks are imported only for a comparison)
+            return study
         from pilotlab.report.studies import STUDIES
-        if self.compare_with not in STUDIES:
-            raise ValueError(f"unknown study {self.compare_with!r}{did_you_mean(self.compare_with, STUDIES)}; "
-                             f"known: {', '.join(STUDIES.names())}")
-        return self
+        if study not in STUDIES:
+            raise ValueError(f"unknown study {study!r}{did_you_mean(study, STUDIES)}; known: {', '.join(STUDIES.names())}")
+        return study
 
 
 SECTIONS: dict[str, tuple[Any, Any]] = {

@@ -297,7 +297,7 @@ class Planner:
             return base, full_options(base, options)
         except MatrixError as error:   # said of `base`: say it of this recipe's name
             message = str(error).removeprefix(f"strategies.{base}").lstrip(".: ")
-            raise self.recipe.error(message + (f" (an option of {base})" if base != name else ""), where) from None
+            raise self.recipe.error(message + (f" ({name} uses {base})" if base != name else ""), where) from None
 
     def profile(self, name: str):
         from pilotlab.hardware import make_profile

@@ -110,6 +110,10 @@ def _validated(config_cls: type, options: dict[str, Any]) -> dict[str, Any]:
     """The options as their fields' types, each checked as pydantic checks a dataclass field (lax)."""
     types_, values, problems = _field_types(config_cls), {}, []
     for name, value in options.items():
+        if _is_numeric(types_[name]) and isinstance(value, (bool, str)):   # lax pydantic took '3' and true (1.0)
+            problems.append(f"{name}: {str(value).lower() if isinstance(value, bool) else repr(value)} is not a "
+                            "number" + (" (write it without quotes)" if _reads_as_number(value) else ""))
+            continue
         try:
             values[name] = _validator(types_[name]).validate_python(value)
         except pydantic.ValidationError as error:
@@ -118,6 +122,21 @@ def _validated(config_cls: type, options: dict[str, Any]) -> dict[str, Any]:
     if problems:
         raise PilotlabError("; ".join(problems))
     return values
+
+
+def _reads_as_number(value: Any) -> bool:
+    try:
+        return isinstance(value, str) and math.isfinite(float(value))
+    except ValueError:
+        return False
+
+
+@functools.cache
+def _is_numeric(annotation: Any) -> bool:
+    """An int or float field (or one of them or None)."""
+    kinds = set(typing.get_args(annotation)) - {type(None)} if isinstance(annotation, types.UnionType) or \
+        typing.get_origin(annotation) is typing.Union else {annotation}
+    return bool(kinds) and kinds <= {int, float}
 
 
 def _common_problem(config, options: dict[str, Any]) -> str | None:
@@ -147,8 +166,8 @@ def build_config(config_cls: type, options: dict[str, Any] | None, where: str):
     known = [f.name for f in dataclasses.fields(config_cls) if f.name != "version"]
     if unknown := sorted(set(options) - set(known) - {"version"}):   # a checkpoint's config keeps its version
         guesses = "".join(did_you_mean(option, known) for option in unknown)
-        raise PilotlabError(f"{where}: unknown option(s) {', '.join(unknown)}{guesses}; "
-                            f"known: {', '.join(known) or '(none)'}")
+        takes = f"known: {', '.join(known)}" if known else "it takes none"
+        raise PilotlabError(f"{where}: unknown option(s) {', '.join(unknown)}{guesses}; {takes}")
     try:
         # No options: the config's own defaults, which need no validation; its __post_init__ checks run
         # all the same.

@@ -131,12 +131,12 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
     (("{use: local_prune, conv: 0.5}", "{use: local_prun}"),
      ":10: strategies.prune_more.use: unknown strategy 'local_prun' (did you mean 'local_prune'?)"),
     (("{use: local_prune, conv: 0.5}", "{use: local_prune, conv: 1.5}"),
-     ":10: strategies.prune_more: conv: 1.5 is not a fraction in [0, 1) (an option of local_prune)"),
+     ":10: strategies.prune_more: conv: 1.5 is not a fraction in [0, 1) (prune_more uses local_prune)"),
     # outside test: checked only when the optimize job ran, without file or key
     (("{use: local_prune, conv: 0.5}", "{use: cluster, clusters: 100000}"),
-     ":10: strategies.prune_more: clusters: 100000 must be between 2 and 256 (int8 has 256 values) (an option of cluster)"),
+     ":10: strategies.prune_more: clusters: 100000 must be between 2 and 256 (int8 has 256 values) (prune_more uses cluster)"),
     (("{use: local_prune, conv: 0.5}", "{use: local_prune, conv: lots}"),
-     ":10: strategies.prune_more: conv: Input should be a valid number, unable to parse string as a number (got 'lots')"),
+     ":10: strategies.prune_more: conv: 'lots' is not a number (prune_more uses local_prune)"),
     (("local_prune: {finetune_epochs: 1}", "local_prune: {use: global_prune}"),
      ":9: strategies.local_prune.use: 'local_prune' is a built-in strategy; give the variant of global_prune a new name"),
     (("strategy: [baseline,", "strategy: [baselin,"),
@@ -158,10 +158,13 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
     (("laps: 0.2}}", "laps: 0.2, camera: {width: 8}}}"),
      ":3: datasets.train.record.camera.width: Input should be greater than or equal to 16 (got 8)"),
     (("matrix:", "report: {compare_with: study2002}\nmatrix:"),
-     ":11: report: unknown study 'study2002' (did you mean 'study2022'?); known: study2022"),
+     ":11: report.compare_with: unknown study 'study2002' (did you mean 'study2022'?); known: study2022"),
     # outside test: strategy options that planned, then failed in the job (a ZeroDivisionError, a NaN stored
     # as null and refused under the strategy's built-in name, a format refused after 8 s of fine-tuning)
-    (("conv: 0.5", "batch_size: 0"), "strategies.prune_more: batch_size: 0 must be at least 1 (an option of local_prune)"),
+    (("conv: 0.5", "batch_size: 0"), "strategies.prune_more: batch_size: 0 must be at least 1 (prune_more uses local_prune)"),
+    # outside test: lax validation took '3' for 3 and true for 1.0 ("1.0 is not a fraction")
+    (("conv: 0.5", "conv: true"), "strategies.prune_more: conv: true is not a number (prune_more uses local_prune)"),
+    (("conv: 0.5", "batch_size: '3'"), "strategies.prune_more: batch_size: '3' is not a number (write it without quotes)"),
     (("conv: 0.5", "lr: .nan"), "strategies.prune_more: lr: nan is not a finite number"),
     (("conv: 0.5", "lr: -1.0"), "strategies.prune_more: lr: -1.0 must be above 0"),
     (("conv: 0.5", "finetune_epochs: -1"), "strategies.prune_more: finetune_epochs: -1 must be at least 0"),
