@@ -28,7 +28,7 @@ def run(args) -> int:
     # a cell's rows are its offline job and laps: a recording another recipe shares is no result of this one
     shown = any(status.state == FRESH for status in statuses if status.job.kind in CELL_KINDS)
     if not shown and not any(store.failure(status.job.key) for status in statuses):
-        raise PilotlabError(f"the store {store.root} holds no result of recipe {recipe.name!r}'s cells, so the "
+        raise PilotlabError(f"the store {store.root} holds no result of the cells of recipe {recipe.name!r}, so the "
                             f"report would show nothing; run `pilotlab run {args.recipe}` first, or give the right --store")
     folder = write_recipe_report(recipe, store, [status.job for status in statuses], force=True)
     print(f"report written: {folder / 'README.md'} and {folder / 'index.html'}")

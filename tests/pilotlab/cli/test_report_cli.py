@@ -15,7 +15,7 @@ def test_report_refuses_a_store_without_any_result_and_writes_nothing(tmp_path, 
     monkeypatch.chdir(tmp_path)
     assert main(["report", str(QUICKSTART), "--store", str(tmp_path / "empty")]) == 2
     error = capsys.readouterr().err
-    assert "holds no result of recipe 'quickstart'" in error and "pilotlab run" in error
+    assert "holds no result of the cells of recipe 'quickstart'" in error and "pilotlab run" in error
     assert not (tmp_path / "reports").exists()
 
 
@@ -27,7 +27,7 @@ def test_report_refuses_a_store_holding_only_a_recording_another_recipe_shares(t
     test_set = next(s.job for s in make_plan(recipe, DOMAIN, store).statuses if s.job.name == "record test/simple_circuit cw")
     assert execute_job(str(store.root), test_set.spec(), DOMAIN.kind_modules, None)["status"] == "ok"
     assert main(["report", str(QUICKSTART), "--store", str(store.root)]) == 2
-    assert "holds no result of recipe 'quickstart''s cells" in capsys.readouterr().err
+    assert "holds no result of the cells of recipe 'quickstart'" in capsys.readouterr().err
     assert not (tmp_path / "reports").exists()
 
 
