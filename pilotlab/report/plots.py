@@ -98,6 +98,7 @@ def draw_pareto(data: ReportData) -> Figure | None:
     biggest = max((r.get("size_mb") or 0 for r in rows), default=0) or 1.0
     area = lambda size: 40 + 700 * size / biggest  # noqa: E731  (marker area ∝ model size)
     colours, markers = strategy_colours(data), model_markers(data)
+    fronts: list[int] = []   # the points of each front drawn
     for ax, target in zip(axes, hardware):
         here = [r for r in rows if r.hardware == target]
         for r in here:
@@ -110,10 +111,13 @@ def draw_pareto(data: ReportData) -> Figure | None:
                        color="none" if unstable else colours[r.strategy], alpha=0.75,
                        edgecolors=colours[r.strategy] if unstable else "black", linewidths=1.5 if unstable else 0.6,
                        zorder=3)
-        front = pareto_front([(r.get("latency_ms"), r.get("mse")) for r in here])
-        # one method best on both counts is the whole front: a ring round it, as a lone step draws nothing
-        ax.plot(*zip(*front), drawstyle="steps-post", color="0.35", ls="--", lw=1.2, zorder=2,
-                marker="o" if len(front) == 1 else None, markersize=22, markerfacecolor="none")
+        # the front of the trusted timings only; one method best on both counts is the whole front: a
+        # square round it, as a lone step draws nothing (a ring would read as the unstable marker)
+        front = pareto_front([(r.get("latency_ms"), r.get("mse")) for r in here if not r.unstable_reason("latency_ms")])
+        if front:
+            ax.plot(*zip(*front), drawstyle="steps-post", color="0.35", ls="--", lw=1.2, zorder=2,
+                    marker="s" if len(front) == 1 else None, markersize=22, markerfacecolor="none")
+            fronts.append(len(front))
         ax.set(title=target, xlabel="Inference time, batch 1 (ms)", ylabel="MSE (normalised v, w)")
         ax.margins(0.15)
         ax.set_xlim(left=max(0.0, ax.get_xlim()[0]))   # no negative milliseconds
@@ -122,11 +126,12 @@ def draw_pareto(data: ReportData) -> Figure | None:
     shown = dict.fromkeys(sizes[i] for i in (0, len(sizes) // 2, -1)) if sizes else {}     # smallest, middle, largest
     size_handles = [Line2D([], [], ls="", marker="o", markersize=math.sqrt(area(s)), color="0.75",
                            markeredgecolor="black", label=f"{s:g} MB") for s in shown]
-    front_handle = Line2D([], [], color="0.35", ls="--", label="Pareto front")
+    front_handles = [Line2D([], [], color="0.35", ls="--", marker="s" if 1 in fronts else None, markersize=8,
+                            markerfacecolor="none", label="Pareto front (stable timings)")] if fronts else []
     if any(r.unstable_reason("latency_ms") for r in rows):
         size_handles.append(Line2D([], [], ls="", marker="o", markersize=8, markerfacecolor="none",
                                    markeredgecolor="0.3", label="⚠ unstable timing"))
-    _legend_and_title(figure, _identity_handles(data, rows) + [front_handle] + size_handles,
+    _legend_and_title(figure, _identity_handles(data, rows) + front_handles + size_handles,
                       "Latency vs MSE (lower left is better; marker area ∝ model size)")
     return figure
 

@@ -22,7 +22,7 @@ def test_plots_show_every_strategy_and_hardware(study):
     axes = [ax for ax in figure.axes if ax.get_visible()]
     assert [ax.get_title() for ax in axes] == ["cpu1", "cpu4"]
     legend = [t.get_text() for t in figure.legends[0].get_texts()]
-    assert legend[:7] == list(study.strategies()) and "Pareto front" in legend and "6.12 MB" in legend
+    assert legend[:7] == list(study.strategies()) and "Pareto front (stable timings)" in legend and "6.12 MB" in legend
     ratios = draw_ratios(study)
     labels = [t.get_text() for t in ratios.axes[1].texts]
     assert "not applicable" in labels and "failed" in labels                     # shown as such, not as 0
@@ -37,8 +37,16 @@ def test_no_speed_up_bar_is_drawn_from_an_unstable_timing():
     data = ReportData.from_dict(small_dict(rows))
     speed = draw_ratios(data).axes[1]
     assert [t.get_text() for t in speed.texts] == ["⚠ unstable timing", "⚠ unstable timing"] and not speed.patches
-    legend = [t.get_text() for t in draw_pareto(data).legends[0].get_texts()]
+    figure = draw_pareto(data)
+    legend = [t.get_text() for t in figure.legends[0].get_texts()]
     assert "⚠ unstable timing" in legend
+    # outside test: the front ran through the unstable point, and a one-point front was a hollow ring, the
+    # legend's unstable marker; it is the stable points' front, a lone point squared
+    (front,) = [line for line in figure.axes[0].get_lines() if line.get_linestyle() == "--"]
+    assert list(front.get_xdata()) == [0.4] and front.get_marker() == "s"
+    rows[1]["unstable"] = rows[0]["unstable"]
+    legend = [t.get_text() for t in draw_pareto(ReportData.from_dict(small_dict(rows))).legends[0].get_texts()]
+    assert not any("Pareto" in text for text in legend)          # no front drawn: none in the legend
 
 
 def test_a_name_the_font_cannot_draw_warns_nothing(tmp_path):
