@@ -88,7 +88,8 @@ def _fastest(data: ReportData, rows: list[ReportRow]) -> list[Finding]:
                 findings.append(Finding(f"{label} on {hardware}", f"not drawn: {issue}; rerun",
                                         "pilotlab run --force timing", "when the machine is quieter"))
                 continue
-            text = f"{method_label(row, data)} — {format_value(metric, row.get(metric))} {unit}"
+            text = f"{method_label(row, data)}{_within_spread(data, here, row, metric)} — " \
+                f"{format_value(metric, row.get(metric))} {unit}"
             versus = _versus(data, row, metric, "faster") if metric == "latency_ms" else ""
             findings.append(Finding(f"{label} on {hardware}", text + versus))
     return findings
@@ -208,6 +209,23 @@ def _ties(data: ReportData, rows: list[ReportRow], winner: ReportRow, metric: st
                          if r.get(metric) is not None and format_value(metric, r.get(metric)) == shown)
     same.pop(method_label(winner, data), None)
     return f" ({', '.join(same)} read{'s' if len(same) == 1 else ''} the same)" if same else ""
+
+
+SPREAD = {"latency_ms": ("latency_p10_ms", "latency_p90_ms"), "throughput_ips": ("throughput_p10_ips", "throughput_p90_ips")}
+
+
+def _within_spread(data: ReportData, rows: list[ReportRow], winner: ReportRow, metric: str) -> str:
+    """' (a, b within its spread)' for the others whose figure lies between the winner's 10th and 90th
+    percentiles: the timing noise does not tell them apart (two definitions of one network, timed
+    minutes apart, were a winner and a loser)."""
+    low, high = (winner.get(name) for name in SPREAD[metric])
+    if low is None or high is None:
+        return ""
+    low, high = min(low, high), max(low, high)
+    close = dict.fromkeys(method_label(r, data) for r in rows if r is not winner and r.get(metric) is not None
+                          and low <= r.get(metric) <= high)
+    close.pop(method_label(winner, data), None)
+    return f" ({', '.join(close)} within its spread)" if close else ""
 
 
 def _versus(data: ReportData, row: ReportRow, metric: str, word: str) -> str:

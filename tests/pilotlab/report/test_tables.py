@@ -158,6 +158,17 @@ def test_no_summary_line_is_drawn_from_an_unstable_timing():
     assert found["Fastest on cpu1"].startswith(f"not drawn: pilotnet · baseline (cpu1): unstable: {DISTURBED}; rerun")
 
 
+def test_the_fastest_names_the_others_its_timing_noise_does_not_tell_apart():
+    """Outside test: one network under two names, 0.403 and 0.339 ms (spreads 0.33-0.49 and 0.33-0.40),
+    was "Fastest: q8b", as if it were faster."""
+    from pilotlab.report.summary import summarise
+    rows = [offline_row("baseline", latency_ms=2.0, latency_p10_ms=1.9, latency_p90_ms=2.2),
+            offline_row("q8", latency_ms=0.403, latency_p10_ms=0.331, latency_p90_ms=0.491),
+            offline_row("q8b", latency_ms=0.339, latency_p10_ms=0.325, latency_p90_ms=0.404)]
+    found = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(rows)))}
+    assert found["Fastest on cpu1"].startswith("q8b (q8 within its spread) — 0.339 ms per image")
+
+
 def test_the_summary_names_the_fastest_method_that_keeps_its_accuracy_and_its_laps():
     from pilotlab.report.summary import summarise
     from tests.pilotlab.report.toy import online_row
