@@ -70,13 +70,26 @@ def texture_files(path: Path, root: ET.Element | None = None) -> list[Path]:
     return found
 
 
+def check_images(files: list[Path], mesh: Path) -> None:
+    """Each texture decodes: one that does not, trimesh leaves out without a word (the ground of a world
+    turned grey), so the world would not be BM's."""
+    from PIL import Image
+    for file in files:
+        try:
+            with Image.open(file) as image:
+                image.load()
+        except (OSError, SyntaxError, ValueError) as error:
+            raise PilotlabError(f"{file}: a texture of {mesh.name} that cannot be read as an image ({error}); "
+                                "restore it from BehaviorMetrics' worlds") from None
+
+
 def read_mesh(mesh: Mesh) -> list[Part]:
     """The mesh's triangles in world metres, one Part per material and texture."""
     root = parse_xml(mesh.path)
     if root.tag != f"{NS}COLLADA":
         raise PilotlabError(f"{mesh.path}: not a COLLADA 1.4 file (root element {root.tag!r})")
     metres, up = unit_and_axis(root, mesh.path)
-    texture_files(mesh.path, root)
+    check_images(texture_files(mesh.path, root), mesh.path)
     to_world = mesh.transform.copy()
     to_world[:3, :3] = to_world[:3, :3] @ up * metres
     parts = []

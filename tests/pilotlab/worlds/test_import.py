@@ -65,6 +65,9 @@ def test_cache_is_keyed_by_content(oval_assets, tmp_path):
     (lambda root: (root / "models/oval/meshes/walls.dae").unlink(), "walls.dae is missing"),
     (lambda root: (root / "models/oval/meshes/track.dae").write_text("<COLLADA><asset>"), "track.dae: not valid XML"),
     (lambda root: (root / "models/oval/meshes/asphalt.png").unlink(), "texture 'asphalt.png' is missing"),
+    # outside test: a texture that does not decode was left out by trimesh, the road drawn in grey
+    (lambda root: (root / "models/oval/meshes/asphalt.png").write_bytes(b"\x89PNG garbage"),
+     "asphalt.png: a texture of track.dae that cannot be read as an image"),
     (lambda root: _edit(root / "models/oval/meshes/track.dae", 'meter="0.0254"', 'meter="inch"'), "unknown unit"),
     (lambda root: _edit(root / "worlds/oval.world", "model://oval<", "model://ovall<"), "does not exist"),
     (lambda root: _edit(root / "worlds/oval.world", '<pose>2.000000', '<pose>two'), "expected 6 numbers"),
