@@ -91,11 +91,12 @@ def load_weights(model: nn.Module, path: Path) -> None:
         holds = f" (it holds {_listed([str(k) for k in state])})" if isinstance(state, dict) else ""
         raise PilotlabError(f"{path.name} is not a state dict (a mapping of names to tensors){holds}; save one with "
                             "torch.save(model.state_dict(), path)")
-    own = model.state_dict()
+    own, renamed = model.state_dict(), ""
     if not set(state) & set(own) and {k.split(".")[0] for k in state} <= set(DLS_PILOTNET_NAMES):
         state = {DLS_PILOTNET_NAMES[k.split(".")[0]] + k[len(k.split(".")[0]):]: v for k, v in state.items()}
+        renamed = " (the file's DeepLearningStudio PilotNet names read as pilotlab's: ln_1 as input_norm, ...)"
     if problem := weights_problem(own, state):
-        raise PilotlabError(f"{path.name} does not fit {type(model).__name__}: {problem}")
+        raise PilotlabError(f"{path.name} does not fit {type(model).__name__}: {problem}{renamed}")
     model.load_state_dict(state)
 
 

@@ -203,6 +203,18 @@ def test_weights_that_do_not_fit(tmp_path, dls, frames):
     assert "first shape that differs: fc_1.weight is [1164, 1152] in the file, [1000, 1152] in the network" in message
 
 
+def test_dls_weights_read_under_pilotlab_s_names_say_so(tmp_path, dls, frames):
+    """Outside test: DLS weights into another network listed keys the file does not hold (input_norm.*,
+    pilotlab's names for its ln_1.*) without a word of the renaming."""
+    tiny = write(tmp_path, "tiny.py", "import torch.nn as nn\n\n\nclass Tiny(nn.Module):\n    def __init__(self):\n"
+                 "        super().__init__()\n        self.c = nn.Conv2d(3, 2, 3)\n\n    def forward(self, x):\n"
+                 "        return self.c(x).mean((2, 3))\n")
+    message = error_of(tmp_path, frames, {"network": "tiny.py:Tiny", "weights": "w.pth"},
+                       {"network_source": tiny, "weights": dls / "pilot_net_model_best_123.pth"})
+    assert "unexpected keys input_norm." in message
+    assert message.endswith("(the file's DeepLearningStudio PilotNet names read as pilotlab's: ln_1 as input_norm, ...)")
+
+
 def test_weights_that_are_not_a_state_dict(tmp_path, dls, frames):
     junk = tmp_path / "junk.pth"
     junk.write_bytes(b"not a torch file")
