@@ -225,12 +225,13 @@ def defined_at(function: Callable, where: str) -> str:
 
 def error_line(error: BaseException, where: str) -> str:
     """`file:line: Type: message` for an exception raised in the user's code: the line of the user's
-    file it came from (the last frame outside Python's machinery and installed packages), else `where`."""
+    file it came from (the last frame outside Python's machinery and installed packages), else `where`
+    (nothing where it is "")."""
     if isinstance(error, SyntaxError):
         text = (error.text or "").strip()
         return f"{error.filename}:{error.lineno}: syntax error: {error.msg}" + (f": {text}" if text else "")
-    message = str(error).splitlines()[0] if str(error) else ""
-    return f"{_place(error, where)}: {type(error).__name__}" + (f": {message}" if message else "")
+    message, place = str(error).splitlines()[0] if str(error) else "", _place(error, where)
+    return (f"{place}: " if place else "") + type(error).__name__ + (f": {message}" if message else "")
 
 
 def _place(error: BaseException, where: str) -> str:

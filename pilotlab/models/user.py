@@ -81,9 +81,8 @@ def load_weights(model: nn.Module, path: Path) -> None:
             raise PilotlabError(f"{path.name} holds Python objects ({found[1]}), not only tensors (a whole model "
                                 "saved with torch.save(model)?), and pilotlab never unpickles objects; save the "
                                 "weights with torch.save(model.state_dict(), path) and give that file") from None
-        first = re.sub(r"\x1b\[[0-9;]*m", "", str(error).splitlines()[0]) if str(error) else type(error).__name__
-        raise PilotlabError(f"{path.name} is not a state dict torch.load(weights_only=True) can read: {first}") \
-            from None
+        raise PilotlabError(f"{path.name} is not a state dict torch.load(weights_only=True) can read: "
+                            f"{_load_problem(error)}") from None
     wrapped = next((key for key in WRAPPING_KEYS if isinstance(state, dict) and isinstance(state.get(key), dict)), None)
     if wrapped is not None:
         state = state[wrapped]                     # a checkpoint that wraps its state dict (PyTorch's tutorials')
@@ -98,6 +97,15 @@ def load_weights(model: nn.Module, path: Path) -> None:
     if problem := weights_problem(own, state):
         raise PilotlabError(f"{path.name} does not fit {type(model).__name__}: {problem}{renamed}")
     model.load_state_dict(state)
+
+
+def _load_problem(error: Exception) -> str:
+    """torch.load's own reason, without its advice to load with weights_only=False (which runs the file's
+    code: pilotlab never does) where the unpickler names the reason."""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(error))
+    if found := re.search(r"WeightsUnpickler error:\s*(\S[^\n]*)", text):
+        return found[1].strip()
+    return text.splitlines()[0] if text else type(error).__name__
 
 
 # where a checkpoint keeps its state dict: pilotlab's and Lightning's, PyTorch's "saving a general checkpoint"
@@ -132,8 +140,9 @@ def check_output(model: nn.Module, input_shape: tuple[int, int, int], what: str)
     except Exception as error:  # noqa: BLE001 — the user's forward: say where it failed
         # a program's (TorchScript, ONNX Runtime) error has no line of the user's, and its reason may
         # follow its first line (ONNX Runtime: "... for the following indices" then "index: 0 Got: 2 ...")
+        # (no line of the user's, as a class without forward: the reason alone, `what` starts the message)
         place = (f"{type(error).__name__}: {library_message(error)}" if isinstance(model, _Program)
-                 else usercode.error_line(error, what))
+                 else usercode.error_line(error, ""))
         raise PilotlabError(f"{what} fails on an input {shape} (the preprocessed camera image): {place}") from None
     if not isinstance(output, torch.Tensor):
         pair = isinstance(output, (tuple, list)) and len(output) == 2

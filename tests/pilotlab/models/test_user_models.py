@@ -222,6 +222,8 @@ def test_weights_that_are_not_a_state_dict(tmp_path, dls, frames):
                                           "weights": "junk.pth"},
                        {"network_source": dls / "nets/pilotnet.py", "weights": junk})
     assert message.startswith("models.mine.weights: junk.pth is not a state dict torch.load(weights_only=True)")
+    # outside test: torch's advice to load it with weights_only=False (running the file's code) was passed on
+    assert "weights_only` set to `False`" not in message and "Unsupported operand" in message
 
 
 def test_weights_saved_as_a_whole_module_say_how_to_save_a_state_dict(tmp_path, dls, frames):
@@ -251,6 +253,16 @@ def test_an_output_of_two_tensors_says_how_to_return_one(tmp_path, frames):
     message = error_of(tmp_path, frames, {"network": "nets/pair.py:Pair"}, {"network_source": tmp_path / "nets/pair.py"})
     assert message.endswith("output for an input [2, 3, 66, 200] is a tuple; a driving network returns one tensor "
                             "[N, 2] (normalised v, w); return torch.stack([v, w], 1)")
+
+
+def test_a_network_without_forward_is_said_once(tmp_path, frames):
+    """Outside test: "models.mine.network: Net fails ...: models.mine.network: Net: NotImplementedError" (no
+    line of the user's: the key path was said again in its place)."""
+    write(tmp_path, "nets/no_forward.py", "import torch\n\n\nclass Net(torch.nn.Module):\n    pass\n")
+    message = error_of(tmp_path, frames, {"network": "nets/no_forward.py:Net"},
+                       {"network_source": tmp_path / "nets/no_forward.py"})
+    assert message.count("models.mine.network") == 1 and \
+        "(the preprocessed camera image): NotImplementedError: Module [Net] is missing" in message
 
 
 def test_a_general_checkpoint_s_state_dict_is_unwrapped(tmp_path, dls, frames):
