@@ -222,8 +222,10 @@ def read_torchscript(path: Path) -> bytes:
     try:
         torch.jit.load(io.BytesIO(data), map_location="cpu")
     except Exception as error:  # noqa: BLE001
-        raise PilotlabError(f"{path.name} is not a TorchScript model torch.jit.load can read: "
-                            f"{str(error).splitlines()[0] if str(error) else type(error).__name__}") from None
+        first = str(error).splitlines()[0] if str(error) else type(error).__name__
+        if "zip archive" in first:   # (miniz goes on about checkpoints being corrupted in transfer)
+            first = first.split(". ")[0] + " (a TorchScript file is the zip archive torch.jit.save writes)"
+        raise PilotlabError(f"{path.name} is not a TorchScript model torch.jit.load can read: {first}") from None
     return data
 
 

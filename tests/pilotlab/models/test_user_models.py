@@ -395,3 +395,13 @@ def test_onnx_external_data_outside_the_models_folder_is_refused(tmp_path, dls, 
     path.write_bytes(model.SerializeToString())
     message = error_of(tmp_path, frames, {"onnx": "models/m.onnx"}, {"onnx": tmp_path / "models/m.onnx"})
     assert message.startswith("models.mine.onnx: ") and "outside the model file's folder; refused" in message
+
+
+def test_a_file_that_is_no_torchscript_says_what_one_is(tmp_path, frames):
+    """Outside test: an ONNX file given as torchscript passed on miniz's talk of corrupted checkpoints."""
+    (tmp_path / "model.onnx").write_bytes(b"\x08\x07" + b"onnx-ish bytes" * 20)
+    message = error_of(tmp_path, frames, {"torchscript": "model.onnx", "labels": {"v": [0, 1], "w": [-1, 1]}},
+                       {"torchscript": tmp_path / "model.onnx"})
+    assert message.endswith("model.onnx is not a TorchScript model torch.jit.load can read: PytorchStreamReader "
+                            "failed reading zip archive: failed finding central directory (a TorchScript file is the "
+                            "zip archive torch.jit.save writes)")
