@@ -248,7 +248,8 @@ def _table(data: ReportData, kind: str, hardware: str, place: str, rows: list[Re
            headers: tuple[str, ...], cells_of: Callable) -> Table:
     order = {s: i for i, s in enumerate(data.strategies())}
     rows = sorted(rows, key=lambda r: (data.models().index(r.model), order[r.strategy]))
-    where = "test set" if kind == "offline" else "circuit"
+    # a lap in a BM world is headed by the world (its circuit field holds the world's name)
+    where = "test set" if kind == "offline" else "world" if rows[0].world else "circuit"
     title = f"{hardware} · {where} {place}"
     if _all_alike_and_not_measured(rows):  # e.g. every CUDA cell on a host without a GPU: one line
         methods = ", ".join(method_label(r, data) for r in rows)

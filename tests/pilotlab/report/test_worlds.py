@@ -75,3 +75,10 @@ def test_the_plot_draws_no_deviation_ratio_to_a_lost_lap():
     assert len(deviation_axis.patches) == 3                        # not the lost lap's deviation ratio
     crosses = [line for line in deviation_axis.get_lines() if line.get_marker() == "x"]
     assert len(crosses) == 1 and list(crosses[0].get_ydata()) == [1.0]
+
+
+def test_the_simulation_tables_of_laps_in_a_world_are_headed_by_the_world():
+    """Outside test: "### cpu · circuit simple_circuit_white_line cw" headed the laps in a world."""
+    from pilotlab.report.tables import build_tables
+    titles = [table.title for table in build_tables(data(), "online")]
+    assert titles == ["cpu · world simple_circuit cw", "cpu · world white_line cw"]
