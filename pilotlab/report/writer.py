@@ -24,7 +24,7 @@ import pilotlab.report.render as render
 from pilotlab.report.data import CPU_TIME_COLUMNS, ROW_FIELDS, UNSTABLE_COLUMNS, ReportData, ReportRow
 from pilotlab.report.plots import CAPTIONS, save_plots
 from pilotlab.report.summary import summarise
-from pilotlab.report.tables import all_results_cells, build_tables, method_label
+from pilotlab.report.tables import TOLERANCE_HEADER, all_results_cells, build_tables, method_label
 from pilotlab.report.worlds import shift_summary, world_tables
 
 
@@ -78,6 +78,7 @@ def build_context(data: ReportData, out_dir: Path, plots: dict[str, tuple[Path, 
         "offline": build_tables(data, "offline"),
         "online": (online := build_tables(data, "online")),
         "bm_columns": any(header.startswith("BM ") for table in online for header in table.headers),
+        "tolerance_column": any(TOLERANCE_HEADER in table.headers for table in online),
         "worlds": world_tables(data),
         "world_summary": shift_summary(data),
         "repeated": any((row.repetitions or 1) > 1 for row in data.of_kind("online")),

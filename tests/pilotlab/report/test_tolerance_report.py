@@ -68,3 +68,13 @@ def test_a_simulation_table_says_where_its_replayed_latencies_came_from():
                                                                           "the injected latency"}]
     table = build_tables(ReportData.from_dict(small_dict(rows)), "online")[0]
     assert table.notes == (f"Latencies replayed from the {source}.",)
+
+
+def test_the_legend_says_what_the_tolerance_column_is(tmp_path):
+    """Outside test: the column was not explained (it is latency added to the lap's own, not the total)."""
+    from pilotlab.report.writer import write_report
+    write_report(tolerance_data(), tmp_path)
+    for page in ("README.md", "index.html"):
+        assert "Latency tolerance: the latency added to the lap's own" in (tmp_path / page).read_text()
+    write_report(ReportData.from_dict(small_dict([online_row("baseline", lap_completed=True)])), tmp_path / "none")
+    assert "Latency tolerance: the latency added" not in (tmp_path / "none" / "README.md").read_text()
