@@ -14,6 +14,8 @@ import, which `plan --json` and scripts reading it need not pay.
 from __future__ import annotations
 
 import json
+import os
+import sys
 import threading
 import time
 from collections import Counter
@@ -55,8 +57,14 @@ def print_plan(console: Console, statuses: Sequence, counts: Mapping[str, Counte
     console.print(_counts_line(statuses, counts))
 
 
+PIPED_WIDTH = 200   # columns of tables written to a pipe or file (rich takes 80: names and reasons wrapped)
+
+
 def console() -> Console:
-    return Console(highlight=False, soft_wrap=True)
+    """The console of the CLI's output; written to a pipe or a file (`plan | less`, a CI log) its tables
+    are PIPED_WIDTH wide, unless $COLUMNS says otherwise."""
+    piped = not sys.stdout.isatty() and not os.environ.get("COLUMNS")
+    return Console(highlight=False, soft_wrap=True, width=PIPED_WIDTH if piped else None)
 
 
 def summary_line(summary: RunSummary, tool: str) -> str:

@@ -38,6 +38,16 @@ def test_plan_json_lists_key_kind_status_reason(recipe, tmp_path, capsys):
     assert {r["status"] for r in rows} == {"new"}
 
 
+def test_a_plan_written_to_a_pipe_keeps_each_job_on_its_line(tmp_path, capsys, monkeypatch):
+    """Outside test: `plan | less` fitted the table in 80 columns, job names cut or wrapped."""
+    monkeypatch.delenv("COLUMNS", raising=False)
+    long = "a_source_with_a_name_long_enough_to_need_more_than_eighty_columns"
+    path = tmp_path / "r.yaml"
+    path.write_text(RECIPE.replace("b: {value: %d}", f"{long}: {{value: 3}}").replace("[a, b]", f"[a, {long}]"))
+    code, out, _ = cli(capsys, "plan", str(path), "--store", str(tmp_path / "s"))
+    assert code == 0 and any(f"power {long}^2" in line for line in out.splitlines())
+
+
 def test_plan_on_a_store_folder_that_is_not_there_says_so(recipe, tmp_path, capsys):
     """Outside test: `plan --store <typo>` showed every job "new" without a word (status refuses a typo)."""
     code, out, err = cli(capsys, "plan", str(recipe), "--store", str(tmp_path / "typo"))
