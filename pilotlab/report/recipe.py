@@ -181,8 +181,8 @@ def _row(job, store: Store) -> dict[str, Any]:
     row = {**identity, "kind": job.kind, "job_keys": {job.kind: job.key}, **_made_by(job)}
     if result is None:
         failure = store.failure(job.key)
-        reason = failure["error"] if failure else _why_not_run(job, store)
-        return {**row, "status": "not_run" if reason == NOT_RUN else "failed", "reason": reason}
+        status, reason = ("failed", failure["error"]) if failure else _why_not_run(job, store)
+        return {**row, "status": status, "reason": reason}
     row |= row_from_result(result, store.artifacts(job.key))
     if job.kind == "online" and row["status"] == "ok" and (why := _replayed_unstable(job, store)):
         row["unstable"] = {"latency_ms": why}
@@ -272,19 +272,25 @@ def row_from_result(result: dict[str, Any], artifacts: Path) -> dict[str, Any]:
     return row
 
 
-def _why_not_run(job, store: Store) -> str:
-    """"dependency failed: <name>: <error>" when a job upstream failed, else "not run yet"."""
+def _why_not_run(job, store: Store) -> tuple[str, str]:
+    """(status, reason) of a job that has no result: failed, "dependency failed: <name>: <error>", when a
+    job upstream failed; not applicable, with its reason, when one upstream is (so will this job be: the
+    report said "not run yet" of a cell a run stopped before, whose optimize job was not applicable);
+    else not run, "not run yet"."""
     stack, seen = list(job.dep_jobs()), set()
     while stack:
         dep = stack.pop()
         if dep.key in seen:
             continue
         seen.add(dep.key)
-        failure = store.failure(dep.key) if store.result(dep.key) is None else None
+        result = store.result(dep.key)
+        if result is not None and result.get("status") == "not_applicable":
+            return "not_applicable", result.get("reason") or "?"
+        failure = store.failure(dep.key) if result is None else None
         if failure is not None:
-            return f"dependency failed: {dep.name}: {failure.get('error', '?')}"
+            return "failed", f"dependency failed: {dep.name}: {failure.get('error', '?')}"
         stack.extend(dep.dep_jobs())
-    return NOT_RUN
+    return "not_run", NOT_RUN
 
 
 def model_source(result: dict | None) -> str | None:

@@ -30,3 +30,20 @@ def test_an_online_job_repeated_from_two_starts_gives_a_row_with_its_spread(tmp_
 def test_a_job_that_did_not_apply_gives_its_reason_and_no_numbers(tmp_path):
     row = row_from_result({"status": "not_applicable", "reason": "no GPU here"}, tmp_path)
     assert row == {"status": "not_applicable", "reason": "no GPU here"}
+
+
+def test_a_cell_not_run_whose_optimize_job_did_not_apply_says_why_not_not_run_yet(tmp_path):
+    """Outside test: a run that stopped at another failure left the cells of a strategy whose optimize job was
+    not applicable as "not run yet" (when run, they are not applicable with its reason)."""
+    from types import SimpleNamespace
+    from matrix.jobs import Job
+    from pilotlab.report.recipe import _row
+    optimize = Job("optimize", "optimize m/stem5", {"strategy": "structured_prune", "options": {}})
+    offline = Job("offline", "offline m/stem5 on cpu", {}, deps={"artifact": optimize},
+                  labels={"model": "m", "strategy": "stem5", "hardware": "cpu", "test_set": "test"})
+    results = {optimize.key: {"status": "not_applicable", "reason": "subsample_stem 5 needs a network whose ..."}}
+    store = SimpleNamespace(result=results.get, failure=lambda key: None)
+    row = _row(offline, store)
+    assert row["status"] == "not_applicable" and row["reason"] == "subsample_stem 5 needs a network whose ..."
+    store.result = {}.get
+    assert (_row(offline, store)["status"], _row(offline, store)["reason"]) == ("not_run", "not run yet")
