@@ -9,7 +9,7 @@ artifacts: model.pt (pilotlab.models.save_checkpoint: arch, config, state_dict, 
 with "frames", history, training params and split), history.json.
 result: val_mse, val_mse_v, val_mse_w (normalised labels, best epoch), val_mse_mean_predictor
 (+ _v, _w: predicting the mean training label on the same validation frames), train_loss, epochs_run,
-best_epoch, stopped_early, params, train_frames, val_frames, recordings, val_recordings, val_by,
+best_epoch, stopped_early, params, train_frames, val_frames, warnings (too little data: data_warnings), recordings, val_recordings, val_by,
 labels, frames, seconds, checkpoint, source (where the model came from: arch, or the user's file and
 its sha256), trained (false: the user's weights or file as they are; then no train_loss). Without validation frames the val_* entries are absent.
 """
@@ -28,6 +28,7 @@ from matrix.store import without_keys
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.data.split import Split, split_validation
 from pilotlab.errors import PilotlabError
+from pilotlab.hardware import worker_share
 from pilotlab.models import build_model, input_frames, make_config, save_checkpoint
 from pilotlab.specs.train import TrainSpec
 from pilotlab.training import FitConfig, evaluate, fit, mean_predictor_mse
@@ -125,9 +126,30 @@ def summarise(model, history: list[dict], data: FrameSet, train: FrameSet, val: 
             "frames": fit_config.frames, "seconds": round(seconds, 2), "checkpoint": "model.pt"}
 
 
+MIN_TRAIN_FRAMES = 200   # fewer, and a network learns the frames, not the driving (a lap of simple_circuit: ~1,200)
+MIN_VAL_FRAMES = 50      # fewer, and the best epoch and early stopping rest on noise
+
+
+def data_warnings(train_frames: int, val_frames: int, trains: bool) -> list[str]:
+    """What the report and the log say of a training on too little data (it ran on one frame, "ok")."""
+    if not trains:
+        return []
+    warnings = [f"trained on {train_frames} frame(s): too few to learn to drive from (under {MIN_TRAIN_FRAMES}); "
+                "record more, or longer laps"] if train_frames < MIN_TRAIN_FRAMES else []
+    if val_frames == 0:
+        warnings.append("no validation frames: the last epoch is kept, with no early stopping (val_fraction 0, or "
+                        "too few frames to hold any out)")
+    elif val_frames < MIN_VAL_FRAMES:
+        warnings.append(f"validated on {val_frames} frame(s) (under {MIN_VAL_FRAMES}): the best epoch and early "
+                        "stopping rest on them; record more, or hold out another recording (val_by)")
+    return warnings
+
+
 def run_train(ctx: JobContext) -> dict[str, Any]:
     p: TrainSpec = ctx.spec
-    torch.set_num_threads(cores())   # the kind runs alone (specs/train.py): every core is its
+    # a training runs alone (specs/train.py: trains_alone): every core is its; a model used as it is runs
+    # beside other jobs, on its worker's share
+    torch.set_num_threads(cores() if p.trains else worker_share())
     data, preprocess = load_frames(ctx)
     train, val, split = split_frames(ctx, data, p)
     ranges = label_ranges(p.labels, data)
@@ -138,6 +160,10 @@ def run_train(ctx: JobContext) -> dict[str, Any]:
         else []
     result = {**summarise(model, history, data, train, val, split, ranges, fit_config, time.perf_counter() - started),
               "source": origin, "trained": p.trains, "epoch_seconds": [row.get("seconds") for row in history]}
+    if warnings := data_warnings(len(train), len(val), p.trains):
+        result["warnings"] = warnings
+        for warning in warnings:
+            ctx.log.warning("%s", warning)
     save_checkpoint(ctx.out / "model.pt", model, arch, config, labels=ranges.as_dict(),
                     preprocess={**preprocess, "frames": fit_config.frames}, history=without_wall_times(history),
                     training={**p.as_dict(), "fit": fit_config.as_dict()}, result=without_wall_times(result),

@@ -149,6 +149,8 @@ def build_report_data(recipe: Recipe, jobs: list, store: Store) -> ReportData:
         "versions": package_versions(), "host": host, "date": datetime.now().isoformat(timespec="seconds"),
         "rows": rows, "histories": {name: h for name, h in histories.items() if h},
         "training_worlds": training_worlds(recipe), "same_as": same_as(recipe),
+        "training_warnings": {job.name.removeprefix("train "): warnings for job in jobs if job.kind == "train"
+                              and (warnings := ((store.result(job.key) or {}).get("value") or {}).get("warnings"))},
         "sources": {job.name.removeprefix("train "): text for job in jobs if job.kind == "train"
                     and (text := model_source(store.result(job.key)))}})
     study = recipe.config.report.compare_with

@@ -51,6 +51,11 @@ def test_train_job_writes_a_checkpoint_the_brain_can_drive_with(tmp_path, frames
     assert result["val_mse"] < 0.5 * result["val_mse_mean_predictor"]
     assert result["params"] == 1_595_528 and result["epochs_run"] == 6 and result["val_by"] == "recording"
     assert result["train_frames"] == 72 and result["val_frames"] == 24 and len(result["val_recordings"]) == 1
+    # outside test: a training on 1 frame, with no validation, was "ok" without a word
+    assert result["warnings"] == [
+        "trained on 72 frame(s): too few to learn to drive from (under 200); record more, or longer laps",
+        "validated on 24 frame(s) (under 50): the best epoch and early stopping rest on them; record more, or hold "
+        "out another recording (val_by)"]
     assert progress[-1]["completed"] == progress[-1]["total"] == 6 and "loss" in progress[-1]["description"]
     history = json.loads((ctx.out / "history.json").read_text())
     assert [r["epoch"] for r in history] == list(range(1, 7))

@@ -256,3 +256,16 @@ def test_the_simulation_legend_explains_the_real_time_factor_and_the_behaviormet
     plain = write_report(ReportData.from_dict(small_dict([online_row("baseline", lap_completed=True)])), tmp_path / "plain")
     readme = plain.readme.read_text()
     assert "Real-time factor: simulated seconds" in readme and "BM columns" not in readme
+
+
+def test_a_training_on_too_little_data_is_said_beside_the_model(tmp_path):
+    """Outside test: a network trained on 1 frame with no validation read "trained here", nothing else."""
+    from pilotlab.report import ReportData
+    from pilotlab.report.writer import write_report
+    from tests.pilotlab.report.toy import offline_row, small_dict
+    warning = "trained on 1 frame(s): too few to learn to drive from (under 200); record more, or longer laps"
+    data = ReportData.from_dict({**small_dict([offline_row("baseline", mse=0.1)]),
+                                 "training_warnings": {"pilotnet": [warning]}})
+    write_report(data, tmp_path)
+    assert f"- ⚠ **Model pilotnet** {warning}" in (tmp_path / "README.md").read_text()
+    assert warning in (tmp_path / "index.html").read_text()
