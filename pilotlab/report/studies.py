@@ -40,7 +40,7 @@ def compare(data: ReportData, study: str) -> tuple[str, list[ClaimCheck]]:
 def _is_its_name(row: ReportRow) -> bool:
     """A row named after a built-in strategy was made by it: a recipe may give a study's name to another
     strategy (`static_quant: ...` cannot, `tensorrt_int8: {use: onnxruntime_int8}` can), not the study's row."""
-    from pilotlab.strategies.registry import STRATEGIES
+    from pilotlab.strategies import STRATEGIES   # (the package: it registers every strategy)
     return row.runs is None or row.runs == row.strategy or row.strategy not in STRATEGIES
 
 
