@@ -1,6 +1,6 @@
 """The closed-loop laps of a plan: each combination's laps (on its circuit, or in its BM world) in every
 direction, replaying the latencies of its timing job (or a device's latency file), and the reference
-brains' laps on every CPU profile and place the matrix drives.
+brains' laps on the CPU profiles (reference_cells) and places the matrix drives.
 
 With a tolerance search, a brain's laps on longer circuits start their search at the tolerance its lap
 on the shortest circuit found (a `tolerance_hint` dependency: same brain, hardware and direction; the
@@ -96,8 +96,8 @@ def replay_inputs(planner, combination: dict, hardware: str, timing: Job) -> tup
 
 
 def reference_jobs(planner) -> list[Job]:
-    """The reference brains (explicit, expert, the user's) on every CPU profile and circuit the matrix
-    drives (they use no GPU, so a CUDA profile adds nothing)."""
+    """The reference brains (explicit, expert, the user's) on the CPU profiles (reference_cells) and circuits
+    the matrix drives (they use no GPU, so a CUDA profile adds nothing)."""
     jobs = []
     for index, reference in enumerate(planner.config.online.references):
         name, brain, inputs = reference_brain(planner, reference, index)
@@ -109,11 +109,18 @@ def reference_jobs(planner) -> list[Job]:
 
 
 def reference_cells(planner) -> list[tuple[str, tuple[str, str]]]:
-    """(hardware, place) of every CPU profile and place the matrix drives, sorted."""
+    """(hardware, place) of every CPU profile and place the matrix drives, sorted. A reference brain's lap
+    does not depend on the CPU profile unless it is timed on this host's clock (replayed and lockstep laps
+    charge it nothing): then each place is driven on its first CPU profile alone (a recipe with cpu and cpu1
+    drove the explicit and expert brains twice, to the same results)."""
     def cells():
         driven = {(str(c.get("hardware", "cpu")), lap_place(c)) for c in planner.recipe.combinations
                   if "circuit" in c or "world" in c}
-        return sorted((hardware, place) for hardware, place in driven if planner.profile(hardware).device == "cpu")
+        on_cpu = sorted((hardware, place) for hardware, place in driven if planner.profile(hardware).device == "cpu")
+        if planner.config.online.timing in ("measured", "realtime"):
+            return on_cpu
+        first = {place: hardware for hardware, place in reversed(on_cpu)}
+        return sorted((hardware, place) for place, hardware in first.items())
     return planner.remembered(("reference cells",), cells)
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from pilotlab.columns import BY_NAME
 from pilotlab.report.data import ReportData, ReportRow, timing_issue
@@ -240,8 +240,25 @@ def build_tables(data: ReportData, kind: str) -> list[Table]:
     groups: dict[tuple[str, str], list[ReportRow]] = {}
     for row in data.of_kind(kind):
         groups.setdefault((row.hardware, row.place), []).append(row)
-    return [_table(data, kind, hardware, place, rows, headers, cells_of)
-            for (hardware, place), rows in groups.items()]
+    tables = [_table(data, kind, hardware, place, rows, headers, cells_of)
+              for (hardware, place), rows in groups.items()]
+    return [_with_reference_note(table, groups) for table in tables] if kind == "online" else tables
+
+
+def _with_reference_note(table: Table, groups: dict[tuple[str, str], list[ReportRow]]) -> Table:
+    """A table without the reference brains' laps, where another profile's table of the place has them
+    (replayed, they are driven on one CPU profile: pilotlab.planning.laps.reference_cells), says where."""
+    if any(row.model == REFERENCE for row in groups[table.hardware, table.place]):
+        return table
+    where = [hardware for (hardware, place), rows in groups.items()
+             if place == table.place and any(row.model == REFERENCE for row in rows)]
+    if not where:
+        return table
+    return replace(table, notes=table.notes + (
+        f"The reference brains' laps are in the {where[0]} table: replayed, they do not depend on the CPU profile.",))
+
+
+REFERENCE = "reference"   # the model label of the reference brains' laps
 
 
 def _table(data: ReportData, kind: str, hardware: str, place: str, rows: list[ReportRow],

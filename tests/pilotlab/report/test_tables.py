@@ -212,3 +212,15 @@ def test_values_that_read_the_same_are_not_called_a_tie_beside_their_difference(
     rows = [offline_row("baseline", mse=0.1550, latency_ms=2.0), offline_row("dq", mse=0.15465, latency_ms=1.0)]
     found = {f.label: f.text for f in summarise(ReportData.from_dict(small_dict(rows)))}
     assert found["Lowest MSE"] == "dq (baseline reads the same) — 0.155 (−0.00035 against baseline)"
+
+
+def test_a_profile_s_simulation_table_says_where_the_reference_laps_are():
+    """Replayed, the reference brains are driven on one CPU profile (planning/laps.py reference_cells)."""
+    from tests.pilotlab.report.toy import online_row
+    rows = [{**online_row("baseline", lap_completed=True), "hardware": "cpu"},
+            {**online_row("explicit", lap_completed=True), "hardware": "cpu", "model": "reference"},
+            {**online_row("baseline", lap_completed=True), "hardware": "cpu1"}]
+    tables = {table.hardware: table for table in build_tables(ReportData.from_dict(small_dict(rows)), "online")}
+    assert "The reference brains' laps are in the cpu table: replayed, they do not depend on the CPU profile." \
+        in tables["cpu1"].notes
+    assert not any("reference brains" in note for note in tables["cpu"].notes)
