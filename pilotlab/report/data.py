@@ -266,6 +266,7 @@ class ReportData(_Frozen):
     histories: dict[str, tuple[HistoryPoint, ...]] = Field(default_factory=dict)   # model -> epochs
     sources: dict[str, str] = Field(default_factory=dict)   # model -> where a model the user brought came from
     training_warnings: dict[str, list[str]] = Field(default_factory=dict)   # model -> its training's (too little data)
+    training_data: dict[str, str] = Field(default_factory=dict)   # model -> what it was trained on, in words
     comparison_title: str = ""               # "Compared with the 2022 study", when the recipe asks for one
     comparison: tuple[Claim, ...] = ()
     training_worlds: dict[str, tuple[str, ...]] = Field(default_factory=dict)   # model -> worlds it was trained in

@@ -149,8 +149,7 @@ def build_report_data(recipe: Recipe, jobs: list, store: Store) -> ReportData:
         "versions": package_versions(), "host": host, "date": datetime.now().isoformat(timespec="seconds"),
         "rows": rows, "histories": {name: h for name, h in histories.items() if h},
         "training_worlds": training_worlds(recipe), "same_as": same_as(recipe),
-        "training_warnings": {job.name.removeprefix("train "): warnings for job in jobs if job.kind == "train"
-                              and (warnings := ((store.result(job.key) or {}).get("value") or {}).get("warnings"))},
+        **_trainings(recipe, jobs, store),
         "sources": {job.name.removeprefix("train "): text for job in jobs if job.kind == "train"
                     and (text := model_source(store.result(job.key)))}})
     study = recipe.config.report.compare_with
@@ -293,6 +292,31 @@ def _why_not_run(job, store: Store) -> tuple[str, str]:
             return "failed", f"dependency failed: {dep.name}: {failure.get('error', '?')}"
         stack.extend(dep.dep_jobs())
     return "not_run", NOT_RUN
+
+
+def _trainings(recipe: Recipe, jobs: list, store: Store) -> dict[str, dict]:
+    """The report's training_data (what each model trained on) and training_warnings (too little data)."""
+    data, warnings = {}, {}
+    for job in (job for job in jobs if job.kind == "train"):
+        model, result = job.name.removeprefix("train "), store.result(job.key)
+        if text := training_data(recipe, model, result):
+            data[model] = text
+        if said := ((result or {}).get("value") or {}).get("warnings"):
+            warnings[model] = said
+    return {"training_data": data, "training_warnings": warnings}
+
+
+def training_data(recipe: Recipe, model: str, result: dict | None) -> str | None:
+    """What a model was trained on, for people: "trained on dataset `train`: 4 recordings, 7,609 frames (1,903
+    more held out for validation, by recording)"; None where it was not trained here or has not run."""
+    value = (result or {}).get("value") or {}
+    spec = recipe.config.models.get(model)
+    if not value.get("trained") or spec is None:
+        return None
+    held = (f" ({value.get('val_frames', 0):,} more held out for validation, by {value.get('val_by')})"
+            if value.get("val_frames") else " (none held out for validation)")
+    return (f"trained on dataset `{spec.data}`: {value.get('recordings', '?')} recording(s), "
+            f"{value.get('train_frames', 0):,} frames{held}")
 
 
 def model_source(result: dict | None) -> str | None:

@@ -152,3 +152,15 @@ def test_a_test_set_the_network_was_trained_on_is_said_under_the_offline_table(t
     clean = load_recipe(QUICKSTART, DOMAIN)
     clean_jobs = [status.job for status in make_plan(clean, DOMAIN, store).statuses]
     assert all(not r.trained_on for r in build_report_data(clean, clean_jobs, store).rows)
+
+
+def test_the_report_says_what_each_model_was_trained_on(tmp_path):
+    """Outside test: two models trained on two datasets both read "trained here", nothing of their data."""
+    from pilotlab.report.recipe import training_data
+    recipe = load_recipe(QUICKSTART, DOMAIN)
+    result = {"status": "ok", "value": {"trained": True, "recordings": 2, "train_frames": 1898, "val_frames": 476,
+                                        "val_by": "block"}}
+    assert training_data(recipe, "pilotnet", result) == (
+        "trained on dataset `train`: 2 recording(s), 1,898 frames (476 more held out for validation, by block)")
+    assert training_data(recipe, "pilotnet", {"status": "ok", "value": {"trained": False}}) is None
+    assert training_data(recipe, "pilotnet", None) is None
