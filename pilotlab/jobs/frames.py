@@ -13,9 +13,9 @@ hand: a planned job is labelled by its name, which is not in its key).
 
 artifacts: a FrameSet (frames.npy uint8 [N, 66, 200, 3] RGB, labels.npy float32 [N, 2] physical v, w,
 recording.npy, meta.json), loaded by `FrameSet.load(dep.artifacts)`.
-result: frames, dropped (images before the first command), stale_commands ({frames, max_age_s, limit_s}: frames
-labelled by a command older than pilotlab.data.bags.STALE_COMMAND_S; absent when none), damaged (per topic: count, times_s,
-reason of the messages left out as damaged; absent when none), source, format (ros1 | ros2-sqlite3 |
+result: frames, dropped (images before the first command), stale_commands ({frames, max_age_s, limit_s}:
+frames labelled by a command older than pilotlab.data.bags.STALE_COMMAND_S; absent when none), damaged (per
+topic: count, times_s, reason of the messages left out as damaged; absent when none), source, format (ros1 | ros2-sqlite3 |
 ros2-mcap | folder), image_topic, command_topic, encoding, image_size [h, w], duration_s,
 v_range, w_range, preprocess (settings), decode_fps, label.
 """

@@ -13,7 +13,8 @@ result:
     host, hostname (the host that drove it), circuit, direction, circuit_length_m, laps, timeout_s, timing, control_hz, extra_latency_ms,
     fixed_inference_ms (if set), measured_inference_ms (the real mean, without artificial latency),
     wall_seconds; unstable ({"latency_ms": why}, where a lap timed on this host's clock shared the cores
-    its brain needed with other processes: disturbed_lap); BehaviorMetrics' metrics (pilotlab.columns.BEHAVIORMETRICS, bm_*) against the
+    its brain needed with other processes: disturbed_lap); BehaviorMetrics' metrics
+    (pilotlab.columns.BEHAVIORMETRICS, bm_*) against the
     expert's perfect lap, and perfect_lap_checkpoints; in replay timing latency_source,
     replayed_latency_ms, replayed_latency_p90_ms, replayed_latency_samples (and latency_scale when
     scaled); with tolerance: latency_tolerance_ms, tolerance_at_least, tolerance_fixed_ms,

@@ -9,7 +9,8 @@ artifacts: model.pt (pilotlab.models.save_checkpoint: arch, config, state_dict, 
 with "frames", history, training params and split), history.json.
 result: val_mse, val_mse_v, val_mse_w (normalised labels, best epoch), val_mse_mean_predictor
 (+ _v, _w: predicting the mean training label on the same validation frames), train_loss, epochs_run,
-best_epoch, stopped_early, params, train_frames, val_frames, warnings (too little data: data_warnings), recordings, val_recordings, val_by,
+best_epoch, stopped_early, params, train_frames, val_frames, warnings (too little data: data_warnings),
+recordings, val_recordings, val_by,
 labels, frames, seconds, checkpoint, source (where the model came from: arch, or the user's file and
 its sha256), trained (false: the user's weights or file as they are; then no train_loss). Without validation frames the val_* entries are absent.
 """

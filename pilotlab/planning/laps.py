@@ -15,7 +15,7 @@ from matrix.errors import MatrixError
 from matrix.jobs import Job, Params, input_file
 from pilotlab.circuits.registry import lap_scale
 from pilotlab.planning.worlds import world_param
-from pilotlab.specs.online import LapSettings, OnlineSpec
+from pilotlab.specs.online import LapSettings, OnlineSpec, timed_live
 
 
 def online_jobs(planner, optimize: Job, combination: dict, hardware: str, timing: Job) -> list[Job]:
@@ -109,15 +109,15 @@ def reference_jobs(planner) -> list[Job]:
 
 
 def reference_cells(planner) -> list[tuple[str, tuple[str, str]]]:
-    """(hardware, place) of every CPU profile and place the matrix drives, sorted. A reference brain's lap
-    does not depend on the CPU profile unless it is timed on this host's clock (replayed and lockstep laps
-    charge it nothing): then each place is driven on its first CPU profile alone (a recipe with cpu and cpu1
-    drove the explicit and expert brains twice, to the same results)."""
+    """(hardware, place) of the reference laps, sorted. Replayed or lockstep, a reference brain is charged
+    no latency and its lap does not depend on the CPU profile: each place is driven on its first CPU
+    profile alone (a recipe with cpu and cpu1 drove the explicit and expert brains twice, to the same
+    results). Timed on this host's clock (measured, realtime), on every CPU profile the matrix drives there."""
     def cells():
         driven = {(str(c.get("hardware", "cpu")), lap_place(c)) for c in planner.recipe.combinations
                   if "circuit" in c or "world" in c}
         on_cpu = sorted((hardware, place) for hardware, place in driven if planner.profile(hardware).device == "cpu")
-        if planner.config.online.timing in ("measured", "realtime"):
+        if timed_live({"timing": planner.config.online.timing}):
             return on_cpu
         first = {place: hardware for hardware, place in reversed(on_cpu)}
         return sorted((hardware, place) for place, hardware in first.items())
