@@ -85,8 +85,9 @@ def after_run(recipe: Recipe, plan, summary, store) -> None:
 def unstable_line(recipe: Recipe, plan, store) -> str | None:
     """What the run's terminal says of timings that stayed disturbed (the report marks them ⚠ and draws
     nothing from them): how many, and how to measure them again; None when there are none."""
+    from pilotlab.specs.online import timed_live
     timed = [status.job for status in plan.statuses if status.job.kind == "timing" or
-             status.job.kind == "online" and status.job.params.get("timing") in ("measured", "realtime")]
+             status.job.kind == "online" and timed_live(status.job.params)]
     disturbed = [job for job in timed if ((store.result(job.key) or {}).get("value") or {}).get("unstable")]
     if not disturbed:
         return None
