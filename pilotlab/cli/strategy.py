@@ -88,6 +88,7 @@ def list_strategies(args: argparse.Namespace) -> int:
 
 def show_strategy(args: argparse.Namespace) -> int:
     from rich.table import Table
+    from rich.text import Text
     from matrix.display import console as wide_console
     from pilotlab.strategies import STRATEGIES
     entry = STRATEGIES.get(args.name)          # an unknown name: "did you mean" and the known ones
@@ -96,7 +97,6 @@ def show_strategy(args: argparse.Namespace) -> int:
     if not options:
         console.print(f"{args.name} takes no options", highlight=False)
         return 0
-    from rich.text import Text
     table = Table("option", "type", "default", "what", title=args.name)
     for option in options:
         table.add_row(option.name, Text(option.type), Text(option.default), Text(option.comment))
