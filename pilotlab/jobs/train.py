@@ -127,7 +127,7 @@ def summarise(model, history: list[dict], data: FrameSet, train: FrameSet, val: 
             "frames": fit_config.frames, "seconds": round(seconds, 2), "checkpoint": "model.pt"}
 
 
-MIN_TRAIN_FRAMES = 200   # fewer, and a network learns the frames, not the driving (a lap of simple_circuit: ~1,200)
+MIN_TRAIN_FRAMES = 200   # fewer, and a network learns the frames, not the driving (the quickstart trains on ~750)
 MIN_VAL_FRAMES = 50      # fewer, and the best epoch and early stopping rest on noise
 
 

@@ -307,7 +307,7 @@ def _trainings(recipe: Recipe, jobs: list, store: Store) -> dict[str, dict]:
 
 
 def training_data(recipe: Recipe, model: str, result: dict | None) -> str | None:
-    """What a model was trained on, for people: "trained on dataset `train`: 4 recordings, 7,609 frames (1,903
+    """What a model was trained on, for people: "trained on dataset 'train': 4 recording(s), 7,609 frames (1,903
     more held out for validation, by recording)"; None where it was not trained here or has not run."""
     value = (result or {}).get("value") or {}
     spec = recipe.config.models.get(model)
@@ -315,7 +315,7 @@ def training_data(recipe: Recipe, model: str, result: dict | None) -> str | None
         return None
     held = (f" ({value.get('val_frames', 0):,} more held out for validation, by {value.get('val_by')})"
             if value.get("val_frames") else " (none held out for validation)")
-    return (f"trained on dataset `{spec.data}`: {value.get('recordings', '?')} recording(s), "
+    return (f"trained on dataset {spec.data!r}: {value.get('recordings', '?')} recording(s), "
             f"{value.get('train_frames', 0):,} frames{held}")
 
 

@@ -161,6 +161,6 @@ def test_the_report_says_what_each_model_was_trained_on(tmp_path):
     result = {"status": "ok", "value": {"trained": True, "recordings": 2, "train_frames": 1898, "val_frames": 476,
                                         "val_by": "block"}}
     assert training_data(recipe, "pilotnet", result) == (
-        "trained on dataset `train`: 2 recording(s), 1,898 frames (476 more held out for validation, by block)")
+        "trained on dataset 'train': 2 recording(s), 1,898 frames (476 more held out for validation, by block)")
     assert training_data(recipe, "pilotnet", {"status": "ok", "value": {"trained": False}}) is None
     assert training_data(recipe, "pilotnet", None) is None
