@@ -50,6 +50,15 @@ def cores() -> int:
         return os.cpu_count() or 1
 
 
+def worker_share() -> int:
+    """The cores this process may keep busy: its share when the engine runs jobs side by side
+    (OMP_NUM_THREADS, set to cores // -j in each pool worker: matrix.worker.init_worker), else every core."""
+    try:
+        return max(1, int(os.environ["OMP_NUM_THREADS"]))
+    except (KeyError, ValueError):
+        return cores()
+
+
 def default_jobs() -> int:
     """Jobs at once by default: one per core this process may use."""
     return cores()

@@ -32,7 +32,7 @@ import pydantic
 from pydantic import Field
 
 from matrix.kinds import NotApplicable
-from matrix.runs import cores
+from matrix.runs import cores, worker_share
 from pilotlab.cpuinfo import cpu_model
 from pilotlab.errors import PilotlabError
 from pilotlab.specs.base import Spec
@@ -88,15 +88,6 @@ BUILTIN = {
 def cpu_count() -> int:
     """Cores this process may run on (the affinity mask, not the machine's total)."""
     return cores()
-
-
-def worker_share() -> int:
-    """The cores this process may keep busy: its share when the engine runs jobs side by side
-    (OMP_NUM_THREADS, set to cores // -j in each worker), else every core."""
-    try:
-        return max(1, int(os.environ["OMP_NUM_THREADS"]))
-    except (KeyError, ValueError):
-        return cpu_count()
 
 
 def within_share(profile: HardwareProfile) -> HardwareProfile:

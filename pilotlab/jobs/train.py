@@ -24,12 +24,11 @@ import numpy as np
 import torch
 
 from matrix.kinds import JobContext
-from matrix.runs import cores
+from matrix.runs import cores, worker_share
 from matrix.store import without_keys
 from pilotlab.data.frames import FrameSet, LabelRanges
 from pilotlab.data.split import Split, split_validation
 from pilotlab.errors import PilotlabError
-from pilotlab.hardware import worker_share
 from pilotlab.models import build_model, input_frames, make_config, save_checkpoint
 from pilotlab.specs.train import TrainSpec
 from pilotlab.training import FitConfig, evaluate, fit, mean_predictor_mse
