@@ -126,7 +126,8 @@ def disturbed_lap(before: timing.Snapshot, profile, mode: str) -> str | None:
     user's), so its latencies, and the driving that rests on them, were inflated. None when quiet."""
     load = timing.load_between(before, timing.snapshot())
     cores, needs = len(timing.our_cpus()), profile.cpu_threads
-    if load.others_cores is None or load.others_cores <= max(0, cores - needs) + timing.Limits().max_other_cores:
+    # the timing jobs' rule for other processes' cores (a lap's own CPU share says nothing: it may sleep)
+    if load.others_cores is None or timing.block_is_quiet(load, needs, cores, timing.Limits(min_cpu_per_wall=0.0)):
         return None
     return (f"other processes used {load.others_cores:.2f} of {cores} cores during this lap, beside the {needs} its "
             f"{mode} timing needs: its inference times, and the driving that rests on them, are not this "
