@@ -19,6 +19,7 @@ import fcntl
 import os
 import socket
 import tempfile
+import time
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
@@ -37,32 +38,60 @@ def lock_path() -> Path:
 
 
 @contextmanager
-def host_slot(exclusive: bool, waiting: Callable[[], None] | None = None) -> Iterator[None]:
+def host_slot(exclusive: bool, waiting: Callable[[], None] | None = None,
+              resumed: Callable[[], None] | None = None) -> Iterator[None]:
     """Hold the host's job lock (shared, or exclusive for a timing job) while the block runs; `waiting` is
-    called first where another run holds it (so the job can say why it has not started)."""
+    called first where another run holds it (so the job can say why it has not started), and `resumed`
+    once it has the lock after such a wait."""
     with ExitStack() as stack:
         main, turnstile = _open(lock_path(), stack), _open(lock_path().with_suffix(".turnstile"), stack)
         if main is None or turnstile is None:
             yield                        # nowhere to keep a lock (a read-only home): run unguarded
             return
-        _flock(turnstile, fcntl.LOCK_EX, waiting)
+        told = _Told(waiting)
+        _flock(turnstile, fcntl.LOCK_EX, told)
         try:
-            _flock(main, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH, waiting)
+            _flock(main, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH, told)
         finally:
             fcntl.flock(turnstile, fcntl.LOCK_UN)
+        if told.said and resumed is not None:
+            resumed()
         try:
             yield
         finally:
             fcntl.flock(main, fcntl.LOCK_UN)
 
 
-def _flock(file, mode: int, waiting: Callable[[], None] | None) -> None:
-    try:
-        fcntl.flock(file, mode | fcntl.LOCK_NB)
-    except BlockingIOError:
-        if waiting is not None:
-            waiting()
-        fcntl.flock(file, mode)
+# Every holder passes the turnstile, so two jobs starting at the same instant meet there for a moment:
+# a job says it waits only when the lock stays taken this long (it said so at every such meeting, and
+# the word stayed on its progress line while it ran).
+GRACE_S = 0.25
+
+
+class _Told:
+    """`waiting`, called at most once."""
+
+    def __init__(self, waiting: Callable[[], None] | None):
+        self.waiting, self.said = waiting, False
+
+    def __call__(self) -> None:
+        if not self.said and self.waiting is not None:
+            self.said = True
+            self.waiting()
+
+
+def _flock(file, mode: int, waiting: _Told) -> None:
+    deadline = time.monotonic() + GRACE_S
+    while True:
+        try:
+            fcntl.flock(file, mode | fcntl.LOCK_NB)
+            return
+        except BlockingIOError:
+            if time.monotonic() >= deadline:
+                break
+            time.sleep(0.02)
+    waiting()
+    fcntl.flock(file, mode)
 
 
 def _open(path: Path, stack: ExitStack):

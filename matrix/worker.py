@@ -122,8 +122,9 @@ def _execute(store_root: str, spec: dict, kind_modules: Iterable[str], replaces:
         if kept:
             return {"status": KEPT, "reason": kept, "duration_s": 0.0} if isinstance(kept, str) else \
                 {"status": DONE_ELSEWHERE, "reason": done.get("reason", ""), "duration_s": 0.0}
-        waiting = lambda: _progress_for(key)(completed=0, total=None, description=HOST_BUSY)   # noqa: E731
-        with host_slot(exclusive=KINDS.get(spec["kind"]).runs_alone(spec["params"]), waiting=waiting):   # timings: alone
+        with host_slot(exclusive=KINDS.get(spec["kind"]).runs_alone(spec["params"]),   # timings: alone
+                       waiting=lambda: _progress_for(key)(completed=0, total=None, description=HOST_BUSY),
+                       resumed=lambda: _progress_for(key)(completed=0, total=None, description=RUNNING)):
             return _run_locked(store, spec)
 
 
@@ -228,6 +229,7 @@ def _not_applicable_dep(deps: dict) -> DepResult | None:
     return None
 
 
+RUNNING = "running"   # what a job's line says once the host it waited for is free, until the job says more
 HOST_BUSY = "waiting for this host: another run is using it, and this job or one of its jobs must run alone"
 MESSAGE_LIMIT, BUG_LIMIT = 2000, 300   # characters of a failure's line: the domain's own message, anything else
 
