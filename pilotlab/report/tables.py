@@ -14,6 +14,7 @@ note under the table, and each offline table says in one line how its timings we
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
@@ -275,7 +276,7 @@ def _table(data: ReportData, kind: str, hardware: str, place: str, rows: list[Re
     baselines = {r.model: r for r in rows if r.strategy == data.baseline and r.status == "ok"}
     notes = tuple(f"No usable {data.baseline!r} row for {model} here: ratios are not shown."
                   for model in _unique(r.model for r in rows) if model not in baselines) if kind == "offline" else \
-        _latency_notes(rows)
+        _latency_notes(rows, data)
     table_rows = tuple(TableRow(method_label(r, data), r, cells_of(r, baselines.get(r.model)), _note(r)) for r in rows)
     if kind != "offline":
         notes += tuple(f"{UNSTABLE} {method_label(r, data)}: no verdict from this lap: {reason}."
@@ -338,11 +339,27 @@ def _extent(rows: list[ReportRow], name: str) -> str:
     return f"{low:,}" if low == high else f"{low:,}–{high:,}"
 
 
-def _latency_notes(rows: list[ReportRow]) -> tuple[str, ...]:
-    """Where the laps' latencies came from, when they were replayed (one line per source)."""
-    sources = _unique(r.latency_source for r in rows if r.status == "ok" and r.latency_source
-                      and not r.latency_source.startswith("none"))
-    return tuple(f"Latencies replayed from the {source}." for source in sources)
+def _latency_notes(rows: list[ReportRow], data: ReportData) -> tuple[str, ...]:
+    """Where the laps' latencies came from, when they were replayed (one line per source), and which
+    rows replayed host stalls unscaled (a lap's source ends with its own count: one line per count did
+    not say whose it was)."""
+    replayed = [r for r in rows if r.status == "ok" and r.latency_source and not r.latency_source.startswith("none")]
+    sources = _unique(STALLS.sub("", r.latency_source) for r in replayed)
+    notes = tuple(f"Latencies replayed from the {source}." for source in sources)
+    stalled = [f"{method_label(r, data)} {stalls}" for r in replayed if (stalls := _stalls(r))]
+    if stalled:
+        from pilotlab.online.latency import STALL_TIMES_MEDIAN   # numpy: only where there is a stall to explain
+        notes += (f"Host stalls replayed unscaled (timed calls over {STALL_TIMES_MEDIAN:g}× their median: the host "
+                  f"took that time, a slower device would not take it k× longer): {', '.join(stalled)}.",)
+    return notes
+
+
+STALLS = re.compile(r" \((\d+) host stalls? replayed unscaled\)$")
+
+
+def _stalls(row: ReportRow) -> int:
+    found = STALLS.search(row.latency_source or "")
+    return int(found.group(1)) if found else 0
 
 
 def _all_alike_and_not_measured(rows: list[ReportRow]) -> bool:

@@ -78,3 +78,16 @@ def test_the_legend_says_what_the_tolerance_column_is(tmp_path):
         assert "Latency tolerance: the latency added to the lap's own" in (tmp_path / page).read_text()
     write_report(ReportData.from_dict(small_dict([online_row("baseline", lap_completed=True)])), tmp_path / "none")
     assert "Latency tolerance: the latency added" not in (tmp_path / "none" / "README.md").read_text()
+
+
+def test_the_host_stalls_a_lap_replayed_unscaled_are_named_by_row():
+    """Outside test: the study's tables ended with one note per stall count ("... (2 host stalls replayed
+    unscaled)", five of them), none saying which rows they were."""
+    source = "timing job, scaled ×119 so that baseline takes 124 ms"
+    rows = [online_row("baseline", lap_completed=True) | {"latency_source": source},
+            online_row("qat", lap_completed=True) | {"latency_source": source + " (2 host stalls replayed unscaled)"},
+            online_row("local_prune", lap_completed=True) | {"latency_source": source + " (1 host stall replayed unscaled)"}]
+    notes = build_tables(ReportData.from_dict(small_dict(rows)), "online")[0].notes
+    assert notes[0] == f"Latencies replayed from the {source}."
+    assert len(notes) == 2 and notes[1].startswith("Host stalls replayed unscaled")
+    assert notes[1].endswith(": qat 2, local_prune 1.")
