@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import math
 import re
+import sys
 from pathlib import Path
 
 from pilotlab.errors import PilotlabError
@@ -111,8 +112,28 @@ def show_world(args: argparse.Namespace) -> int:
         raise PilotlabError(f"cannot write {out} ({reason}): give a .png path in a writable folder")
     what = "pilotlab's own world" if args.own else f"world {args.world}"
     print(f"{what} at x={pose[0]:g}, y={pose[1]:g}, yaw={pose[2]:g}: {image.shape[1]}×{image.shape[0]} "
-          f"{'network view' if args.view else 'camera frame'} written to {out}")
+          f"{'network view' if args.view else 'camera frame'} written to {out}", flush=True)
+    if args.pose is not None and (far := _far_from_the_road(world, pose)):
+        print(f"note: {far}", file=sys.stderr)
     return 0
+
+
+FAR_FROM_THE_ROAD_M = 50.0   # a camera this far from the centreline sees grass and sky, or nothing of the world
+
+
+def _far_from_the_road(world, pose) -> str | None:
+    """Outside test: a pose off the map rendered sky without a word. None where the pose is near the road
+    (or the world has no centreline to measure from)."""
+    try:
+        nearest = world.circuit().project(pose[0], pose[1])
+    except PilotlabError:
+        return None
+    distance = abs(nearest.lateral)
+    if distance <= FAR_FROM_THE_ROAD_M:
+        return None
+    return (f"x={pose[0]:g}, y={pose[1]:g} is {distance:,.0f} m from the road (its nearest centreline point is at "
+            f"x={nearest.x:.1f}, y={nearest.y:.1f}), so the frame shows little or none of the track; `pilotlab world "
+            f"list` prints each world's spawn pose")
 
 
 def _spawn_pose(world) -> tuple[float, float, float]:

@@ -60,6 +60,17 @@ def test_a_pose_starting_with_a_minus_is_a_value(oval_assets, tmp_path):
     assert (tmp_path / "f.png").is_file()
 
 
+def test_a_pose_far_from_the_road_is_rendered_with_a_note(oval_assets, tmp_path, capsys):
+    """Outside test: a --pose off the map wrote a frame of sky without a word."""
+    assert main(["world", "show", "oval", "--assets", str(oval_assets), "--pose", "0,8,0",
+                 "-o", str(tmp_path / "near.png")]) == 0
+    assert "note:" not in capsys.readouterr().err
+    assert main(["world", "show", "oval", "--assets", str(oval_assets), "--pose", "900,900,0",
+                 "-o", str(tmp_path / "far.png")]) == 0
+    err = capsys.readouterr().err
+    assert (tmp_path / "far.png").is_file() and "m from the road" in err and "spawn pose" in err
+
+
 @pytest.mark.parametrize("args, message", [
     (["world", "show", "ovl"], "did you mean 'oval'"),
     (["world", "show", "../worlds/oval"], "a world is named by its .world file's stem"),
