@@ -159,7 +159,7 @@ class Store:
                 return MISSING
             if stat.st_size != size:
                 return MISSING
-            if digest is None or (not full and verified.get(name) == _signature(stat)):
+            if digest is None or (not full and _unchanged(verified.get(name), stat)):
                 continue
             if file_sha256(folder / name) != digest:
                 _try_write(verified_path, {**verified, CHANGED_MARK: name})
@@ -180,7 +180,7 @@ class Store:
             stat = (folder / name).stat()
         except OSError:
             return None
-        if digest is None or verified.get(f"{CHANGED_MARK}:{name}") == _signature(stat):
+        if digest is None or _unchanged(verified.get(f"{CHANGED_MARK}:{name}"), stat):
             return None
         verified[f"{CHANGED_MARK}:{name}"] = _signature(stat)
         return file_sha256(folder / name) == digest
@@ -313,8 +313,17 @@ def _signatures(folder: Path) -> dict[str, list[int]]:
 
 
 def _signature(stat: os.stat_result) -> list[int]:
-    """What tells a file apart from the one last hashed without reading it (as DVC's state db)."""
-    return [stat.st_size, stat.st_mtime_ns, stat.st_ino]
+    """What tells a file apart from the one last hashed without reading it (DVC's state db keeps the
+    first three): the change time too, which no one can set (an outside test rewrote an artifact in
+    place and put its mtime back with `touch -r`: `plan` found it intact)."""
+    return [stat.st_size, stat.st_mtime_ns, stat.st_ino, stat.st_ctime_ns]
+
+
+def _unchanged(recorded: Any, stat: os.stat_result) -> bool:
+    """Whether `recorded` (a signature in verified.json) is this stat's: one written before the change
+    time was kept (three numbers) is compared on those, so an older store is not hashed again in full."""
+    now = _signature(stat)
+    return isinstance(recorded, list) and len(recorded) in (3, len(now)) and recorded == now[:len(recorded)]
 
 
 def file_sha256(path: Path) -> str:

@@ -69,6 +69,11 @@ def os_problem(error: OSError) -> str:
             "make folders and write files")
 
 
+def _stopped(args: argparse.Namespace) -> str:
+    """What a stopped `run` leaves (Ctrl-C said only "interrupted", SIGTERM this: outside test)."""
+    return ": the jobs that finished are kept; run again to go on" if args.command == "run" else ""
+
+
 def main(argv: list[str] | None = None) -> int:
     if argv is None:   # the program itself (not a caller's main([...])): `pilotlab plan R | head` ends quietly,
         signal.signal(signal.SIGPIPE, signal.SIG_DFL)   # as Unix tools do, when head stops reading
@@ -98,8 +103,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"pilotlab: error: {exit_message(exit_)}", file=sys.stderr)
         return 2
     except Terminated:
-        print("pilotlab: terminated (SIGTERM): the jobs that finished are kept; run again to go on", file=sys.stderr)
+        print(f"pilotlab: terminated (SIGTERM){_stopped(args)}", file=sys.stderr)
         return 143
     except KeyboardInterrupt:
-        print("pilotlab: interrupted", file=sys.stderr)
+        print(f"pilotlab: interrupted{_stopped(args)}", file=sys.stderr)
         return 130

@@ -156,3 +156,17 @@ def test_a_run_stopped_by_sigterm_says_so_and_exits_143(monkeypatch, capsys):
     assert main(["run", "recipes/quickstart.yaml"]) == 143
     assert capsys.readouterr().err == ("pilotlab: terminated (SIGTERM): the jobs that finished are kept; run "
                                        "again to go on\n")
+
+
+def test_a_run_stopped_by_ctrl_c_says_what_is_kept_as_at_sigterm(monkeypatch, capsys):
+    """Outside test: Ctrl-C, the common stop, said only "pilotlab: interrupted"."""
+    from matrix import cli as engine_cli
+
+    def stopped(*_args, **_kwargs):
+        raise KeyboardInterrupt()
+    monkeypatch.setattr(engine_cli, "cmd_run", stopped)
+    assert main(["run", "recipes/quickstart.yaml"]) == 130
+    assert capsys.readouterr().err == "pilotlab: interrupted: the jobs that finished are kept; run again to go on\n"
+    monkeypatch.setattr(engine_cli, "cmd_plan", stopped)
+    assert main(["plan", "recipes/quickstart.yaml"]) == 130
+    assert capsys.readouterr().err == "pilotlab: interrupted\n"
