@@ -28,12 +28,23 @@ from pilotlab.specs.record import RecordSettings
 from pilotlab.specs.train import TrainSpec
 
 
+def listed_once(values: list) -> list:
+    """A list whose entries each name one thing: one listed twice is an error (an outside test's `directions:
+    [cw, cw]` recorded the circuit twice and trained on each frame twice, without a word)."""
+    twice = [value for i, value in enumerate(values) if value in values[:i]]
+    if twice:
+        raise ValueError(f"{twice[0]!r} is listed twice; list each once")
+    return values
+
+
 class RecordingsSpec(RecordSettings):
     """Drive circuits (pilotlab's own world) or BehaviorMetrics' worlds with the expert in the simulator
     and record rosbags (one per circuit or world and direction)."""
     circuits: list[str] = []
     worlds: list[str] = []
     directions: list[Direction] = Field(["cw"], min_length=1)
+
+    _listed_once = field_validator("circuits", "worlds", "directions")(listed_once)
 
     @model_validator(mode="after")
     def _somewhere_to_drive(self):
@@ -59,6 +70,8 @@ class DatasetSpec(Spec):
     bags: list[str] = []          # ROS1 .bag files or ROS2 bag folders
     folders: list[str] = []       # DeepLearningStudio folders (<n>.png + data.csv)
     topics: TopicsSpec = TopicsSpec()
+
+    _listed_once = field_validator("bags", "folders")(listed_once)
 
     @model_validator(mode="after")
     def _has_a_source(self):
@@ -89,6 +102,8 @@ class OnlineSection(LapSettings):
     directions: list[Direction] = Field(["cw"], min_length=1)
     # Reference rows: the built-in brains, and brains users write ({name: file.py:Class}, docs/brains.md).
     references: list[Literal["explicit", "expert"] | dict[str, str]] = ["explicit", "expert"]
+
+    _listed_once = field_validator("directions")(listed_once)
 
     @field_validator("references")
     @classmethod

@@ -181,6 +181,12 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
      ":6: models.small.labels: 'labels' should be 'auto' or a valid dictionary (got 'autoo') (did you mean 'auto'?)"),
     (("matrix:", "online: {tolerance: maybe}\nmatrix:"),
      ":11: online.tolerance: tolerance is true (the default search), false, or a mapping of the search's settings"),
+    # outside test: `directions: [cw, cw]` recorded the circuit twice and trained on every frame twice, silently
+    (("directions: [cw, ccw]", "directions: [cw, cw]"),
+     ":3: datasets.train.record.directions: 'cw' is listed twice; list each once"),
+    (("circuits: [simple_circuit], laps: 0.1", "circuits: [simple_circuit, simple_circuit], laps: 0.1"),
+     ":4: datasets.test.record.circuits: 'simple_circuit' is listed twice; list each once"),
+    (("matrix:", "online: {directions: [ccw, ccw]}\nmatrix:"), ":11: online.directions: 'ccw' is listed twice"),
 ])
 def test_recipe_errors_name_the_line_and_key(tmp_path, edit, message):
     with pytest.raises(RecipeError) as caught:
