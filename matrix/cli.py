@@ -11,7 +11,7 @@ import argparse
 import json
 import sys
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from matrix import engine
@@ -19,6 +19,7 @@ from matrix.errors import MatrixError
 from matrix.grid import describe_alike
 from matrix.recipe import Domain, load_recipe
 from matrix.runs import default_jobs
+from matrix.store import read_json
 
 GetDomain = Callable[[], Domain]
 ENGINE_COMMANDS = ("run", "plan", "status", "show", "gc")   # what add_engine_commands adds
@@ -145,7 +146,8 @@ def cmd_show(args, domain: Domain) -> int:
 
 def cmd_gc(args, domain: Domain) -> int:
     store = engine.open_store(domain, args.store)
-    keep = {job.key for path in args.recipes for job in engine.plan_jobs(load_recipe(path, domain), domain)}
+    recipes = [load_recipe(path, domain) for path in args.recipes]
+    keep = {job.key for recipe in recipes for job in engine.plan_jobs(recipe, domain)}
     with store.collecting() as alone:
         if not alone:
             raise MatrixError(f"a run is running on the store {store.root}: gc would remove the jobs it has finished "
@@ -163,7 +165,25 @@ def cmd_gc(args, domain: Domain) -> int:
     for why, count in Counter(garbage.elsewhere.values()).most_common():
         print(f"{'keeping' if args.dry_run else 'kept'} {count} stored jobs no recipe reaches here: {why} "
               "(gc there collects them, or gc --all-hosts here)")
+    for line in _recipes_left_out(store, {recipe.name for recipe in recipes}, set(removed), args.dry_run):
+        print(line)
     return 0
+
+
+def _recipes_left_out(store, given: set[str], removed: set[str], dry_run: bool) -> Iterator[str]:
+    """A line for each recipe that ran on this store, was not given, and loses jobs (an outside test lost
+    another recipe's work to a gc without a word)."""
+    for index in sorted((store.root / "recipes").glob("*.json")):
+        data = read_json(index)
+        if not isinstance(data, dict) or data.get("recipe") in given or not isinstance(data.get("jobs"), dict):
+            continue
+        keys = [spec.get("key") for spec in data["jobs"].values() if isinstance(spec, dict)]
+        lost = sum(1 for key in keys if key in removed)
+        if lost:
+            print_name = f"{data.get('recipe', index.stem)} ({data.get('file', '?')})"
+            yield (f"recipe {print_name}, which ran on this store and was not given, {'would lose' if dry_run else 'lost'} "
+                   f"{lost} of its {len(keys)} jobs" + (": give its file too to keep them" if dry_run else
+                                                       " (gc --dry-run says so before removing anything)"))
 
 
 def _garbage_name(store, key: str) -> str:

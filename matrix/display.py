@@ -20,6 +20,7 @@ import threading
 import time
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
 
 from rich.console import Console
 from rich.markup import escape
@@ -332,13 +333,27 @@ def print_status(out: Console, store: Store) -> int:
     failed = sorted((store.root / "failed").glob("*.json"))
     running = [p.stem for p in (store.root / "locks").glob("*.lock") if p.name != RUNS_LOCK and store.is_locked(p.stem)]
     # a failure is rerun by the next run of a recipe that reaches it; one no recipe reaches any more, gc removes
-    out.print(f"failed: {len(failed)} (a run of a recipe that reaches one reruns it; gc removes those none reaches); "
-              f"running now: {len(running)}")
+    out.print(f"failed: {len(failed)}{_named(store, failed)} (a run of a recipe that reaches one reruns it; gc removes "
+              f"those none reaches); running now: {len(running)}")
+    stored = set(store.keys())
     for index in sorted((store.root / "recipes").glob("*.json")):
         data = read_json(index) or {}
-        out.print(f"recipe {escape(data.get('recipe', index.stem))}: {len(data.get('jobs', {}))} jobs "
-                  f"({escape(str(data.get('file', '?')))})")
+        jobs = data.get("jobs", {}) if isinstance(data.get("jobs"), dict) else {}
+        missing = sum(1 for spec in jobs.values() if isinstance(spec, dict) and spec.get("key") not in stored)
+        out.print(f"recipe {escape(str(data.get('recipe', index.stem)))}: {len(jobs)} jobs "
+                  f"({escape(str(data.get('file', '?')))})" + (f", {missing} of them not stored now (removed since, "
+                                                              "or not run yet)" if missing else ""))
     return 0
+
+
+SHOWN_FAILED = 3
+
+
+def _named(store: Store, failed: list[Path]) -> str:
+    """The failed jobs by name (the first few): the count alone did not say which."""
+    names = [((store.failure(p.stem) or {}).get("spec") or {}).get("name") or p.stem[:12] for p in failed]
+    shown = ", ".join(escape(str(name)) for name in names[:SHOWN_FAILED])
+    return f": {shown}" + (f" and {len(names) - SHOWN_FAILED} more" if len(names) > SHOWN_FAILED else "") if names else ""
 
 
 def print_times(out: Console, store: Store, recipe: str | None) -> int:
@@ -376,6 +391,9 @@ def print_job(out: Console, store: Store, key: str) -> int:
         out.print("result: " + escape(json.dumps(result.get("value", {}), indent=1, sort_keys=True)))
         out.print(f"artifacts: {store.job_dir(key) / ARTIFACTS}")
         out.print(f"log: {store.job_dir(key) / LOG}")
+    elif store.job_dir(key).is_dir():   # a folder without a readable result (said nothing: outside test)
+        out.print(f"status: [red]stored result missing or corrupt[/] ({store.job_dir(key) / 'result.json'}): "
+                  "the next run of a recipe that reaches it runs it again")
     if failure is not None:
         out.print(f"[red]failed last time:[/] {escape(failure.get('error', ''))}")
         out.print(escape(failure.get("traceback", "")))

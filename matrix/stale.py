@@ -21,6 +21,7 @@ from matrix.jobs import Job, canonical_json
 from matrix.store import CHANGED, INTACT, Store, outputs_token, result_token
 
 FRESH, STALE, NEW = "fresh", "stale", "new"
+NOT_STORED = "not in the store: the last run did not finish it, or it was removed since (gc, or by hand)"
 
 
 @dataclass(frozen=True)
@@ -99,8 +100,8 @@ def job_status(job: Job, store: Store, previous: Mapping[str, dict],
     if before is None:
         return JobStatus(job, NEW, ("new",))
     reasons = own_changes(job, before) + dependency_changes(job, before)
-    if not reasons:   # planned as it is by the last run, which ended (or was killed) before it ran
-        return JobStatus(job, NEW, ("new",))
+    if not reasons:   # planned as it is by the last run, which ended before it ran, or removed since (it said "new")
+        return JobStatus(job, NEW, (NOT_STORED,))
     return JobStatus(job, STALE, tuple(reasons))
 
 

@@ -246,6 +246,10 @@ class Store:
     def failure(self, key: str) -> dict | None:
         return read_json(self.failed_path(key))
 
+    def forget_failure(self, key: str) -> None:
+        """The job's stored result stands again (kept by a later run): its last failure is history."""
+        self.failed_path(key).unlink(missing_ok=True)
+
     def remove(self, key: str) -> None:
         final = self.job_dir(key)
         if final.exists():

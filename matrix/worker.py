@@ -120,6 +120,7 @@ def _execute(store_root: str, spec: dict, kind_modules: Iterable[str], replaces:
         done = store.result(key)
         kept = done is not None and store.outputs_intact(key, done) and _still_stands(store, spec, done, replaces)
         if kept:
+            store.forget_failure(key)   # `status` counted it as failed after a run had kept its result
             return {"status": KEPT, "reason": kept, "duration_s": 0.0} if isinstance(kept, str) else \
                 {"status": DONE_ELSEWHERE, "reason": done.get("reason", ""), "duration_s": 0.0}
         with host_slot(exclusive=KINDS.get(spec["kind"]).runs_alone(spec["params"]),   # timings: alone

@@ -245,3 +245,57 @@ def test_status_counts_running_jobs_not_the_run_itself(recipe, tmp_path, capsys)
     with store.running(), store.lock(next(iter(store.keys()))):
         code, out, _ = cli(capsys, "status", "--store", str(store.root))
     assert code == 0 and "running now: 1" in out
+
+
+def test_gc_names_a_recipe_that_ran_here_and_loses_jobs_and_status_says_what_is_gone(recipe, tmp_path, capsys):
+    """Outside test: gc given one recipe removed another's jobs without a word, and `status` went on showing
+    that recipe's job count as if they were stored."""
+    store = str(tmp_path / "s")
+    other = tmp_path / "other.yaml"
+    other.write_text(RECIPE.replace("name: toy", "name: other").replace("b: {value: %d}", "b: {value: 7}"))
+    assert cli(capsys, "run", str(other), "--store", store)[0] == 0
+    assert cli(capsys, "run", str(recipe), "--store", store)[0] == 0
+    code, out, _ = cli(capsys, "gc", str(recipe), "--dry-run", "--store", store)
+    assert f"recipe other ({other}), which ran on this store and was not given, would lose 3 of its 5 jobs: give " \
+           "its file too to keep them" in out
+    code, out, _ = cli(capsys, "gc", str(recipe), "--store", store)
+    assert "recipe other" in out and "lost 3 of its 5 jobs" in out
+    assert "lost" not in cli(capsys, "gc", str(recipe), str(other), "--dry-run", "--store", store)[1]
+    out = cli(capsys, "status", "--store", store)[1]
+    assert f"recipe other: 5 jobs ({other}), 3 of them not stored now" in out
+    assert f"recipe toy: 5 jobs ({recipe})\n" in out
+
+
+def test_status_names_the_failed_jobs_and_forgets_a_failure_once_a_run_keeps_the_result(recipe, tmp_path, capsys):
+    """Outside test: `status` said "failed: 1" (which?) and went on saying it after a run had kept the
+    job's result."""
+    store = tmp_path / "s"
+    assert cli(capsys, "run", str(recipe), "--store", str(store))[0] == 0
+    key = json.loads(cli(capsys, "plan", str(recipe), "--json", "--store", str(store))[1])[-1]["key"]
+    (store / "failed").mkdir(exist_ok=True)
+    (store / "failed" / f"{key}.json").write_text(json.dumps({"error": "boom", "spec": {"name": "total"}}))
+    assert "failed: 1: total (a run" in cli(capsys, "status", "--store", str(store))[1]
+    assert cli(capsys, "run", str(recipe), "--store", str(store), "--force", "source")[0] == 0   # total: kept
+    assert "failed: 0 (a run" in cli(capsys, "status", "--store", str(store))[1]
+
+
+def test_a_job_removed_from_the_store_since_it_ran_is_not_just_new(recipe, tmp_path, capsys):
+    """Outside test: a job deleted by hand (or by gc) was planned as "new", as if never seen."""
+    import shutil
+    store = tmp_path / "s"
+    assert cli(capsys, "run", str(recipe), "--store", str(store))[0] == 0
+    total = json.loads(cli(capsys, "plan", str(recipe), "--json", "--store", str(store))[1])[-1]
+    shutil.rmtree(next((store / "jobs").glob(f"*/{total['key']}")))
+    row = json.loads(cli(capsys, "plan", str(recipe), "--json", "--store", str(store))[1])[-1]
+    assert (row["status"], row["reason"]) == ("new", "not in the store: the last run did not finish it, or it was "
+                                                     "removed since (gc, or by hand)")
+
+
+def test_show_says_a_stored_result_is_corrupt(recipe, tmp_path, capsys):
+    """Outside test: `show` on a job whose result.json was truncated printed its settings alone."""
+    store = tmp_path / "s"
+    assert cli(capsys, "run", str(recipe), "--store", str(store))[0] == 0
+    total = json.loads(cli(capsys, "plan", str(recipe), "--json", "--store", str(store))[1])[-1]
+    next((store / "jobs").glob(f"*/{total['key']}/result.json")).write_text('{"stat')
+    code, out, _ = cli(capsys, "show", total["key"][:10], "--store", str(store))
+    assert code == 0 and "status: stored result missing or corrupt" in out

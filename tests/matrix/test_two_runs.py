@@ -10,6 +10,7 @@ from pathlib import Path
 
 from matrix import engine
 from matrix.recipe import load_recipe
+from matrix.stale import NOT_STORED
 from matrix.store import Store
 from tests.matrix.toydomain import TOY
 
@@ -81,9 +82,9 @@ def test_after_a_kill_jobs_that_never_ran_are_new_and_the_next_run_clears_leftov
     killed_leftover = next(p for p in (store_root / "tmp").iterdir() if p.name.startswith(slow[:16]))
 
     states = {s.job.name: (s.state, s.reason) for s in engine.make_plan(load_recipe(recipe, TOY), TOY, store).statuses}
-    assert states["source a"] == ("fresh", "") and set(states.values()) <= {("fresh", ""), ("new", "new")}
+    assert states["source a"] == ("fresh", "") and set(states.values()) <= {("fresh", ""), ("new", NOT_STORED)}
     assert {name: states[name] for name in ("source b", "power b^2", "power b^3", "total")} == dict.fromkeys(
-        ("source b", "power b^2", "power b^3", "total"), ("new", "new"))
+        ("source b", "power b^2", "power b^3", "total"), ("new", NOT_STORED))
 
     held_key = "f" * 64                                       # a job another run is running right now
     in_flight = store_root / "tmp" / f"{held_key[:16]}-1-abcd"
