@@ -23,6 +23,7 @@ from pilotlab.specs.timing import gpu_resources, timing_resources
 
 # the timing modes that charge the brain's time to the lap (pilotlab.online.drive explains all four)
 CHARGED = ("replay", "measured")
+LATENCY_MODES = (*CHARGED, "realtime")   # where latency added to the brain's own delays its commands
 
 
 class DriveSettings(Spec):
@@ -44,6 +45,10 @@ class DriveSettings(Spec):
         if self.fixed_inference_ms is not None and self.timing not in CHARGED:
             raise ValueError(f"fixed_inference_ms only means something in the {' and '.join(CHARGED)} timing "
                              f"modes, not {self.timing!r}")
+        # a lockstep world waits for the brain: added latency changed nothing, yet the result said it was added
+        if self.extra_latency_ms and self.timing == "lockstep":
+            raise ValueError(f"extra_latency_ms means nothing in the lockstep timing mode (the world waits for the "
+                             f"brain); use {', '.join(repr(m) for m in LATENCY_MODES)}")
         return self
 
     @property
@@ -124,6 +129,15 @@ class LapSettings(DriveSettings):
             raise ValueError(f"tolerance is true (the default search), false, or a mapping of the search's "
                              f"settings ({', '.join(ToleranceSpec.model_fields)}); got {value!r}")
         return {} if value is True else None if value is False else value
+
+    @model_validator(mode="after")
+    def _a_tolerance_needs_latency_to_count(self):
+        # outside test: in lockstep every lap of the search was completed, and the search reported 1000 ms
+        if self.tolerance is not None and self.timing == "lockstep":
+            raise ValueError(f"a latency tolerance search means nothing in the lockstep timing mode (the world waits "
+                             f"for the brain, so every latency keeps the lap); use "
+                             f"{', '.join(repr(m) for m in LATENCY_MODES)}")
+        return self
 
     @model_validator(mode="after")
     def _one_start_per_run(self):

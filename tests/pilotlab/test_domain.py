@@ -187,6 +187,8 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
     (("circuits: [simple_circuit], laps: 0.1", "circuits: [simple_circuit, simple_circuit], laps: 0.1"),
      ":4: datasets.test.record.circuits: 'simple_circuit' is listed twice; list each once"),
     (("matrix:", "online: {directions: [ccw, ccw]}\nmatrix:"), ":11: online.directions: 'ccw' is listed twice"),
+    (("matrix:", "online: {timing: lockstep, tolerance: true}\nmatrix:"),
+     ":11: online: a latency tolerance search means nothing in the lockstep timing mode"),
 ])
 def test_recipe_errors_name_the_line_and_key(tmp_path, edit, message):
     with pytest.raises(RecipeError) as caught:

@@ -22,6 +22,12 @@ from pilotlab.cli import main
     (["drive", "--brain", "expert", "--circuit", "simple_circuit", "--timing", "lockstep", "--fixed-inference-ms", "80"],
      "pilotlab: error: --fixed-inference-ms only means something in the replay and measured timing modes, "
      "not 'lockstep'\n"),
+    # outside test: in lockstep the search's every lap was completed (a tolerance of 1000 ms, never tested), and
+    # the result said 100 ms had been added where nothing was
+    (["drive", "--brain", "explicit", "--circuit", "simple_circuit", "--timing", "lockstep", "--tolerance"],
+     "a latency tolerance search means nothing in the lockstep timing mode"),
+    (["drive", "--brain", "explicit", "--circuit", "simple_circuit", "--timing", "lockstep", "--extra-latency-ms", "100"],
+     "--extra-latency-ms means nothing in the lockstep timing mode (the world waits for the brain); use 'replay'"),
 ])
 def test_bad_arguments_are_one_line_before_anything_starts(tmp_path, capsys, argv, message):
     out = tmp_path / ("run.bag" if argv[0] == "record" else "lap")

@@ -1,5 +1,7 @@
 """The closed loop in the real simulator, on short stretches of road: what each timing mode charges,
 reproducibility, late reactions, stop rules."""
+import time
+
 import numpy as np
 import pydantic
 import pytest
@@ -71,9 +73,28 @@ def test_a_slow_brain_reacts_late_and_drives_worse():
     assert slow["position_deviation_mae_m"] > 2 * quick["position_deviation_mae_m"]
 
 
+class SlowBrain:
+    """A brain that takes 100 ms more per decision than the one it wraps."""
+
+    def __init__(self, brain):
+        self._brain = brain
+
+    def __getattr__(self, name):
+        return getattr(self._brain, name)
+
+    def act(self, *args, **kwargs):
+        time.sleep(0.1)
+        return self._brain.act(*args, **kwargs)
+
+    @property
+    def last_inference_s(self) -> float:
+        return self._brain.last_inference_s + 0.1
+
+
 def test_lockstep_waits_for_the_brain_whatever_it_costs():
     instant = expert_run(timing="lockstep", timeout_s=2.0)
-    late = expert_run(timing="lockstep", timeout_s=2.0, extra_latency_ms=100.0)
+    with DrivingEnv("simple_circuit", camera=None, timeout_s=2.0) as env:
+        late = drive(env, SlowBrain(make_reference_brain("expert")), DriveSettings(timing="lockstep"), seed=0)
     for column in ("t", "x", "y", "speed", "v", "w"):
         np.testing.assert_array_equal(getattr(instant, column), getattr(late, column))
     np.testing.assert_allclose(np.diff(instant.t), 0.05)
