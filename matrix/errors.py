@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import difflib
 import re
+import traceback
 from collections.abc import Iterable
 
 
@@ -17,6 +18,18 @@ class MatrixError(Exception):
 class Terminated(KeyboardInterrupt):
     """The run was asked to stop by SIGTERM (`kill PID`, `timeout`, a batch system): it stops as at Ctrl-C,
     the jobs in flight lost, nothing half-written."""
+
+
+def full_traceback(error: BaseException) -> str:
+    """`error`'s traceback with the exceptions it was raised from or while handling, even those a
+    `raise ... from None` left out for the sake of a one-line message (what `-v` and `show` print: where
+    the error came from in a user's code, a brain's or a network's, was cut from it)."""
+    seen, chained = set(), error
+    while chained is not None and id(chained) not in seen:
+        seen.add(id(chained))
+        chained.__suppress_context__ = False
+        chained = chained.__cause__ or chained.__context__
+    return "".join(traceback.format_exception(error))
 
 
 def exit_message(exit_: SystemExit) -> str:

@@ -15,12 +15,11 @@ import os
 import signal
 import sys
 import time
-import traceback
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from matrix.errors import MatrixError, exit_message
+from matrix.errors import MatrixError, exit_message, full_traceback
 from matrix.hostlock import host_slot
 from matrix.jobs import spec_dep_keys
 from matrix.kinds import KINDS, DepResult, JobContext, NotApplicable
@@ -251,7 +250,7 @@ def _fail(store: Store, spec: dict, workdir: Path, error: Exception, started: fl
     message = failure_message(error)
     log_tail = _tail(workdir / LOG)
     store.record_failure(spec["key"], {"error": message, "expected": isinstance(error, MatrixError),
-                                       "traceback": traceback.format_exc(),
+                                       "traceback": full_traceback(error),
                                        "log_tail": log_tail, "spec": spec, "workdir": str(workdir)})
     return {"status": FAILED, "reason": message, "duration_s": time.time() - started}
 

@@ -15,7 +15,7 @@ import traceback
 
 import pydantic
 
-from matrix.errors import MatrixError, Terminated, exit_message
+from matrix.errors import MatrixError, Terminated, exit_message, full_traceback
 from pilotlab.specs.base import spec_problem
 
 
@@ -85,8 +85,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except (MatrixError, pydantic.ValidationError) as error:
-        if args.verbose:
-            traceback.print_exc()
+        if args.verbose:   # with what it was raised from: a user's brain or network, whose frames a one-line
+            print(full_traceback(error), end="", file=sys.stderr)   # message leaves out
         message = spec_problem(error) if isinstance(error, pydantic.ValidationError) else error
         print(f"pilotlab: error: {message}", file=sys.stderr)
         return 2

@@ -98,3 +98,17 @@ def test_a_tolerance_on_top_of_an_extra_latency_says_so(tmp_path, capsys):
     tolerance = json.loads((out / "result.json").read_text())["latency_tolerance_ms"]
     shown = " ".join(capsys.readouterr().out.split())
     assert f"on top of --extra-latency-ms 50: the lap is still completed with {50 + tolerance:g} ms injected in all" in shown
+
+
+def test_verbose_shows_the_frames_of_a_brain_that_failed(tmp_path, capsys, monkeypatch):
+    """Outside test: `-v` printed pilotlab's frames only; the brain's and its helper module's were cut."""
+    (tmp_path / "helper.py").write_text("def compute(d):\n    return d['w']\n")
+    (tmp_path / "deep.py").write_text("import helper\n\n\nclass Brain:\n    def act(self, image):\n"
+                                      "        return helper.compute({})\n")
+    monkeypatch.chdir(tmp_path)
+    argv = ["drive", "--brain", "deep.py:Brain", "--circuit", "simple_circuit"]
+    assert main(argv + ["--out", "a"]) == 2
+    assert capsys.readouterr().err.strip().endswith("helper.py:2: KeyError: 'w' (in deep.py:Brain.act)")
+    assert main(["-v", *argv, "--out", "b"]) == 2
+    err = capsys.readouterr().err
+    assert 'deep.py", line 6, in act' in err and 'helper.py", line 2, in compute' in err
