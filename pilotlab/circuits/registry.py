@@ -83,7 +83,7 @@ def csv_path_of(name: str, recipe_folder: Path | None = None) -> Path | None:
     (`recipe_folder`) also finds circuits beside it, and its relative paths start there."""
     named = _user_csv(name, recipe_folder)   # a stat per folder: get_circuit asks at every episode
     if name in CIRCUITS:
-        if named is not None:
+        if named is not None and not _is_the_builtin(named, CIRCUITS.get(name)):
             raise PilotlabError(f"{named} has the name of a built-in circuit, which it does not replace; "
                                 f"rename the file (e.g. my_{name}.csv) and use that name")
         return None
@@ -96,6 +96,16 @@ def csv_path_of(name: str, recipe_folder: Path | None = None) -> Path | None:
     raise PilotlabError(f"unknown circuit {name!r}{did_you_mean(name, known)}; known: {', '.join(known)}; "
                         f"or give the path of a CSV of x,y points{relative}, or put NAME.csv in one of: "
                         f"{', '.join(str(d) for d in user_dirs(recipe_folder))}")
+
+
+def _is_the_builtin(path: Path, config: CircuitConfig) -> bool:
+    """A user folder may hold the built-in's own file (BehaviorMetrics' centrelines, which pilotlab ships):
+    that is no second circuit of the name (an outside test pointed PILOTLAB_CIRCUITS at them, and every
+    built-in circuit was refused)."""
+    try:
+        return path.read_bytes().replace(b"\r\n", b"\n") == builtin_csv(config).read_bytes().replace(b"\r\n", b"\n")
+    except OSError:
+        return False
 
 
 def _user_csv(name: str, recipe_folder: Path | None) -> Path | None:

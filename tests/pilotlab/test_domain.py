@@ -509,6 +509,17 @@ def test_a_user_circuit_named_like_a_built_in_one_is_refused_not_passed_over(tmp
         engine.plan_jobs(recipe_at(tmp_path), DOMAIN)
 
 
+def test_the_built_in_circuit_s_own_file_in_a_user_folder_is_no_second_circuit(tmp_path, monkeypatch):
+    """Outside test: PILOTLAB_CIRCUITS pointed at BehaviorMetrics' centrelines (pilotlab's built-ins, byte for
+    byte) and every built-in circuit was refused."""
+    from importlib import resources
+    (tmp_path / "circuits").mkdir()
+    shipped = resources.files("pilotlab.circuits") / "data" / "simple_circuit.csv"
+    (tmp_path / "circuits" / "simple_circuit.csv").write_bytes(shipped.read_bytes().replace(b"\n", b"\r\n"))
+    jobs = engine.plan_jobs(recipe_at(tmp_path), DOMAIN)
+    assert not any("circuit_csv" in job.inputs for job in jobs)    # the built-in, as without the file
+
+
 def test_a_recipe_circuit_named_like_a_built_in_one_is_refused_not_driven_in_its_place(tmp_path):
     (tmp_path / "oval.csv").write_text("\n".join(f"{x},{y}" for x, y in stadium()))
     text = RECIPE + "circuits: {simple_circuit: {csv: oval.csv}}\n"
