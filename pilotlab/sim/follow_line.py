@@ -41,13 +41,16 @@ def camera_spec(camera: Any):
     raise PilotlabError(f"camera {camera!r}: give (width, height), a dict of CameraSpec fields, 'crop' or None")
 
 
-def make_follow_line(circuit: str = "simple_circuit", direction: str = "cw", camera: Any = (640, 480),
+def make_follow_line(circuit: str | None = None, direction: str = "cw", camera: Any = (640, 480),
                      renderer: str = "ground", control_hz: float = 20.0, actions: str = "normalized",
                      **options: Any):
     """The entry point `gymnasium.make` calls: a DrivingEnv from the keywords. Actions are normalized
     by default (what Gymnasium's checker and learning libraries expect); `info["command"]` is the
-    (v, w) applied, in m/s and rad/s."""
+    (v, w) applied, in m/s and rad/s. The circuit is simple_circuit unless a `world` (whose circuit is
+    its own) is given."""
     from pilotlab.sim.env import DrivingEnv
+    if circuit is None and options.get("world") is None:
+        circuit = "simple_circuit"
     if not control_hz > 0:
         raise PilotlabError(f"control_hz must be positive, got {control_hz}")
     return DrivingEnv(circuit, direction=direction, camera=_within_limits(camera_spec(camera)), renderer=renderer,

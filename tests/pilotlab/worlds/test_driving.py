@@ -64,3 +64,14 @@ def test_a_world_fixes_its_circuit(oval_assets):
     with DrivingEnv(world="oval", assets=oval_assets, camera=None) as env:
         with pytest.raises(PilotlabError, match="has its own circuit"):
             env.reset(options={"circuit": "montreal"})
+
+
+def test_gymnasium_make_takes_a_world_without_a_circuit(oval_assets):
+    """Outside test: gymnasium.make(..., world=...) said "give a circuit or a world, not both" (the circuit's
+    default was simple_circuit) unless circuit=None was given too."""
+    import gymnasium
+    import pilotlab.sim  # noqa: F401  (registers pilotlab/FollowLine-v0)
+    with gymnasium.make("pilotlab/FollowLine-v0", world="oval", assets=str(oval_assets), camera=None,
+                        observation="state") as env:
+        env.reset(seed=0)
+        assert env.unwrapped.circuit.name == "oval"
