@@ -73,7 +73,7 @@ from pilotlab.sim.car import BM_F1, Car, CarSpec
 from pilotlab.sim.observation import ActionSpace, check_observation, observation_space, state_vector
 from pilotlab.sim.render import GroundRenderer, PybulletRenderer, check_renderer
 from pilotlab.sim.world import PHYSICS_HZ, World
-from pilotlab.specs.base import CONTROL_HZ
+from pilotlab.specs.base import CONTROL_HZ, LATENCY_LIMIT_MS
 
 TIMINGS = ("lockstep", "latency")
 RESET_OPTIONS = ("circuit", "direction", "start", "lateral", "heading", "speed", "laps", "timeout_s",
@@ -447,8 +447,11 @@ def _check_render_mode(render_mode: str | None) -> str | None:
 def _check_timing(timing: str, extra_latency_ms: float, fixed_inference_ms: float | None) -> tuple[str, float]:
     if timing not in TIMINGS:
         raise PilotlabError(f"unknown timing {timing!r}; use one of: {', '.join(TIMINGS)}")
-    if extra_latency_ms < 0 or (fixed_inference_ms is not None and fixed_inference_ms < 0):
-        raise PilotlabError("extra_latency_ms and fixed_inference_ms must be >= 0 milliseconds")
+    given = [extra_latency_ms] + ([] if fixed_inference_ms is None else [fixed_inference_ms])
+    # outside test: NaN failed in the first step with numpy's words; 1e7 ms simulated for minutes in one step
+    if not all(isinstance(ms, (int, float)) and 0 <= ms <= LATENCY_LIMIT_MS for ms in given):
+        raise PilotlabError(f"extra_latency_ms and fixed_inference_ms must be numbers of milliseconds from 0 to "
+                            f"{LATENCY_LIMIT_MS:,.0f}; got {', '.join(repr(ms) for ms in given)}")
     if timing == "lockstep" and (extra_latency_ms or fixed_inference_ms is not None):
         raise PilotlabError("extra_latency_ms and fixed_inference_ms only mean something with timing='latency'")
     return timing, extra_latency_ms / 1000

@@ -7,6 +7,7 @@ nothing else is drawn); the road and the line are visual-only meshes lying on it
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 
@@ -62,6 +63,9 @@ class World:
                  solver_iterations: int = SOLVER_ITERATIONS, road_meshes: bool = True):
         self.circuit, self.walls, self.physics_hz = circuit, walls, physics_hz
         self.client = p.connect(p.DIRECT)
+        # an env dropped without close() kept its client, and its memory, until the process ended (an outside
+        # test: 40 dropped envs, 41 clients, 300 MB): the client goes with the World
+        self._disconnect = weakref.finalize(self, p.disconnect, physicsClientId=self.client)
         p.resetSimulation(physicsClientId=self.client)
         p.setPhysicsEngineParameter(fixedTimeStep=1.0 / physics_hz, numSubSteps=0, deterministicOverlappingPairs=1,
                                     numSolverIterations=solver_iterations, physicsClientId=self.client)
@@ -74,7 +78,7 @@ class World:
 
     def close(self) -> None:
         if self.client is not None:
-            p.disconnect(physicsClientId=self.client)
+            self._disconnect()
             self.client = None
 
     def remove(self, body: int) -> None:

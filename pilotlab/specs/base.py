@@ -17,6 +17,7 @@ from matrix.kinds import params_problem
 from pilotlab.errors import PilotlabError
 
 CONTROL_HZ = 20.0          # BehaviorMetrics' 50 ms brain cycle: commands and odometry per simulated second
+LATENCY_LIMIT_MS = 60_000.0   # a minute per brain iteration, the most a lap's latency may be (1e7 ms ran for minutes)
 Direction = Literal["cw", "ccw"]
 
 

@@ -17,7 +17,8 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from matrix.kinds import register_kind
-from pilotlab.specs.base import CONTROL_HZ, CameraSize, Direction, InWorld, Spec, user_code_name
+from pilotlab.specs.base import (CONTROL_HZ, LATENCY_LIMIT_MS, CameraSize, Direction, InWorld, Spec,
+                                 user_code_name)
 from pilotlab.specs.timing import gpu_resources, timing_resources
 
 
@@ -35,10 +36,11 @@ class DriveSettings(Spec):
                               "for the brain; realtime: simulated time follows the wall clock")
     control_hz: float = Field(CONTROL_HZ, gt=0, le=1000, description="brain iterations per simulated second when "
                                                                      "the brain keeps up")
-    extra_latency_ms: float = Field(0.0, ge=0, le=60_000, description="artificial latency added to every brain "
-                                                                      "iteration (a slower network)")
-    fixed_inference_ms: float | None = Field(None, ge=0, le=60_000, description="replay and measured timing: charge "
-                                             "this instead of the brain's time (\"what if it took X ms\")")
+    extra_latency_ms: float = Field(0.0, ge=0, le=LATENCY_LIMIT_MS,
+                                    description="artificial latency added to every brain iteration (a slower network)")
+    fixed_inference_ms: float | None = Field(None, ge=0, le=LATENCY_LIMIT_MS,
+                                             description="replay and measured timing: charge this instead of the "
+                                                         "brain's time (\"what if it took X ms\")")
 
     @model_validator(mode="after")
     def _fixed_needs_a_charged_mode(self):
@@ -67,7 +69,7 @@ class ToleranceSpec(Spec):
     fixed_ms: list[float] = Field([0.0, 100.0, 200.0], description="injected latencies whose laps' deviation "
                                                                   "is reported (they also bracket the search; "
                                                                   "a search from a hint drives none)")
-    max_ms: float = Field(1000.0, gt=0, le=60_000, description="the largest injected latency searched")
+    max_ms: float = Field(1000.0, gt=0, le=LATENCY_LIMIT_MS, description="the largest injected latency searched")
     # 10 ms: the tolerance found for one network moved by 5-10 ms between the seeds of its latency draws
     # (study2022, 4 seeds, 2026-11-28), so a finer grid buys laps, not knowledge. Finer than 0.1 ms means
     # nothing (physics steps are 8.3 ms) and a tiny step overflowed the grid check.

@@ -135,3 +135,23 @@ def test_episode_settings_the_command_line_refuses_are_refused_here_too(stadium_
     with DrivingEnv(stadium_csv, camera=None, observation="state") as env:
         with pytest.raises(PilotlabError, match=message.replace("(", r"\(").replace(")", r"\)")):
             env.reset(options=settings)
+
+
+@pytest.mark.parametrize("options", [{"fixed_inference_ms": float("nan")}, {"fixed_inference_ms": 1e7},
+                                     {"extra_latency_ms": -1.0}, {"extra_latency_ms": float("inf")}])
+def test_latencies_that_are_no_number_of_milliseconds_are_refused_when_made(stadium_csv, options):
+    """Outside test: NaN failed at the first step in numpy's words; 1e7 ms simulated for minutes in one step."""
+    with pytest.raises(PilotlabError, match="must be numbers of milliseconds from 0 to 60,000"):
+        DrivingEnv(stadium_csv, camera=None, timing="latency", **options)
+
+
+def test_an_env_dropped_without_close_lets_its_physics_client_go(stadium_csv):
+    """Outside test: 40 envs dropped without close() kept 41 pybullet clients (and 300 MB) alive."""
+    import gc
+    env = DrivingEnv(stadium_csv, camera=None)
+    env.reset(seed=0)
+    client = env.world.client
+    del env
+    gc.collect()
+    from pilotlab.sim.bullet import p
+    assert not p.isConnected(physicsClientId=client)
