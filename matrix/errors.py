@@ -35,8 +35,8 @@ def full_traceback(error: BaseException) -> str:
 def exit_message(exit_: SystemExit) -> str:
     """What to say when code run for a job or command (a user's network module, a brain) called
     sys.exit(): left alone, it would end the whole run with its code and no word."""
-    return (f"code of yours called exit({exit_.code!r}) while it ran (SystemExit): a module that parses the "
-            "command line or exits when imported cannot be loaded; raise an exception instead")
+    return (f"code of yours called exit({exit_.code!r}) while it ran (SystemExit); raise an exception instead "
+            "(a module that exits when imported, or parses the command line, cannot be loaded either)")
 
 
 _LONG_TOKEN = re.compile(r"\S{240,}")   # a value quoted whole would drown the message

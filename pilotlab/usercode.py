@@ -241,6 +241,11 @@ def _place(error: BaseException, where: str) -> str:
     return f"{mine[-1].filename}:{mine[-1].lineno}" if mine else where
 
 
+def error_place(error: BaseException) -> str:
+    """`file:line` of the user's frame `error` came from, else ""."""
+    return _place(error, "")
+
+
 def _is_library(filename: str) -> bool:
     """Frames of Python's import machinery, installed packages and pilotlab: not the user's."""
     return filename.startswith(("<frozen", PILOTLAB, STDLIB)) or "site-packages" in filename

@@ -32,7 +32,7 @@ def read_points_csv(path: Path) -> np.ndarray:
         line = data[:error.start].count(b"\n") + 1
         raise PilotlabError(f"{path}:{line}: not a text file (byte {data[error.start]:#04x} is not UTF-8); "
                             "a circuit CSV has one 'x,y' line per point") from None
-    rows = []
+    rows, first = [], True
     for number, line in enumerate(text.splitlines(), start=1):
         fields = [f for f in re.split(r"[,\s;]+", line.split("#")[0].strip()) if f]
         if not fields:
@@ -40,8 +40,9 @@ def read_points_csv(path: Path) -> np.ndarray:
         try:
             rows.append(_point(fields, path, number))
         except (ValueError, IndexError):
-            if rows:  # only a first line may be a header
+            if not first:  # only the first line may be a header (a one-column file was read as all headers)
                 raise PilotlabError(f"{path}:{number}: expected 'x,y' in metres, got {line.strip()[:80]!r}") from None
+        first = False
     if len(rows) < 3:
         raise PilotlabError(f"{path}: a circuit CSV needs at least 3 'x,y' lines, found {len(rows)}")
     return np.array(rows, dtype=np.float64)

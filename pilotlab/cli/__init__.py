@@ -100,7 +100,9 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exit_:     # argparse's exits happen above; here it is code of the user's (a brain)
         if args.verbose:
             traceback.print_exc()
-        print(f"pilotlab: error: {exit_message(exit_)}", file=sys.stderr)
+        from pilotlab.usercode import error_place
+        place = error_place(exit_)   # where (a brain's act): the message said nothing of it (outside test)
+        print(f"pilotlab: error: {f'{place}: ' if place else ''}{exit_message(exit_)}", file=sys.stderr)
         return 2
     except Terminated:
         print(f"pilotlab: terminated (SIGTERM){_stopped(args)}", file=sys.stderr)

@@ -93,6 +93,9 @@ def brain_params(brain: str | None, world=None) -> dict:
     if ":" in brain:
         return {"brain": "user", "user_brain": {"name": brain.rpartition(":")[2], "spec": brain,
                                                 "base": str(Path.cwd())}}
+    if brain.endswith(".py") or "/" in brain:   # a file without its class said "unknown brain" (outside test)
+        raise PilotlabError(f"--brain {brain}: name the class in it too, as {brain}:ClassName (a class with "
+                            "act(image) returning (v, w): docs/brains.md)")
     if brain not in REFERENCE_BRAINS:
         known = REFERENCE_BRAINS.names()
         raise PilotlabError(f"--brain {brain}: unknown brain{did_you_mean(brain, known)}; give {', '.join(known)}, "

@@ -7,6 +7,7 @@ way a bag can be unusable ends in a `BagError` that names the bag (and topic) an
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
@@ -50,6 +51,8 @@ def bag_format(path: Path) -> str:
 
 
 def corrupt(path: Path, detail: str) -> BagError:
+    # rosbags words some errors with a tuple of arguments: "index looks damaged: ('Header could not be read',)"
+    detail = re.sub(r"""\(['"](.*?)['"],\)""", r"\1", detail)
     return BagError(f"{path}: cannot read the bag ({detail}); it is truncated or corrupt. Record it again, "
                     "or repair it (`rosbag reindex` for ROS1, `ros2 bag reindex` for ROS2) and retry")
 

@@ -25,6 +25,10 @@ def resolve_assets(assets: str | os.PathLike | None = None) -> Path:
                             "RoboticsInfrastructure/CustomRobots/f1, with worlds/ and models/), set "
                             f"${ASSETS_ENV}, or set worlds.assets in the recipe")
     folder = Path(chosen).expanduser()
+    if not folder.is_dir():   # it said "has no worlds/ folder" of a path that does not exist (outside test)
+        what = "not a folder" if folder.exists() else "no such folder"
+        raise PilotlabError(f"BehaviorMetrics assets folder {folder}: {what} (point at "
+                            "RoboticsInfrastructure/CustomRobots/f1, with worlds/ and models/)")
     for part in ("worlds", "models"):
         if not (folder / part).is_dir():
             raise PilotlabError(f"{folder} is not a BehaviorMetrics assets folder: it has no {part}/ folder "

@@ -116,3 +116,12 @@ def test_a_bad_csv_says_where(tmp_path):
         read_points_csv(path)
     with pytest.raises(PilotlabError, match="at least 3"):
         read_points_csv(write_csv(tmp_path / "short.csv", stadium()[:2]))
+
+
+def test_a_one_column_csv_is_refused_at_its_first_value_not_read_as_headers(tmp_path):
+    """Outside test: `x` then `1`, `2`, `3` said "needs at least 3 'x,y' lines, found 0" (every line was taken
+    for a header)."""
+    path = tmp_path / "one.csv"
+    path.write_text("x\n1\n2\n3\n")
+    with pytest.raises(PilotlabError, match=r"one.csv:2: expected 'x,y' in metres, got '1'"):
+        read_points_csv(path)

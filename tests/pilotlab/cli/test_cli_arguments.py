@@ -26,6 +26,8 @@ from pilotlab.cli import main
     # the result said 100 ms had been added where nothing was
     (["drive", "--brain", "explicit", "--circuit", "simple_circuit", "--timing", "lockstep", "--tolerance"],
      "a latency tolerance search means nothing in the lockstep timing mode"),
+    (["drive", "--brain", "brains/mine.py", "--circuit", "simple_circuit"],
+     "--brain brains/mine.py: name the class in it too, as brains/mine.py:ClassName"),
     (["drive", "--brain", "explicit", "--circuit", "simple_circuit", "--timing", "lockstep", "--extra-latency-ms", "100"],
      "--extra-latency-ms means nothing in the lockstep timing mode (the world waits for the brain); use 'replay'"),
 ])

@@ -112,3 +112,12 @@ def test_verbose_shows_the_frames_of_a_brain_that_failed(tmp_path, capsys, monke
     assert main(["-v", *argv, "--out", "b"]) == 2
     err = capsys.readouterr().err
     assert 'deep.py", line 6, in act' in err and 'helper.py", line 2, in compute' in err
+
+
+def test_a_brain_that_calls_exit_is_said_at_its_line(tmp_path, capsys, monkeypatch):
+    """Outside test: sys.exit(3) in act() was said as "a module that parses the command line or exits when
+    imported", with no file or line."""
+    (tmp_path / "quit.py").write_text("import sys\n\n\nclass Quit:\n    def act(self, image):\n        sys.exit(3)\n")
+    monkeypatch.chdir(tmp_path)
+    assert main(["drive", "--brain", "quit.py:Quit", "--circuit", "simple_circuit", "--out", "a"]) == 2
+    assert "quit.py:6: code of yours called exit(3) while it ran" in capsys.readouterr().err

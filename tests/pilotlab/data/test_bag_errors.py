@@ -27,11 +27,12 @@ def truncate(file):
 
 
 def test_truncated_ros1_bag(tmp_path):
+    """(rosbags' own words held a Python tuple: "('Header could not be read from file.',)": outside test)"""
     drive_bag(tmp_path / "run.bag", "ros1", images(3))
     truncate(tmp_path / "run.bag")
     assert message(tmp_path / "run.bag") == (
         f"{tmp_path}/run.bag: cannot read the bag (Bag index looks damaged: "
-        f"('Header could not be read from file.',)); {REPAIR}")
+        f"Header could not be read from file.); {REPAIR}")
 
 
 def test_truncated_ros2_sqlite3_bag(tmp_path):

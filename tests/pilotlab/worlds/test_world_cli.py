@@ -93,3 +93,9 @@ def test_record_and_drive_in_a_world(oval_assets, tmp_path, capsys):
                  "--out", str(out)]) == 0
     result = json.loads((out / "result.json").read_text())
     assert result["world"] == "oval" and result["lap_completed"] is True and result["runs"][0]["termination"] == "lap_completed"
+
+
+def test_an_assets_folder_that_is_not_there_is_said_so(capsys):
+    """Outside test: it said the folder "has no worlds/ folder"."""
+    assert main(["world", "list", "--assets", "/nonexistent/x"]) == 2
+    assert "BehaviorMetrics assets folder /nonexistent/x: no such folder" in capsys.readouterr().err
