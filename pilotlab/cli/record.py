@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pydantic
 
-from pilotlab.cli._options import add_spec_options, spec_from_args
+from pilotlab.cli._options import add_spec_options, in_flags, spec_from_args
 from pilotlab.cli._world import add_world_options, place_of
 from pilotlab.errors import PilotlabError
 from pilotlab.specs.base import CameraSize, spec_problem
@@ -77,7 +77,10 @@ def run(args: argparse.Namespace) -> int:
     place, assets, world = place_of(args)
     spec = spec_from_args(RecordSpec, args, **place, **camera_of(args),
                           **({"format": "ros1"} if args.out.suffix == ".bag" and not hasattr(args, "format") else {}))
-    check_rates(spec)   # before the progress bar: an error is then the only line printed
+    try:
+        check_rates(spec)   # before the progress bar: an error is then the only line printed
+    except PilotlabError as error:   # in the flags' words (it said rate_hz of --rate: outside test)
+        raise PilotlabError(in_flags(str(error), RecordSpec, args)) from None
     check_out(bag_path(args.out, spec.format), spec.format)
     columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:.0f} m"),
                TextColumn("{task.fields[frames]} frames"), TimeElapsedColumn(), TimeRemainingColumn())

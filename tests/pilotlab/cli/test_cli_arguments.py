@@ -10,7 +10,7 @@ from pilotlab.cli import main
     (["record", "--circuit", "simple_circuit", "--laps", "nan"], "--laps: Input should be a finite number"),
     (["record", "--circuit", "simple_circuit", "--laps", "inf"], "--laps: Input should be a finite number"),
     (["record", "--circuit", "simple_circuit", "--start", "abc"], "--start: Input should be a valid number"),
-    (["record", "--circuit", "simple_circuit", "--rate", "7"], "rate_hz must divide the control rate 20 Hz"),
+    (["record", "--circuit", "simple_circuit", "--rate", "7"], "--rate must divide the control rate 20 Hz"),
     (["record", "--circuit", "simple_circuit", "--noise", "nan"], "--noise: Input should be a finite number"),
     (["drive", "--brain", "explicit", "--circuit", "simple_circuit", "--laps", "nan"], "--laps: Input should be a finite"),
     (["drive", "--brain", "explicit", "--circuit", "simple_circuit", "--timeout", "inf"], "--timeout: Input should be a finite"),
