@@ -106,6 +106,8 @@ def show_world(args: argparse.Namespace) -> int:
         written = cv2.imwrite(str(out), image[:, :, ::-1])
     except (OSError, cv2.error) as error:
         written, reason = False, getattr(error, "strerror", None) or str(error).splitlines()[-1]
+        if (in_the_way := next((p for p in reversed(out.parents) if p.exists() and not p.is_dir()), None)):
+            reason = f"{in_the_way} is a file, not a folder"   # it said "(File exists)" (outside test)
     else:
         reason = "OpenCV could not write it"
     if not written:

@@ -99,3 +99,10 @@ def test_an_assets_folder_that_is_not_there_is_said_so(capsys):
     """Outside test: it said the folder "has no worlds/ folder"."""
     assert main(["world", "list", "--assets", "/nonexistent/x"]) == 2
     assert "BehaviorMetrics assets folder /nonexistent/x: no such folder" in capsys.readouterr().err
+
+
+def test_an_output_under_a_file_says_which_file_is_in_the_way(oval_assets, tmp_path, capsys):
+    """Outside test: `-o ex1.py/a.png` said "(File exists)"."""
+    (tmp_path / "ex1.py").write_text("")
+    assert main(["world", "show", "oval", "--assets", str(oval_assets), "-o", str(tmp_path / "ex1.py" / "a.png")]) == 2
+    assert f"({tmp_path / 'ex1.py'} is a file, not a folder)" in capsys.readouterr().err
