@@ -82,6 +82,19 @@ def test_writing_out_a_default_option_plans_the_same_jobs(tmp_path):
     assert after == before
 
 
+def test_operator_types_in_another_order_are_the_same_dynamic_quantization(tmp_path):
+    """Outside test: `op_types: [Gemm, MatMul]` (the default, [MatMul, Gemm], written in another order) ran the
+    strategy's jobs again."""
+    def optimize_keys(op_types: str) -> set[str]:
+        text = RECIPE.replace("  prune_more:", f"  dq: {{use: dynamic_quant{op_types}}}\n  prune_more:").replace(
+            "strategy: [baseline,", "strategy: [baseline, dq,")
+        return {job.key for job in engine.plan_jobs(recipe_at(tmp_path, text), DOMAIN)
+                if job.kind == "optimize" and "dq" in job.name}
+    assert optimize_keys("") == optimize_keys(", op_types: [Gemm, MatMul]") == \
+        optimize_keys(", op_types: [Gemm, MatMul, Gemm]")
+    assert optimize_keys("") != optimize_keys(", op_types: [MatMul]")
+
+
 def test_renaming_a_dataset_names_its_jobs_anew_and_reruns_none(tmp_path):
     before = {job.key for job in engine.plan_jobs(recipe_at(tmp_path), DOMAIN)}
     renamed = RECIPE.replace("  train: {record", "  laps_data: {record").replace(

@@ -24,10 +24,20 @@ class OnnxRuntimeInt8Config:
     float_first_conv: bool = True         # keep the 3-channel input conv in fp32 (faster here)
 
 
+DEFAULT_OP_TYPES = ("MatMul", "Gemm")
+
+
 @dataclass(frozen=True)
 class DynamicQuantConfig:
     version: int = 1
-    op_types: tuple[str, ...] = ("MatMul", "Gemm")
+    op_types: tuple[str, ...] = DEFAULT_OP_TYPES   # ONNX operator types to quantize
+
+    def __post_init__(self):
+        # a set of operator types: [Gemm, MatMul] is the default written in another order, not a new setting
+        # (it ran the strategy's jobs again: outside test); the default's own order stays its order (its key)
+        order = {name: i for i, name in enumerate(DEFAULT_OP_TYPES)}
+        canonical = tuple(sorted(set(self.op_types), key=lambda name: (order.get(name, len(order)), name)))
+        object.__setattr__(self, "op_types", canonical)
 
 
 register_strategy("onnxruntime", OnnxRuntimeConfig, "pilotlab.strategies.onnx_runtime:onnxruntime_fp32",
