@@ -180,10 +180,11 @@ def _recipes_left_out(store, given: set[str], removed: set[str], dry_run: bool) 
         keys = [spec.get("key") for spec in data["jobs"].values() if isinstance(spec, dict)]
         lost = sum(1 for key in keys if key in removed)
         if lost:
-            print_name = f"{data.get('recipe', index.stem)} ({data.get('file', '?')})"
-            yield (f"recipe {print_name}, which ran on this store and was not given, {'would lose' if dry_run else 'lost'} "
-                   f"{lost} of its {len(keys)} jobs" + (": give its file too to keep them" if dry_run else
-                                                       " (gc --dry-run says so before removing anything)"))
+            verb = "would lose" if dry_run else "lost"
+            advice = ": give its file too to keep them" if dry_run else \
+                " (gc --dry-run says so before removing anything)"
+            yield (f"recipe {data.get('recipe', index.stem)} ({data.get('file', '?')}), which ran on this store and "
+                   f"was not given, {verb} {lost} of its {len(keys)} jobs{advice}")
 
 
 def _garbage_name(store, key: str) -> str:

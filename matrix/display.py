@@ -322,7 +322,8 @@ def print_status(out: Console, store: Store) -> int:
     """`status`: the stored jobs per kind and status, failures, running jobs, recipes run."""
     out.print(f"store: {store.root.resolve()}")
     kinds: dict[str, Counter] = {}
-    for key in store.keys():
+    stored = list(store.keys())
+    for key in stored:
         spec, result = store.spec(key) or {}, store.result(key)
         intact = result is not None and store.outputs_intact(key, result)   # files as recorded (by stat, else sha256)
         kinds.setdefault(spec.get("kind", "?"), Counter())[result["status"] if intact else "corrupt"] += 1
@@ -335,7 +336,7 @@ def print_status(out: Console, store: Store) -> int:
     # a failure is rerun by the next run of a recipe that reaches it; one no recipe reaches any more, gc removes
     out.print(f"failed: {len(failed)}{_named(store, failed)} (a run of a recipe that reaches one reruns it; gc removes "
               f"those none reaches); running now: {len(running)}")
-    stored = set(store.keys())
+    stored = set(stored)
     for index in sorted((store.root / "recipes").glob("*.json")):
         data = read_json(index) or {}
         jobs = data.get("jobs", {}) if isinstance(data.get("jobs"), dict) else {}
@@ -352,8 +353,10 @@ SHOWN_FAILED = 3
 def _named(store: Store, failed: list[Path]) -> str:
     """The failed jobs by name (the first few): the count alone did not say which."""
     names = [((store.failure(p.stem) or {}).get("spec") or {}).get("name") or p.stem[:12] for p in failed]
-    shown = ", ".join(escape(str(name)) for name in names[:SHOWN_FAILED])
-    return f": {shown}" + (f" and {len(names) - SHOWN_FAILED} more" if len(names) > SHOWN_FAILED else "") if names else ""
+    if not names:
+        return ""
+    more = f" and {len(names) - SHOWN_FAILED} more" if len(names) > SHOWN_FAILED else ""
+    return ": " + ", ".join(escape(str(name)) for name in names[:SHOWN_FAILED]) + more
 
 
 def print_times(out: Console, store: Store, recipe: str | None) -> int:

@@ -57,6 +57,7 @@ the car, and the camera view inset (`pilotlab.sim.topdown`); without a render mo
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from typing import Any
 
@@ -449,7 +450,7 @@ def _check_timing(timing: str, extra_latency_ms: float, fixed_inference_ms: floa
         raise PilotlabError(f"unknown timing {timing!r}; use one of: {', '.join(TIMINGS)}")
     given = [extra_latency_ms] + ([] if fixed_inference_ms is None else [fixed_inference_ms])
     # outside test: NaN failed in the first step with numpy's words; 1e7 ms simulated for minutes in one step
-    if not all(isinstance(ms, (int, float)) and 0 <= ms <= LATENCY_LIMIT_MS for ms in given):
+    if not all(isinstance(ms, numbers.Real) and 0 <= ms <= LATENCY_LIMIT_MS for ms in given):
         raise PilotlabError(f"extra_latency_ms and fixed_inference_ms must be numbers of milliseconds from 0 to "
                             f"{LATENCY_LIMIT_MS:,.0f}; got {', '.join(repr(ms) for ms in given)}")
     if timing == "lockstep" and (extra_latency_ms or fixed_inference_ms is not None):
