@@ -19,7 +19,7 @@ from matrix.errors import MatrixError
 from matrix.grid import describe_alike
 from matrix.recipe import Domain, load_recipe
 from matrix.runs import default_jobs
-from matrix.store import read_json
+from matrix.times import recipe_records
 
 GetDomain = Callable[[], Domain]
 ENGINE_COMMANDS = ("run", "plan", "status", "show", "gc")   # what add_engine_commands adds
@@ -173,18 +173,14 @@ def cmd_gc(args, domain: Domain) -> int:
 def _recipes_left_out(store, given: set[str], removed: set[str], dry_run: bool) -> Iterator[str]:
     """A line for each recipe that ran on this store, was not given, and loses jobs (an outside test lost
     another recipe's work to a gc without a word)."""
-    for index in sorted((store.root / "recipes").glob("*.json")):
-        data = read_json(index)
-        if not isinstance(data, dict) or data.get("recipe") in given or not isinstance(data.get("jobs"), dict):
-            continue
-        keys = [spec.get("key") for spec in data["jobs"].values() if isinstance(spec, dict)]
-        lost = sum(1 for key in keys if key in removed)
-        if lost:
+    for record in recipe_records(store):
+        lost = sum(1 for key in record.keys if key in removed)
+        if record.name not in given and lost:
             verb = "would lose" if dry_run else "lost"
             advice = ": give its file too to keep them" if dry_run else \
                 " (gc --dry-run says so before removing anything)"
-            yield (f"recipe {data.get('recipe', index.stem)} ({data.get('file', '?')}), which ran on this store and "
-                   f"was not given, {verb} {lost} of its {len(keys)} jobs{advice}")
+            yield (f"recipe {record.name} ({record.file}), which ran on this store and was not given, {verb} {lost} "
+                   f"of its {len(record.keys)} jobs{advice}")
 
 
 def _garbage_name(store, key: str) -> str:

@@ -29,8 +29,8 @@ from rich.table import Table
 
 from matrix.errors import MatrixError
 from matrix.runs import RunSummary
-from matrix.store import ARTIFACTS, LOG, RUNS_LOCK, Store, read_json
-from matrix.times import KindStats, kind_times, recipe_keys
+from matrix.store import ARTIFACTS, LOG, RUNS_LOCK, Store
+from matrix.times import KindStats, kind_times, recipe_keys, recipe_records
 
 SYMBOLS = {"ok": "[green]✓[/]", "not_applicable": "[yellow]–[/]", "failed": "[red]✗[/]",
            "skipped": "[red]↷[/]", "not_started": "[red]·[/]", "done_elsewhere": "[green]✓[/]", "kept": "[green]✓[/]"}
@@ -337,13 +337,10 @@ def print_status(out: Console, store: Store) -> int:
     out.print(f"failed: {len(failed)}{_named(store, failed)} (a run of a recipe that reaches one reruns it; gc removes "
               f"those none reaches); running now: {len(running)}")
     stored = set(stored)
-    for index in sorted((store.root / "recipes").glob("*.json")):
-        data = read_json(index) or {}
-        jobs = data.get("jobs", {}) if isinstance(data.get("jobs"), dict) else {}
-        missing = sum(1 for spec in jobs.values() if isinstance(spec, dict) and spec.get("key") not in stored)
-        out.print(f"recipe {escape(str(data.get('recipe', index.stem)))}: {len(jobs)} jobs "
-                  f"({escape(str(data.get('file', '?')))})" + (f", {missing} of them not stored now (removed since, "
-                                                              "or not run yet)" if missing else ""))
+    for record in recipe_records(store):
+        missing = sum(1 for key in record.keys if key not in stored)
+        gone = f", {missing} of them not stored now (removed since, or not run yet)" if missing else ""
+        out.print(f"recipe {escape(record.name)}: {len(record.keys)} jobs ({escape(record.file)}){gone}")
     return 0
 
 

@@ -11,7 +11,7 @@ exceed the run's wall time (`run` prints that).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,9 +42,28 @@ def recipe_keys(store: Store, recipe: str) -> list[str] | None:
     """The keys of the jobs of `recipe`'s last run or plan on this store (None if it never ran here)."""
     from matrix.engine import slug
     index = read_json(store.recipe_path(slug(recipe)))
-    if not isinstance(index, dict):
-        return None
-    return [spec["key"] for spec in index.get("jobs", {}).values()]
+    return _keys_of(index) if isinstance(index, dict) else None
+
+
+@dataclass(frozen=True)
+class RecipeRecord:
+    name: str
+    file: str
+    keys: list[str]       # of its jobs in its last run or plan
+
+
+def recipe_records(store: Store) -> Iterator[RecipeRecord]:
+    """Every recipe that ran (or was planned to run) on this store, from its record under recipes/."""
+    for index in sorted((store.root / "recipes").glob("*.json")):
+        data = read_json(index)
+        data = data if isinstance(data, dict) else {}
+        yield RecipeRecord(str(data.get("recipe", index.stem)), str(data.get("file", "?")), _keys_of(data))
+
+
+def _keys_of(index: dict) -> list[str]:
+    jobs = index.get("jobs")
+    return [spec["key"] for spec in jobs.values() if isinstance(spec, dict) and "key" in spec] \
+        if isinstance(jobs, dict) else []
 
 
 def kind_times(store: Store, keys: Iterable[str] | None = None) -> list[KindTime]:
