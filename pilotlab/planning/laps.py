@@ -31,27 +31,58 @@ def online_jobs(planner, optimize: Job, combination: dict, hardware: str, timing
 
 def _hinted_lap(planner, brain_key: tuple, name: str, labels: dict, hardware: str, place: tuple[str, str],
                 direction: str, brain: dict, deps: dict, inputs: dict | None = None) -> Job:
-    """The lap, built once per plan; on a circuit longer than the brain's shortest, with the lap there as its
-    `tolerance_hint` (see the module docstring)."""
+    """The lap, built once per plan; a searched lap on a circuit longer than the brain's shortest searched
+    one, with the lap there as its `tolerance_hint` (see the module docstring)."""
     def build() -> Job:
-        scout = scout_circuit(planner, brain_key)
+        searched = is_searched(planner, {**labels, place[0]: place[1], "direction": direction})
+        scout = scout_circuit(planner, brain_key, labels, direction) if searched else None
         hint = {}
         if scout is not None and place[0] == "circuit" and place[1] != scout:
             hint = {"tolerance_hint": _hinted_lap(planner, brain_key, name, labels, hardware, ("circuit", scout),
                                                   direction, brain, deps, inputs)}
-        return _lap(planner, name, labels, hardware, place, direction, brain, {**deps, **hint}, inputs)
+        return _lap(planner, name, labels, hardware, place, direction, brain, {**deps, **hint}, inputs, searched)
     return planner.remembered(("lap", brain_key, place, direction), build)
 
 
-def scout_circuit(planner, brain_key: tuple) -> str | None:
-    """The shortest circuit a brain (("network", model, strategy, hardware), or ("reference", name, hardware))
-    laps when there is a tolerance search and it laps more than one; else None."""
-    if planner.config.online.tolerance is None:
-        return None
-    return planner.remembered(("scouts",), lambda: _scouts(planner)).get(brain_key)
+def is_searched(planner, cell: dict[str, str]) -> bool:
+    """Whether the lap cell ({axis: name}) has a tolerance search: the recipe has one, and `only` (if
+    given) names the cell. Remembers which `only` entries named a cell (check_tolerance_scope)."""
+    tolerance = planner.config.online.tolerance
+    if tolerance is None:
+        return False
+    matched = tolerance.matches(cell)
+    planner.remembered(("tolerance entries matched",), set).update(matched)
+    return bool(matched)
 
 
-def _scouts(planner) -> dict[tuple, str]:
+def check_tolerance_scope(planner) -> None:
+    """Each `online.tolerance.only` entry names some lap cell, else a recipe error at it (a misspelt
+    name would leave the cells it meant unsearched without a word)."""
+    tolerance = planner.config.online.tolerance
+    if tolerance is None or tolerance.only is None:
+        return
+    matched = planner.remembered(("tolerance entries matched",), set)
+    for i, entry in enumerate(tolerance.only):
+        if i not in matched:
+            said = ", ".join(f"{axis}: {'|'.join(names)}" for axis, names in entry.items())
+            raise planner.recipe.error(f"{{{said}}} names no lap cell of the matrix (no lap has all of it); name "
+                                       "cells the matrix drives (model, strategy, hardware, circuit or world, "
+                                       "direction; the reference brains are model `reference`)",
+                                       ["online", "tolerance", "only", i])
+
+
+def scout_circuit(planner, brain_key: tuple, labels: dict, direction: str) -> str | None:
+    """The shortest circuit on which a brain (("network", model, strategy, hardware), or ("reference", name,
+    hardware)) has a searched lap in `direction`, when it laps more than one circuit; else None."""
+    circuits = planner.remembered(("scouts",), lambda: _scouts(planner)).get(brain_key, [])
+    searched = [circuit for circuit in circuits if is_searched(planner, {**labels, "circuit": circuit,
+                                                                         "direction": direction})]
+    return searched[0] if len(searched) > 1 else None
+
+
+def _scouts(planner) -> dict[tuple, list[str]]:
+    """Each brain's circuits, shortest first (by BehaviorMetrics' timeouts, lap_scale), where it laps more
+    than one."""
     circuits: dict[tuple, set[str]] = {}
     for combination in planner.recipe.combinations:
         # one without a model or strategy is refused, with its message, when the planner comes to it
@@ -63,7 +94,7 @@ def _scouts(planner) -> dict[tuple, str]:
         if place[0] == "circuit":
             for reference in planner.config.online.references:
                 circuits.setdefault(("reference", reference_name(reference), hardware), set()).add(place[1])
-    return {key: min(names, key=lambda circuit: (lap_scale(circuit), circuit))
+    return {key: sorted(names, key=lambda circuit: (lap_scale(circuit), circuit))
             for key, names in circuits.items() if len(names) > 1}
 
 
@@ -152,12 +183,12 @@ def reference_brain(planner, reference: str | dict[str, str], index: int) -> tup
 
 
 def _lap(planner, name: str, labels: dict, hardware: str, place: tuple[str, str], direction: str,
-         brain: dict, deps: dict, inputs: dict | None = None) -> Job:
+         brain: dict, deps: dict, inputs: dict | None, searched: bool) -> Job:
     axis, circuit = place
-    # The params of every lap of one (hardware, place, direction, brain) are equal: built once.
-    slot = ("online", hardware, axis, circuit, direction, _brain_slot(brain))
+    # The params of every lap of one (hardware, place, direction, brain, search) are equal: built once.
+    slot = ("online", hardware, axis, circuit, direction, _brain_slot(brain), searched)
     params, circuit_inputs, place_labels = planner.remembered(slot, lambda: _lap_params(
-        planner, hardware, axis, circuit, direction, brain))
+        planner, hardware, axis, circuit, direction, brain, searched))
     return Job("online", f"{name} at {circuit} {direction}", params, deps=deps,
                inputs={**circuit_inputs, **inputs} if inputs else circuit_inputs, labels={**labels, **place_labels})
 
@@ -170,8 +201,9 @@ def _brain_slot(brain: dict) -> str:
     return repr(sorted(brain.items()))
 
 
-def _lap_params(planner, hardware: str, axis: str, circuit: str, direction: str, brain: dict) -> tuple:
-    """(params, inputs, labels) every lap of one hardware, place, direction and brain shares."""
+def _lap_params(planner, hardware: str, axis: str, circuit: str, direction: str, brain: dict,
+                searched: bool) -> tuple:
+    """(params, inputs, labels) every lap of one hardware, place, direction, brain and search shares."""
     if axis == "world":
         params, circuit_inputs = world_param(planner, circuit, ["matrix", "world"])
         labels = {"world": circuit}
@@ -180,6 +212,7 @@ def _lap_params(planner, hardware: str, axis: str, circuit: str, direction: str,
         labels = {}
     online = planner.config.online
     settings = {field: getattr(online, field) for field in LapSettings.model_fields}
+    settings["tolerance"] = online.tolerance.search if searched else None
     profile = planner.profile(hardware)
     spec = OnlineSpec(**settings, **params, **brain, direction=direction, host=profile.host, hardware=profile.as_dict())
     return Params(spec.model_dump(mode="json")), circuit_inputs, {**labels, "circuit": circuit, "direction": direction}

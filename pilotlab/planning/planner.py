@@ -24,7 +24,7 @@ from matrix.jobs import InputFile, Job, Params, input_file
 from matrix.recipe import Recipe
 from pilotlab.errors import PilotlabError
 from pilotlab.planning.checks import check_bag_topics, check_test_set
-from pilotlab.planning.laps import online_jobs, reference_jobs
+from pilotlab.planning.laps import check_tolerance_scope, online_jobs, reference_jobs
 from pilotlab.planning.worlds import world_param
 from pilotlab.recipe import DatasetSpec, ModelSpec, RecordingsSpec
 from pilotlab.specs.base import Spec
@@ -62,6 +62,7 @@ class Planner:
         for combination in self.recipe.combinations:
             jobs += self.combination_jobs(combination)
         jobs += self.reference_jobs()
+        check_tolerance_scope(self)
         return jobs
 
     def combination_jobs(self, combination: dict[str, Any]) -> list[Job]:

@@ -202,6 +202,10 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
     (("matrix:", "online: {directions: [ccw, ccw]}\nmatrix:"), ":11: online.directions: 'ccw' is listed twice"),
     (("matrix:", "online: {timing: lockstep, tolerance: true}\nmatrix:"),
      ":11: online: a latency tolerance search means nothing in the lockstep timing mode"),
+    (("matrix:", "online: {tolerance: {only: [{circut: simple_circuit}]}}\nmatrix:"),
+     ":11: online.tolerance.only: 'circut' is not an axis of a lap cell (did you mean 'circuit'?)"),
+    (("matrix:", "online: {tolerance: {only: [{circuit: simple_circuit}, {strategy: prune_mor}]}}\nmatrix:"),
+     ":11: online.tolerance.only.1: {strategy: prune_mor} names no lap cell of the matrix"),
 ])
 def test_recipe_errors_name_the_line_and_key(tmp_path, edit, message):
     with pytest.raises(RecipeError) as caught:
@@ -434,6 +438,30 @@ def test_a_tolerance_search_on_a_longer_circuit_starts_from_the_shortest_circuit
     assert not any(name.startswith(("online explicit on cpu1", "online expert on cpu1")) for name in laps)
     live = engine.plan_jobs(recipe_at(tmp_path, text + "online: {timing: measured}\n"), DOMAIN)
     assert {"online expert on cpu at montreal cw", "online expert on cpu1 at montreal cw"} <= {j.name for j in live}
+
+
+def test_a_tolerance_search_can_be_kept_to_the_cells_a_recipe_names(tmp_path):
+    """`tolerance: {only: [...]}` searches the lap cells an entry names (the rest drive their laps alone); a
+    searched lap has the same key as with `tolerance: true`, and takes its hint from the brain's shortest
+    searched circuit only."""
+    text = RECIPE.replace("circuit: [simple_circuit]", "circuit: [montreal, simple_circuit]")
+    every = {j.name: j for j in engine.plan_jobs(recipe_at(tmp_path, text + "online: {tolerance: true}\n"), DOMAIN)
+             if j.kind == "online"}
+    only = ("online:\n  tolerance:\n    only: [{circuit: simple_circuit, hardware: cpu},\n"
+            "           {circuit: montreal, strategy: baseline, model: [small, other]}, {model: reference, strategy: expert}]\n")
+    laps = {j.name: j for j in engine.plan_jobs(recipe_at(tmp_path, text + only), DOMAIN) if j.kind == "online"}
+    searched = {name for name, job in laps.items() if job.params["tolerance"] is not None}
+    assert searched == {name for name in laps if " at simple_circuit " in name and " on cpu " in name} | {
+        "online small/baseline on cpu at montreal cw", "online small/baseline on cpu1 at montreal cw",
+        "online other/baseline on cpu at montreal cw", "online other/baseline on cpu1 at montreal cw",
+        "online expert on cpu at montreal cw"}
+    assert all(laps[name].key == every[name].key for name in searched if " on cpu1 " not in name)
+    unsearched = "online small/local_prune on cpu at montreal cw"
+    assert laps[unsearched].params == {**every[unsearched].params, "tolerance": None}
+    hinted = {name for name, job in laps.items() if "tolerance_hint" in job.deps}
+    # cpu1's simple_circuit laps are not searched: its baseline's Montreal search has no searched neighbour
+    assert hinted == {"online small/baseline on cpu at montreal cw", "online other/baseline on cpu at montreal cw",
+                      "online expert on cpu at montreal cw"}
 
 
 def test_a_combination_without_a_model_is_refused_with_its_message_when_laps_take_hints(tmp_path):

@@ -133,6 +133,24 @@ def test_the_montreal_claim_is_judged_from_the_latency_tolerance():
     assert verdict == "not testable here" and "no version faster than the baseline (121 ms)" in found
 
 
+def test_the_montreal_claim_needs_the_baselines_search_alone():
+    """A recipe may search the tolerance on montreal for the baseline alone (`tolerance: {only: ...}`): the
+    faster versions are judged by their own lap, and said to be unsearched; without the baseline's search
+    the claim cannot be judged."""
+    claim = "The original PilotNet"
+    unsearched = lambda strategy, own_ms, completed=True: {
+        **online_row(strategy, lap_completed=completed, mean_inference_ms=own_ms, percentage_completed=37.0),
+        "circuit": "montreal", "hardware": "cpu"}
+    rows = [montreal("baseline", 124.0, None, completed=False, hardware="cpu"), unsearched("onnxruntime", 31.0),
+            unsearched("qat", 45.0, completed=False)]
+    verdict, found = verdicts(rows)[claim]
+    assert verdict == "does not hold"
+    assert "onnxruntime 31 ms, lap completed (its tolerance not searched); qat 45 ms, lap lost at 37 % (its " in found
+    assert verdicts(rows[:2])[claim][0] == "holds"
+    verdict, found = verdicts([unsearched("baseline", 124.0, completed=False), rows[1]])[claim]
+    assert verdict == "not testable here" and "no latency tolerance searched for the baseline's lap" in found
+
+
 def test_the_tf_lite_claims_are_judged_on_the_litert_rows():
     size = "TF Lite dynamic-range quantization makes PilotNet about 4× smaller at about the same MSE."
     full = "Integer-only quantization is unusable for a regression network"
