@@ -20,6 +20,8 @@ HEADING_REACH_M = 3.0     # the direction of travel at a point: over this many m
 MAX_LENGTH_M = 100_000.0  # longer than any race track: a longer lap is a unit error (and 4e5 points)
 MAX_OPEN_GAP = 0.1        # a lap that stops short by more than this share of its length is no lap
 MIN_OPEN_GAP_M = 10.0     # ... and by more than this
+POLYGON_CLOSING = 1.5     # ... unless that gap is no longer than this × its longest segment (a polygon's corners)
+ROUND_ENOUGH = 0.2        # 4πA/L² of a loop that encloses an area for its size (a circle: 1; a line: 0)
 
 
 def drop_repeats(points: np.ndarray, min_step: float = 1e-6) -> np.ndarray:
@@ -117,7 +119,10 @@ def _check_lap(lap: np.ndarray) -> None:
         raise PilotlabError(f"the centreline is {length:.3g} m long, more than {MAX_LENGTH_M:g} m; "
                             "are the coordinates in metres?")
     gap = float(np.linalg.norm(lap[-1] - lap[0]))
-    if gap > MIN_OPEN_GAP_M and gap > MAX_OPEN_GAP * length:
+    # a coarse polygon (a square's four corners) closes with a segment like its others; a recording that
+    # stops short leaves a gap far longer than its steps
+    longest_step = float(np.linalg.norm(np.diff(lap, axis=0), axis=1).max())
+    if gap > MIN_OPEN_GAP_M and gap > MAX_OPEN_GAP * length and gap > POLYGON_CLOSING * longest_step:
         raise PilotlabError(f"the centreline is not a lap: it ends {gap:.1f} m from its start "
                             f"({100 * gap / length:.0f} % of its length); give the points of one whole lap")
 
@@ -128,10 +133,16 @@ def check_loop(points: np.ndarray, road_width: float) -> None:
     if crossing is not None:
         raise PilotlabError(f"the centreline crosses itself near x={crossing[0]:.1f}, y={crossing[1]:.1f} m; "
                             "a circuit is one loop without crossings")
-    length = polyline_length(points, closed=True)
-    if abs(signed_area(points)) < 0.25 * length * road_width:
-        raise PilotlabError("the centreline encloses almost no area (its points lie on one line, or the "
-                            "lap runs back along itself); give the points of a closed lap")
+    length, area = polyline_length(points, closed=True), abs(signed_area(points))
+    if area >= 0.25 * length * road_width:
+        return
+    if 4 * np.pi * area / length ** 2 > ROUND_ENOUGH:
+        span = float(np.ptp(points, axis=0).max())
+        raise PilotlabError(f"the centreline is too small for its {road_width:g} m road: the lap spans {span:.1f} m "
+                            "once smoothed, so the road would cover its inside; give a larger lap (are the "
+                            "coordinates in metres?)")
+    raise PilotlabError("the centreline encloses almost no area (its points lie on one line, or the "
+                        "lap runs back along itself); give the points of a closed lap")
 
 
 def self_intersection(points: np.ndarray) -> np.ndarray | None:

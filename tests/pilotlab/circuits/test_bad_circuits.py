@@ -39,7 +39,14 @@ BAD = {
     "figure eight from its crossing, closed": (lambda: figure_eight(60.0, start=0.0, endpoint=True),
                                                r"crosses itself near x=-?0\.\d, y=-?0\.\d m"),
     "open zig-zag": (lambda: np.array([(10.0 * i, 10.0 * (i % 2)) for i in range(12)]), "is not a lap: it ends 110.5 m from its start"),
+    # outside test: a 2 m circle "encloses almost no area", true but not the point
+    "tiny circle": (lambda: circle(2.0), r"too small for its \d+ m road: the lap spans 3.0 m once smoothed"),
 }
+
+
+def circle(radius: float) -> np.ndarray:
+    t = np.linspace(0, 2 * np.pi, 100, endpoint=False)
+    return np.stack([radius * np.cos(t), radius * np.sin(t)], axis=1)
 
 
 @pytest.mark.parametrize("case", BAD)
@@ -62,5 +69,8 @@ def test_a_binary_csv_names_the_line(tmp_path):
 
 def test_good_circuits_still_pass(tmp_path):
     assert get_circuit("montreal").length > 1000
+    # outside test: a polygon's corners, its first not repeated, were "not a lap" (the closing side not assumed)
+    square = get_circuit(str(write_csv(tmp_path / "square.csv", np.array([(0, 0), (100, 0), (100, 100), (0, 100.0)]))))
+    assert 390 < square.length < 400
     stadium_circuit = get_circuit(str(write_csv(tmp_path / "stadium.csv", stadium())))
     assert stadium_circuit.length > 100
