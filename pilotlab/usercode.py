@@ -30,6 +30,7 @@ import inspect
 import os.path
 import sys
 import sysconfig
+import textwrap
 import traceback
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
@@ -214,13 +215,33 @@ def _import_error(code: UserCode, error: BaseException) -> UserCodeError:
     return UserCodeError(error_line(error, code.where) + f" (importing {code.spec})")
 
 
-def defined_at(function: Callable, where: str) -> str:
-    """`file:line` where the user's `function` is defined (a wrong value it returned has no line of its
-    own), else `where`."""
+def returned_at(function: Callable, where: str) -> str:
+    """Where the user's `function` returned a wrong value (the value has no line of its own): `file:line` of
+    its one return statement; of its def, saying its returns' lines when it has several, or that it has
+    none (so it returned None); else `where`."""
     try:
-        return f"{inspect.getsourcefile(function)}:{inspect.getsourcelines(function)[1]}"
-    except (TypeError, OSError):
+        lines, first = inspect.getsourcelines(function)
+        file = inspect.getsourcefile(function)
+        tree = ast.parse(textwrap.dedent("".join(lines)))
+    except (TypeError, OSError, SyntaxError):
         return where
+    returns = sorted(first - 1 + line for line in _return_lines(tree.body[0])) if tree.body else []
+    if len(returns) == 1:
+        return f"{file}:{returns[0]}"
+    said = f"returns at lines {', '.join(map(str, returns))}" if returns else "no return statement: it returns None"
+    return f"{file}:{first} ({said})"
+
+
+def _return_lines(function: ast.AST) -> list[int]:
+    """The lines of `function`'s own return statements (not those of functions or classes inside it)."""
+    found, todo = [], list(ast.iter_child_nodes(function))
+    while todo:
+        node = todo.pop()
+        if isinstance(node, ast.Return):
+            found.append(node.lineno)
+        if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda, ast.ClassDef)):
+            todo.extend(ast.iter_child_nodes(node))
+    return found
 
 
 def error_line(error: BaseException, where: str) -> str:

@@ -267,6 +267,6 @@ class UserBrain:
             v = w = float("nan")
         if not (np.isfinite(v) and np.isfinite(w)):
             from pilotlab import usercode
-            raise PilotlabError(f"{usercode.defined_at(self.brain.act, self.spec)}: act returned {command!r}; it "
+            raise PilotlabError(f"{usercode.returned_at(self.brain.act, self.spec)}: act returned {command!r}; it "
                                 f"must return (v, w), two finite numbers (m/s and rad/s) (in {self.spec}.act)")
         return v, w

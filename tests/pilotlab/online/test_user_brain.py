@@ -40,10 +40,17 @@ BROKEN = {
     "act raises": ("class B:\n    def act(self, image):\n        return 1 / 0\n",
                    ":3: ZeroDivisionError: division by zero (in brains/bad.py:B.act)"),
     "act returns one number": ("class B:\n    def act(self, image):\n        return 5.0\n",
-                               ":2: act returned 5.0; it must return (v, w)"),
+                               "bad.py:3: act returned 5.0; it must return (v, w)"),
     "act returns text": ("class B:\n    def act(self, image):\n        return '5', '0'\n",
-                         ":2: act returned ('5', '0'); it must return (v, w), two finite numbers (m/s and rad/s) "
+                         "bad.py:3: act returned ('5', '0'); it must return (v, w), two finite numbers (m/s and rad/s) "
                          "(in brains/bad.py:B.act)"),
+    # outside test: a wrong value was said at act's def line; its return statement is the line to look at
+    "act returns None on a branch": ("class B:\n    def act(self, image):\n        if image is None:\n"
+                                     "            return 1.0, 0.0\n        v = 2.0\n        return v\n",
+                                     "brains/bad.py:2 (returns at lines 4, 6): act returned 2.0"),
+    "act without return": ("class B:\n    def act(self, image):\n        def inner():\n            return 1.0, 0.0\n"
+                           "        inner()\n",
+                           "brains/bad.py:2 (no return statement: it returns None): act returned None"),
     "no act": ("class B:\n    def drive(self, image):\n        return 5.0, 0.0\n", "brains/bad.py:B: has no act(image)"),
     "constructor raises": ("class B:\n    def __init__(self):\n        raise ValueError('no weights')\n",
                            ":3: ValueError: no weights (making brains/bad.py:B)"),
