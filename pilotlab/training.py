@@ -36,6 +36,10 @@ from pilotlab.specs.train import Precision
 PRECISIONS = typing.get_args(Precision)
 
 
+class Diverged(PilotlabError):
+    """The loss became NaN or infinite while training: a learning rate too high, most often."""
+
+
 @dataclass(frozen=True)
 class FitConfig:
     """How one fit runs. The train job's settings and their defaults are pilotlab.specs.train.TrainSpec;
@@ -120,7 +124,7 @@ class _Epochs:
                                     "any training step: check its forward pass and initialisation (a NaN or "
                                     "infinity in its output)")
             if not math.isfinite(losses[-1]):
-                raise PilotlabError(f"training diverged: the loss is {losses[-1]} at epoch {epoch}, batch {b + 1} "
+                raise Diverged(f"training diverged: the loss is {losses[-1]} at epoch {epoch}, batch {b + 1} "
                                     f"of {batches}; lower the learning rate (lr {self.config.lr:g}) and run again")
             if on_batch:
                 on_batch(epoch, b + 1, batches, losses[-1])
@@ -228,7 +232,7 @@ def _fit_epochs(model: nn.Module, train: FrameSet, ranges: LabelRanges, config: 
         if val is not None and len(val):
             scores = evaluate(model, val, ranges, frames=config.frames)
             if not math.isfinite(scores["mse"]):
-                raise PilotlabError(f"training diverged: the validation loss is {scores['mse']} after epoch {epoch}; "
+                raise Diverged(f"training diverged: the validation loss is {scores['mse']} after epoch {epoch}; "
                                     f"lower the learning rate (lr {config.lr:g}) and run again")
             row.update(val_loss=scores["mse"], val_mse_v=scores["mse_v"], val_mse_w=scores["mse_w"])
             best.update(model, row)

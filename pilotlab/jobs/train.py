@@ -31,7 +31,7 @@ from pilotlab.data.split import Split, split_validation
 from pilotlab.errors import PilotlabError
 from pilotlab.models import build_model, input_frames, make_config, save_checkpoint
 from pilotlab.specs.train import TrainSpec
-from pilotlab.training import FitConfig, evaluate, fit, mean_predictor_mse
+from pilotlab.training import Diverged, FitConfig, evaluate, fit, mean_predictor_mse
 
 
 def load_frames(ctx: JobContext) -> tuple[FrameSet, dict[str, Any]]:
@@ -156,8 +156,11 @@ def run_train(ctx: JobContext) -> dict[str, Any]:
     model, arch, config, fit_config, origin = make_model(ctx, p, preprocess)
     on_batch, on_epoch = progress_callbacks(ctx, p.epochs)
     started = time.perf_counter()
-    history = fit(model, train, ranges, fit_config, val=val, on_epoch=on_epoch, on_batch=on_batch) if p.trains \
-        else []
+    try:
+        history = fit(model, train, ranges, fit_config, val=val, on_epoch=on_epoch, on_batch=on_batch) if p.trains \
+            else []
+    except Diverged as error:   # the setting to change is the recipe's, which the fit does not know
+        raise PilotlabError(f"{error} (models.{ctx.name.removeprefix('train ')}.lr in the recipe)") from None
     result = {**summarise(model, history, data, train, val, split, ranges, fit_config, time.perf_counter() - started),
               "source": origin, "trained": p.trains, "epoch_seconds": [row.get("seconds") for row in history]}
     if warnings := data_warnings(len(train), len(val), p.trains):

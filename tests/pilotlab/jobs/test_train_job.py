@@ -99,6 +99,14 @@ def test_train_job_params_are_checked(tmp_path, frames_deps):
         KINDS.get("train").handler(context(tmp_path, "train", "t2", {"labels": {"v": [1, 1], "w": [-1, 1]}}, deps=deps))
 
 
+def test_a_diverging_training_names_the_recipe_key_to_change(tmp_path, frames_deps):
+    """Outside test: "lower the learning rate (lr 100)" left the user to find which one."""
+    ctx = context(tmp_path, "train", "train small", {"epochs": 1, "batch_size": 8, "lr": 100, "val_fraction": 0.25},
+                  deps={"frames": tuple(dep for dep, _ in frames_deps)})
+    with pytest.raises(PilotlabError, match=r"training diverged: .*lower the learning rate \(lr 100\) and run again "
+                                            r"\(models.small.lr in the recipe\)$"):
+        KINDS.get("train").handler(ctx)
+
 
 def test_training_runs_alone_on_every_core(tmp_path, frames_deps):
     from pilotlab.hardware import cpu_count
