@@ -15,6 +15,7 @@ import math
 import os
 import shutil
 import tempfile
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,7 +31,7 @@ from pilotlab.worlds.raster import Grid, colour_raster, fill, signed_distance
 from pilotlab.worlds.scene import Layer, split_scene
 from pilotlab.worlds.sdf import WorldFile, read_world
 
-CACHE_VERSION = 6
+CACHE_VERSION = 7
 CACHE_ENV = "PILOTLAB_CACHE"
 # Gazebo lights BM's lambert materials by the scene's ambient (1.0) times a share (they declare no
 # ambient colour of their own) plus the sun's diffuse term; 0.4 is pilotlab's estimate of that share.
@@ -150,7 +151,12 @@ def load_world(name: str, assets=None) -> BMWorld:
     entry = cache_root() / f"{name}-{digest[:16]}-v{CACHE_VERSION}"
     if not (entry / "meta.json").is_file():
         _store(build_world(parsed, digest), entry)
-    world = _read(entry)
+    try:
+        world = _read(entry)
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile):   # damaged from outside (a full disk, a partial copy)
+        shutil.rmtree(entry, ignore_errors=True)                  # (JSONDecodeError is a ValueError)
+        _store(build_world(parsed, digest), entry)
+        world = _read(entry)
     # where it was found this time (not part of the cached content)
     world.meta["assets"] = str(parsed.path.parent.parent)
     world.meta["circuit"] = circuit_of(parsed.name, parsed.path)
@@ -238,18 +244,39 @@ def _normals(points: np.ndarray) -> np.ndarray:
 
 def measure_road_width(grid: Grid, labels: np.ndarray, centreline: np.ndarray, layers: list[Layer]) -> float:
     """Median width, across the centreline, of what is neither the void nor the surrounding ground: the
-    largest layer (the grass), unless that is what the centreline runs on (BM's white_road has no grass).
-    The car's centre must stay within it."""
-    largest = 1 + max(range(len(layers)), key=lambda i: layers[i].area)
-    outside = {0} if np.mean(_sample(grid, labels, centreline) == largest) > 0.5 else {0, largest}
-    steps = np.arange(0.0, 15.0, grid.resolution / 2)
+    largest layer besides the road's own (the grass), where it is one of the world's large layers
+    (LARGE_SHARE; BM's white_road has none: its road lies in the void). The car's centre must stay within it. (Not merely
+    the largest layer: many_curves' asphalt is larger than its grass, and its road measured 0.175 m, the
+    red line alone.)"""
     normal, points = _normals(centreline)[::5], centreline[::5]
+    road = beside_the_line(grid, labels, points, normal)
+    others = [i + 1 for i in range(len(layers)) if i + 1 != road]
+    grass = max(others, key=lambda label: layers[label - 1].area, default=None)
+    large = grass is not None and layers[grass - 1].area >= LARGE_SHARE * layers[road - 1].area if road else False
+    outside = {0, grass} if large else {0}
+    steps = np.arange(0.0, 15.0, grid.resolution / 2)
     widths = []
     for sign in (1, -1):
         samples = _sample(grid, labels, points[:, None, :] + sign * steps[None, :, None] * normal[:, None, :])
         off = np.isin(samples, list(outside))
         widths.append(steps[np.where(off.any(axis=1), off.argmax(axis=1), len(steps) - 1)])
     return float(np.median(widths[0] + widths[1]))
+
+
+# the grass: a layer of at least this share of the road's area (white_road's largest besides its road is a
+# grey strip of 7 %: its road lies in the void)
+LARGE_SHARE = 0.25
+ROAD_SAMPLE_M = 1.0   # beside the red line (0.1-0.2 m wide), within the road's half width (1.6-1.7 m)
+
+
+def beside_the_line(grid: Grid, labels: np.ndarray, points: np.ndarray, normal: np.ndarray) -> int | None:
+    """The label most often found ROAD_SAMPLE_M either side of the centreline (the road's layer), or None."""
+    near = np.concatenate([_sample(grid, labels, points + sign * ROAD_SAMPLE_M * normal) for sign in (1, -1)])
+    near = near[near != 0]
+    if not len(near):
+        return None
+    values, counts = np.unique(near, return_counts=True)
+    return int(values[np.argmax(counts)])
 
 
 def _solids(solids, lighting: Lighting) -> tuple[np.ndarray, np.ndarray]:

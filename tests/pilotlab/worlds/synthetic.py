@@ -143,8 +143,10 @@ MODEL_SDF = """<?xml version="1.0"?>
 """
 
 
-def write_world(root: Path, sun: bool = True) -> Path:
-    """Write the assets folder (worlds/oval.world + worlds/oval_no_sun.world, models/...) under `root`."""
+def write_world(root: Path, sun: bool = True, grass_beside: float | None = None) -> Path:
+    """Write the assets folder (worlds/oval.world + worlds/oval_no_sun.world, models/...) under `root`; with
+    `grass_beside`, the grass is two strips that wide beside the road (less area than the road's, as in BM's
+    many_curves), not a band under it."""
     points = centreline()
     meshes = root / "models" / "oval" / "meshes"
     meshes.mkdir(parents=True, exist_ok=True)
@@ -157,7 +159,9 @@ def write_world(root: Path, sun: bool = True) -> Path:
     texture = np.random.default_rng(0).integers(60, 100, (64, 64, 3)).astype(np.uint8)
     cv2.imwrite(str(meshes / "asphalt.png"), texture)
     offset = np.array([*NODE_OFFSET_M, 0.0])
-    track = [(band(points, GRASS_M, -GRASS_M, 0.0), "4f7a3a", None),
+    grass = [(band(points, GRASS_M, -GRASS_M, 0.0), "4f7a3a", None)] if grass_beside is None else \
+        [(band(points, sign * (ROAD_M / 2 + grass_beside), sign * ROAD_M / 2, 0.0), "4f7a3a", None) for sign in (1, -1)]
+    track = [*grass,
              (band(points, ROAD_M / 2, -ROAD_M / 2, 0.0), "ffffff", "asphalt.png"),
              (band(points, LINE_M / 2, -LINE_M / 2, 0.002), "ff0000", None)]
     inches = [((to_model(t) - offset) / INCH, colour, tex) for t, colour, tex in track]

@@ -12,7 +12,7 @@ from pilotlab.worlds import load_world
 from pilotlab.worlds.assets import resolve_assets, world_names
 from pilotlab.worlds.collada import read_mesh
 from pilotlab.worlds.sdf import read_world
-from tests.pilotlab.worlds.synthetic import LINE_M, ROAD_M, centreline
+from tests.pilotlab.worlds.synthetic import LINE_M, ROAD_M, centreline, write_world
 
 
 def test_world_names_and_parse(oval_assets):
@@ -50,6 +50,24 @@ def test_world_layers_line_road_width_and_lighting(oval_assets):
     assert dark.colour[ground].mean() < world.colour[ground].mean() * 0.6   # no sun: only the ambient light
     camera = world.camera()
     assert camera.level and camera.height_m == pytest.approx(0.104) and camera.lateral_m == 0.04
+
+
+def test_the_road_is_measured_where_the_grass_is_smaller_than_the_road(tmp_path):
+    """Outside test: BM's many_curves has more asphalt than grass; the largest layer was taken for the grass
+    and its road measured 0.175 m (the red line), so every lap left the road at once."""
+    world = load_world("oval", write_world(tmp_path / "assets", grass_beside=0.8))
+    assert world.road_width == pytest.approx(ROAD_M, abs=0.2)
+
+
+def test_a_damaged_cache_entry_is_built_again(oval_assets, tmp_path, monkeypatch):
+    """Outside test: a truncated arrays.npz or meta.json (a full disk, a partial copy) was a traceback."""
+    monkeypatch.setenv("PILOTLAB_CACHE", str(tmp_path / "cache"))
+    first = load_world("oval", oval_assets)
+    entry = next((tmp_path / "cache").glob("**/arrays.npz")).parent
+    (entry / "arrays.npz").write_bytes((entry / "arrays.npz").read_bytes()[:100])
+    assert load_world("oval", oval_assets).road_width == first.road_width
+    (entry / "meta.json").write_text("{")
+    assert load_world("oval", oval_assets).digest == first.digest
 
 
 def test_cache_is_keyed_by_content(oval_assets, tmp_path):
