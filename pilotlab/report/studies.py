@@ -215,14 +215,15 @@ def _lap_said(row: ReportRow) -> str:
 STUDY_BASELINE_MS = 124.0   # the original PilotNet's inference time in the study's closed loop
 
 
-def _tolerance_cells(data: ReportData, circuit: str) -> dict[str, dict[str, ReportRow]]:
-    """hardware -> strategy -> its network lap on `circuit`, on the profiles where the baseline's latency
-    tolerance was searched there (the other strategies' laps with or without a search of their own)."""
-    cells: dict[str, dict[str, ReportRow]] = {}
+def _tolerance_cells(data: ReportData, circuit: str) -> dict[tuple[str, str], dict[str, ReportRow]]:
+    """(hardware, direction) -> strategy -> its network lap on `circuit` in that direction, where the
+    baseline's latency tolerance was searched there (the other strategies' laps with or without a search
+    of their own; a direction is compared with itself)."""
+    cells: dict[tuple[str, str], dict[str, ReportRow]] = {}
     for r in data.of_kind("online"):
         if r.status == "ok" and r.circuit == circuit and r.model != "reference" and _is_its_name(r):
-            cells.setdefault(r.hardware, {})[r.strategy] = r
-    return {hardware: rows for hardware, rows in cells.items() if "baseline" in rows and rows["baseline"].tolerance}
+            cells.setdefault((r.hardware, r.direction or ""), {})[r.strategy] = r
+    return {place: rows for place, rows in cells.items() if "baseline" in rows and rows["baseline"].tolerance}
 
 
 def _budget(row: ReportRow) -> tuple[float | None, str]:
@@ -251,9 +252,12 @@ def montreal_is_hard(data: ReportData) -> ClaimCheck:
     if not cells:
         return _untestable(claim, "no latency tolerance searched for the baseline's lap on montreal (laps at this "
                                   "host's latency alone cannot say what 124 ms would do)")
-    # The profile that gives the baseline the study's latency if there is one, else the first.
-    hardware = min(cells, key=lambda h: abs((cells[h]["baseline"].get("mean_inference_ms") or 0) - STUDY_BASELINE_MS))
-    rows, base = cells[hardware], cells[hardware]["baseline"]
+    # The profile that gives the baseline the study's latency if there is one, else the first; its first
+    # direction (cw before ccw)
+    place = min(cells, key=lambda p: (abs((cells[p]["baseline"].get("mean_inference_ms") or 0) - STUDY_BASELINE_MS),
+                                      p[1] != "cw", p))
+    rows, base = cells[place], cells[place]["baseline"]
+    hardware = f"{place[0]} (montreal {place[1]})" if place[1] else place[0]
     budget, said = _budget(base)
     base_loses = budget is None or budget < STUDY_BASELINE_MS
     own = base.get("mean_inference_ms") or 0.0

@@ -115,7 +115,7 @@ def test_the_montreal_claim_is_judged_from_the_latency_tolerance():
             montreal("onnxruntime", 31.0, 60.0), montreal("qat", 45.0, 35.0),
             montreal("baseline", 2.2, 90.0, hardware="cpu")]
     verdict, found = verdicts(lost)[claim]
-    assert verdict == "holds" and found.startswith("on study2022: baseline 124 ms, lost even at that "
+    assert verdict == "holds" and found.startswith("on study2022 (montreal cw): baseline 124 ms, lost even at that "
                                                    "(BehaviorMetrics: 43 % completed, deviation MAE 812)")
     assert "onnxruntime 31 ms, keeps it up to 91 ms in all (+60 ms)" in found
     # This host: the baseline keeps Montreal up to 2.2 + 150 ms, beyond the study's 124 ms.
@@ -149,6 +149,11 @@ def test_the_montreal_claim_needs_the_baselines_search_alone():
     assert verdicts(rows[:2])[claim][0] == "holds"
     verdict, found = verdicts([unsearched("baseline", 124.0, completed=False), rows[1]])[claim]
     assert verdict == "not testable here" and "no latency tolerance searched for the baseline's lap" in found
+    # outside test: with two directions and the baseline searched in cw alone, its unsearched ccw lap
+    # replaced it (not testable); each direction is compared with itself
+    ccw = [{**row, "direction": "ccw", "tolerance": []} for row in rows]
+    verdict, found = verdicts(rows + ccw)[claim]
+    assert verdict == "does not hold" and found.startswith("on cpu (montreal cw): baseline 124 ms")
 
 
 def test_the_tf_lite_claims_are_judged_on_the_litert_rows():
