@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from matrix.errors import MatrixError
+from matrix.errors import MatrixError, did_you_mean
 from matrix.jobs import Job, Params, input_file
 from pilotlab.circuits.registry import lap_scale
 from pilotlab.planning.worlds import world_param
@@ -46,29 +46,65 @@ def _hinted_lap(planner, brain_key: tuple, name: str, labels: dict, hardware: st
 
 def is_searched(planner, cell: dict[str, str]) -> bool:
     """Whether the lap cell ({axis: name}) has a tolerance search: the recipe has one, and `only` (if
-    given) names the cell. Remembers which `only` entries named a cell (check_tolerance_scope)."""
-    tolerance = planner.config.online.tolerance
+    given) names the cell. Remembers the cells' names and which `only` entries named one
+    (check_tolerance_scope)."""
+    tolerance = tolerance_scope(planner)
     if tolerance is None:
         return False
+    seen = planner.remembered(("lap cell names",), dict)
+    for axis, name in cell.items():
+        seen.setdefault(axis, set()).add(name)
     matched = tolerance.matches(cell)
     planner.remembered(("tolerance entries matched",), set).update(matched)
     return bool(matched)
 
 
+def tolerance_scope(planner):
+    """The recipe's tolerance search with `only`'s model and strategy names as the plan names their laps:
+    a name with the same definition as another is planned as the first of them (matrix.grid)."""
+    def canonical():
+        tolerance = planner.config.online.tolerance
+        if tolerance is None or tolerance.only is None:
+            return tolerance
+        first = {value: values[0] for axis in ("model", "strategy") for values in planner.recipe.grid.members.get(axis, ())
+                 for value in values}
+        only = [{axis: [first.get(name, name) if axis in ("model", "strategy") else name for name in names]
+                 for axis, names in entry.items()} for entry in tolerance.only]
+        return tolerance.model_copy(update={"only": only})
+    return planner.remembered(("tolerance scope",), canonical)
+
+
 def check_tolerance_scope(planner) -> None:
-    """Each `online.tolerance.only` entry names some lap cell, else a recipe error at it (a misspelt
-    name would leave the cells it meant unsearched without a word)."""
-    tolerance = planner.config.online.tolerance
+    """Each name in `online.tolerance.only` is one a lap of the matrix has, and each entry names some lap
+    cell, else a recipe error at it (a misspelt name would leave the cells it meant unsearched without a
+    word)."""
+    tolerance = tolerance_scope(planner)
     if tolerance is None or tolerance.only is None:
         return
-    matched = planner.remembered(("tolerance entries matched",), set)
-    for i, entry in enumerate(tolerance.only):
+    seen, matched = planner.remembered(("lap cell names",), dict), planner.remembered(("tolerance entries matched",), set)
+    for i, (entry, given) in enumerate(zip(tolerance.only, planner.config.online.tolerance.only)):
+        for axis, names in entry.items():
+            for name, said in zip(names, given[axis]):
+                if name not in seen.get(axis, ()):
+                    known = sorted(seen.get(axis, ()))
+                    raise planner.recipe.error(
+                        f"{axis} {said!r} names no lap of the matrix{did_you_mean(said, known)}; its laps' {axis} "
+                        f"names: {', '.join(known) or 'none'}{_naming_hint(axis, seen)}", ["online", "tolerance", "only", i, axis])
         if i not in matched:
-            said = ", ".join(f"{axis}: {'|'.join(names)}" for axis, names in entry.items())
+            said = ", ".join(f"{axis}: {'|'.join(names)}" for axis, names in given.items())
             raise planner.recipe.error(f"{{{said}}} names no lap cell of the matrix (no lap has all of it); name "
-                                       "cells the matrix drives (model, strategy, hardware, circuit or world, "
-                                       "direction; the reference brains are model `reference`)",
+                                       "cells the matrix drives (the reference brains are model `reference`, driven "
+                                       "on the first CPU profile of each circuit when their laps are replayed)",
                                        ["online", "tolerance", "only", i])
+
+
+def _naming_hint(axis: str, seen: dict) -> str:
+    """Where a name is on another axis than the user looked."""
+    if axis == "circuit" and seen.get("world"):
+        return "; laps in a BehaviorMetrics world are named by `world`"
+    if axis == "model":
+        return "; the reference brains are model `reference`"
+    return ""
 
 
 def scout_circuit(planner, brain_key: tuple, labels: dict, direction: str) -> str | None:

@@ -205,7 +205,17 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
     (("matrix:", "online: {tolerance: {only: [{circut: simple_circuit}]}}\nmatrix:"),
      ":11: online.tolerance.only: 'circut' is not an axis of a lap cell (did you mean 'circuit'?)"),
     (("matrix:", "online: {tolerance: {only: [{circuit: simple_circuit}, {strategy: prune_mor}]}}\nmatrix:"),
-     ":11: online.tolerance.only.1: {strategy: prune_mor} names no lap cell of the matrix"),
+     ":11: online.tolerance.only.1.strategy: strategy 'prune_mor' names no lap of the matrix (did you mean "
+     "'prune_more'?); its laps' strategy names: baseline, expert, explicit, local_prune, prune_more"),
+    # outside test: a misspelt name beside a right one in a list was taken in silence
+    (("matrix:", "online:\n  tolerance:\n    only:\n      - {circuit: [simple_circuit, montrael]}\nmatrix:"),
+     ":14: online.tolerance.only.0.circuit: circuit 'montrael' names no lap of the matrix"),
+    (("matrix:", "online: {tolerance: {only: [{model: explicit}]}}\nmatrix:"),
+     "its laps' model names: other, reference, small; the reference brains are model `reference`"),
+    (("matrix:", "online: {tolerance: {only: [{model: small, strategy: prune_more, hardware: cpu1}, {model: reference, "
+                 "hardware: cpu1}]}}\nmatrix:"),
+     ":11: online.tolerance.only.1: {model: reference, hardware: cpu1} names no lap cell of the matrix (no lap has all "
+     "of it); name cells the matrix drives (the reference brains are model `reference`, driven on the first CPU"),
 ])
 def test_recipe_errors_name_the_line_and_key(tmp_path, edit, message):
     with pytest.raises(RecipeError) as caught:
@@ -462,6 +472,16 @@ def test_a_tolerance_search_can_be_kept_to_the_cells_a_recipe_names(tmp_path):
     # cpu1's simple_circuit laps are not searched: its baseline's Montreal search has no searched neighbour
     assert hinted == {"online small/baseline on cpu at montreal cw", "online other/baseline on cpu at montreal cw",
                       "online expert on cpu at montreal cw"}
+
+
+def test_a_tolerance_entry_may_name_a_strategy_planned_as_another(tmp_path):
+    """Outside test: `dq2: {use: dynamic_quant}` is planned as dynamic_quant (one definition), and
+    `only: [{strategy: dq2}]` named no lap cell; it names the laps it is planned as."""
+    text = RECIPE.replace("strategy: [baseline, local_prune, prune_more]", "strategy: [baseline, local_prune, again]").replace(
+        "  prune_more: {use: local_prune, conv: 0.5}\n", "  again: {finetune_epochs: 1, use: local_prune}\n")
+    laps = [j for j in engine.plan_jobs(recipe_at(tmp_path, text + "online: {tolerance: {only: [{strategy: again}]}}\n"),
+                                        DOMAIN) if j.kind == "online" and j.params["tolerance"] is not None]
+    assert laps and {job.labels["strategy"] for job in laps} == {"local_prune"}
 
 
 def test_a_combination_without_a_model_is_refused_with_its_message_when_laps_take_hints(tmp_path):
