@@ -143,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
                TextColumn("{task.completed:.0f}/{task.total:.0f} m"), TimeElapsedColumn())
     created = not args.out.exists()
     try:
-        with Progress(*columns) as progress:
+        with Progress(*columns, transient=True) as progress:   # its last line named the last lap driven
             task = progress.add_task("starting", total=1.0)
             result = evaluate_online(brain, spec, args.out, lambda done, total, what: progress.update(
                 task, completed=done, total=total, description=what), latency_ms=samples,
@@ -158,11 +158,26 @@ def run(args: argparse.Namespace) -> int:
     (args.out / "result.json").write_text(json.dumps(result, indent=1))
     console = Console()
     for name, value in pick_metrics(result).items():
-        if value is None:   # not measured (a reference brain's inference time): said nowhere, as in the report
-            continue
+        if value is None or name == "latency_tolerance_ms":   # None: not measured (a reference brain's inference
+            continue                                           # time), said nowhere, as in the report
         console.print(f"  {name:28s} {value:.4g}" if isinstance(value, float) else f"  {name:28s} {value}")
+    console.print(f"  {'termination':28s} " + "; ".join(f"{run['termination']} after {run['sim_seconds']:.1f} s"
+                                                      for run in result.get("runs", [])))
+    if spec.tolerance is not None:
+        console.print(f"  {'latency_tolerance_ms':28s} {tolerance_said(result, spec.tolerance.max_ms)}")
     if spec.extra_latency_ms and result.get("latency_tolerance_ms") is not None:
         console.print(f"  (the latency tolerance is on top of --extra-latency-ms {spec.extra_latency_ms:g}: the lap is "
                       f"still completed with {spec.extra_latency_ms + result['latency_tolerance_ms']:g} ms injected in all)")
     console.print(f"wrote {args.out / result['trajectory']} and {args.out / 'result.json'}")
     return 0
+
+
+def tolerance_said(result: dict, max_ms: float) -> str:
+    """The search's answer in words: the tolerance, "≥" it when never lost, or that the lap was lost with
+    nothing injected (the result's latency_tolerance_ms is then null)."""
+    found = result.get("latency_tolerance_ms")
+    if found is None:
+        return "none: the lap is lost with nothing injected"
+    if result.get("tolerance_at_least"):
+        return f"≥ {found:g} (still completed at the search's largest, max_ms {max_ms:g})"
+    return f"{found:g}"

@@ -98,6 +98,16 @@ def test_a_tolerance_on_top_of_an_extra_latency_says_so(tmp_path, capsys):
     tolerance = json.loads((out / "result.json").read_text())["latency_tolerance_ms"]
     shown = " ".join(capsys.readouterr().out.split())
     assert f"on top of --extra-latency-ms 50: the lap is still completed with {50 + tolerance:g} ms injected in all" in shown
+    assert f"latency_tolerance_ms {tolerance:g}" in shown and "termination lap_completed after" in shown
+
+
+def test_the_tolerance_is_said_when_the_lap_is_lost_at_once_or_never():
+    """Outside test: a lap lost with nothing injected printed no tolerance line (null in result.json), and a
+    tolerance never lost in the searched range printed no "≥"."""
+    from pilotlab.cli.drive import tolerance_said
+    assert tolerance_said({"latency_tolerance_ms": None}, 1000) == "none: the lap is lost with nothing injected"
+    assert tolerance_said({"latency_tolerance_ms": 1000.0, "tolerance_at_least": True}, 1000).startswith("≥ 1000")
+    assert tolerance_said({"latency_tolerance_ms": 70.0}, 1000) == "70"
 
 
 def test_verbose_shows_the_frames_of_a_brain_that_failed(tmp_path, capsys, monkeypatch):
