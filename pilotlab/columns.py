@@ -92,8 +92,9 @@ BEHAVIORMETRICS = (
 
 # The latency tolerance search of a lap cell (pilotlab.online.tolerance).
 TOLERANCE = (
-    Column("latency_tolerance_ms", "ms", "largest injected latency (10 ms steps, 0-1000 ms) at which the lap is "
-           "still completed", "higher"),
+    Column("latency_tolerance_ms", "ms", "largest injected latency (on the search's grid: step_ms up to max_ms, 10 "
+           "and 1000 ms by default) at which the lap is still completed; none where the lap is lost with nothing "
+           "injected, or was not searched (results.csv: latency_tolerance_searched)", "higher"),
 )
 
 BY_NAME = {c.name: c for c in OFFLINE + ONLINE + BEHAVIORMETRICS + TOLERANCE}

@@ -250,7 +250,9 @@ class ReportRow(_Frozen):
                 repeated |= {f"{name}_std": spread.std, f"{name}_min": spread.min, f"{name}_max": spread.max}
         unstable = {f"{name}_unstable": self.unstable_reason(name) for name in TIMED}
         cpu_time = {f"{name}_cpu_time": self.cpu_time_reason(name) for name in TIMED}
-        return {**base, **{name: self.get(name) for name in BY_NAME}, **unstable, **cpu_time, **repeated}
+        # last, so the earlier columns keep their places; "lost at 0" and "not searched" both leave the tolerance empty
+        searched = {"latency_tolerance_searched": bool(self.tolerance) if self.kind == "online" else None}
+        return {**base, **{name: self.get(name) for name in BY_NAME}, **unstable, **cpu_time, **repeated, **searched}
 
 
 class ReportData(_Frozen):

@@ -3,7 +3,7 @@ import math
 import pytest
 
 from pilotlab.report import Host, ReportData, ReportDataError, package_versions, pick_metrics, pick_spread
-from tests.pilotlab.report.toy import offline_row, repeated_rows, small_dict
+from tests.pilotlab.report.toy import offline_row, online_row, repeated_rows, small_dict
 
 
 def test_metrics_may_be_flat_or_nested_and_unmeasured_ones_are_absent():
@@ -58,6 +58,15 @@ def test_flat_row_has_every_metric_column_with_none_when_unmeasured():
     flat = data.rows[0].flat()
     assert flat["mse"] == 0.07 and flat["latency_ms"] is None and flat["average_speed"] is None
     assert flat["status"] == "ok" and flat["test_set"] == "simple_circuit"
+    assert flat["latency_tolerance_searched"] is None and list(flat)[-1] == "latency_tolerance_searched"
+
+
+def test_a_lap_lost_at_once_and_a_lap_not_searched_are_told_apart_in_the_results():
+    """Outside test: both left latency_tolerance_ms empty in results.csv, with nothing else to tell them apart."""
+    lost = {**online_row(lap_completed=False), "tolerance": [{"injected_ms": 0.0, "lap_completed": False}]}
+    data = ReportData.from_dict(small_dict([lost, online_row("qat")]))
+    assert [row.flat()["latency_tolerance_searched"] for row in data.rows] == [True, False]
+    assert all(row.flat()["latency_tolerance_ms"] is None for row in data.rows)
 
 
 def test_host_and_versions_describe_this_machine():
