@@ -285,9 +285,10 @@ def _precision_note(points) -> str:
 def draw_world_shift(data: ReportData):
     """Per model: for each world (the training world first) and strategy, a bar of the offline MSE over
     the training world's (left) and of BM's deviation over the training world's (right); a hatched bar
-    is a lap that was not completed. None when no world shifted."""
+    is a lap that was not completed. None when no world shifted, or none was evaluated in its training world
+    (nothing to divide by: it drew two empty panels)."""
     cells = world_cells(data)
-    if not any(not c.training for c in cells):
+    if not any(not c.training for c in cells) or not any(c.training for c in cells):
         return None
     models = [m for m in data.models() if any(c.model == m for c in cells)]
     colours = strategy_colours(data)

@@ -118,8 +118,9 @@ def shift_summary(data: ReportData) -> list[str]:
             shifted = [c for c in cells if c.model == model and c.strategy == strategy and not c.training]
             if not shifted:
                 continue
-            ratios = [r for c in shifted if (r := ratio(c.metric("mse"), (training_cell(cells, c) or c).metric("mse")))
-                      is not None and not c.training]
+            # (no training-world cell: nothing to divide by; it divided each world's MSE by itself, 1.00×)
+            ratios = [r for c in shifted if (home_cell := training_cell(cells, c)) is not None
+                      and (r := ratio(c.metric("mse"), home_cell.metric("mse"))) is not None]
             laps = [c.metric("lap_completed") for c in shifted if c.metric("lap_completed") is not None]
             home = next((c.metric("lap_completed") for c in cells if c.model == model and c.strategy == strategy
                          and c.training), None)
@@ -133,15 +134,16 @@ def _lines(model: str, figures: dict, baseline: str) -> list[str]:
     lines = []
     base = figures.get(baseline)
     for strategy, (done, runs, ratio, home) in figures.items():
-        mse = "offline MSE not measured" if ratio is None else f"offline MSE {ratio:.2f}× its training-world MSE"
+        mse = "offline MSE not measured in both" if ratio is None else f"offline MSE {ratio:.2f}× its training-world MSE"
         at_home = {True: "lap completed in the training world", False: "lap lost in the training world already",
-                   None: "no lap in the training world"}[home]
+                   None: "not evaluated in the training world (add it to matrix.world)"}[home]
         lines.append(f"{model}/{strategy}: {at_home}; {done}/{runs} laps completed in the shifted worlds, {mse}")
     if base is None:
         return lines
     if base[3] is not True:   # a network failing at home says nothing about what a shifted world costs
-        lines.append(f"{model}: no conclusion on the world shift: the baseline "
-                     f"{'lost its lap' if base[3] is False else 'drove no lap'} in its training world already")
+        lines.append(f"{model}: no conclusion on the world shift: " + (
+            "the baseline lost its lap in its training world already" if base[3] is False else
+            "the baseline was not driven in its training world (add it to matrix.world)"))
         return lines
     worse = [s for s, (done, runs, ratio, home) in figures.items() if s != baseline and
              (done < base[0] or (home is False and base[3] is True) or

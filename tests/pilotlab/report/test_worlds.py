@@ -53,6 +53,21 @@ def test_no_verdict_when_the_baseline_loses_its_lap_in_its_own_world_and_no_rati
     assert cells["baseline", "white_line"] == cells["int8", "white_line"] == "lap lost"   # at home, or here
 
 
+def test_no_ratio_and_no_verdict_without_the_training_world_in_the_matrix():
+    """Outside test: trained in simple_circuit, evaluated in white_line alone, the summary said "offline MSE
+    1.00× its training-world MSE" (each world divided by itself) and that the baseline "drove no lap"."""
+    table = rows("baseline", "white_line", 0.05, 3.0, True) + rows("int8", "white_line", 0.06, 3.0, True)
+    away = ReportData.from_dict({"recipe_name": "w", "date": "2026-11-25T10:00:00", "rows": table,
+                                 "training_worlds": {"pilotnet": ["simple_circuit"]}})
+    lines = shift_summary(away)
+    assert lines[0] == ("pilotnet/baseline: not evaluated in the training world (add it to matrix.world); 1/1 laps "
+                        "completed in the shifted worlds, offline MSE not measured in both")
+    assert lines[-1] == ("pilotnet: no conclusion on the world shift: the baseline was not driven in its training "
+                         "world (add it to matrix.world)")
+    from pilotlab.report.plots import draw_world_shift
+    assert draw_world_shift(away) is None
+
+
 def test_the_plot_is_drawn(tmp_path):
     plots = save_plots(data(int8_completes=False), tmp_path)
     assert "world_shift" in plots and plots["world_shift"][0].stat().st_size > 5000
