@@ -148,7 +148,9 @@ class Planner:
         jobs = []
         places = [(circuit, self.circuit_param(circuit, ["datasets", name, "record", "circuits"]))
                   for circuit in record.circuits]
-        places += [(world, world_param(self, world, ["datasets", name, "record", "worlds", i]))
+        # a BM world of a circuit's name (simple_circuit, many_curves) recorded beside it: named apart
+        places += [(f"{world} (BM world)" if world in record.circuits else world,
+                    world_param(self, world, ["datasets", name, "record", "worlds", i]))
                    for i, world in enumerate(record.worlds)]
         for place, (params, inputs) in places:
             for direction in record.directions:

@@ -45,6 +45,17 @@ def test_the_world_axis_records_tests_and_drives_in_each_world(tmp_path, oval_as
     assert {"online explicit on cpu at oval cw", "online expert on cpu at oval_no_sun cw"} <= set(jobs)
 
 
+def test_a_world_recorded_beside_the_circuit_of_its_name_is_named_apart(tmp_path, oval_assets):
+    """Outside test: `record: {circuits: [simple_circuit], worlds: [simple_circuit]}` made two jobs of one
+    name, an error that called itself a bug in the planner."""
+    (tmp_path / "circuits").mkdir()
+    shutil.copy(oval_assets / "worlds" / "oval.csv", tmp_path / "circuits" / "oval.csv")
+    jobs = plan(tmp_path, oval_assets, RECIPE.replace("{{worlds: [oval], directions", "{{circuits: [oval], worlds: [oval], directions"))
+    assert "world" not in jobs["record train/oval cw"].params
+    assert jobs["record train/oval (BM world) cw"].params["world"] == "oval"
+    assert "frames train/oval (BM world) ccw" in jobs
+
+
 def test_a_network_tested_in_several_worlds_is_timed_once_and_every_lap_replays_that_timing(tmp_path, oval_assets):
     jobs = plan(tmp_path, oval_assets)
     timing = jobs["timing small/dynamic_quant on cpu"]
