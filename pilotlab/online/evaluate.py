@@ -141,7 +141,9 @@ def _drive_settings(settings: DriveSettings) -> dict[str, Any]:
 
 def picture_title(name: str, spec: OnlineSpec, means: dict[str, Any], runs: int) -> str:
     settings = spec
-    first = f"{name} on {spec.circuit} ({spec.direction}), {settings.timing} timing at {settings.control_hz:g} Hz"
+    # a BM world's name: its variants (white_line, no_sun) share the circuit, and their pictures read alike
+    place = f"in BM's world {spec.world}" if spec.world else f"on {spec.circuit}"
+    first = f"{name} {place} ({spec.direction}), {settings.timing} timing at {settings.control_hz:g} Hz"
     if settings.extra_latency_ms:
         first += f" +{settings.extra_latency_ms:g} ms"
     laps = "lap completed" if means.get("lap_completed") else "lap not completed"

@@ -39,3 +39,12 @@ def test_the_camera_recorder_holds_each_image_for_as_long_as_the_brain_took(tmp_
     assert int(video.get(cv2.CAP_PROP_FRAME_COUNT)) == 21        # 0 .. 1.0 s at 20 frames per second
     assert all((tmp_path / name).stat().st_size > 0 for name in written["camera_frames"])
     assert written["camera_frames"][0] == "frames/camera_000.00s.jpg"
+
+
+def test_the_picture_title_names_a_bm_world():
+    """Outside test: the pictures of BM's simple_circuit and its white_line variant had one title."""
+    from pilotlab.online.evaluate import picture_title
+    from pilotlab.specs.online import OnlineSpec
+    in_world = OnlineSpec(circuit="simple_circuit", world="simple_circuit_white_line")
+    assert picture_title("explicit", in_world, {}, 1).startswith("explicit in BM's world simple_circuit_white_line (cw)")
+    assert picture_title("explicit", OnlineSpec(circuit="simple_circuit"), {}, 1).startswith("explicit on simple_circuit (cw)")
