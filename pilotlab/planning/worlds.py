@@ -16,21 +16,22 @@ from matrix.jobs import InputFile, input_file
 from pilotlab.worlds.assets import ASSETS_ENV
 
 
-def assets_folder(planner, where: list) -> Path:
+def assets_folder(planner, where: list) -> tuple[Path, str | None]:
     """The recipe's assets folder (relative to the recipe); where that is absent, $PILOTLAB_BM_ASSETS (so a
-    shipped recipe runs wherever BM's worlds are); with neither, an error naming both."""
+    shipped recipe runs wherever BM's worlds are), with the words an error about it then adds; with neither,
+    an error naming both."""
     configured, from_env = planner.config.worlds.assets, os.environ.get(ASSETS_ENV)
     if configured is not None:
         if not (planner.folder / Path(configured).expanduser()).exists():
             if from_env:
-                return Path(from_env)
+                return Path(from_env), f"${ASSETS_ENV}, standing in for worlds.assets: {configured}, which does not exist"
             raise planner.recipe.error(f"{configured} does not exist (relative paths are relative to the recipe's "
                                        f"folder, {planner.folder}); point it at BM's worlds (a folder like "
                                        f"RoboticsInfrastructure/CustomRobots/f1), or set ${ASSETS_ENV}, which stands "
                                        "in where this folder is missing", ["worlds", "assets"])
-        return planner.path(configured, ["worlds", "assets"])
+        return planner.path(configured, ["worlds", "assets"]), None
     if from_env:
-        return Path(from_env)
+        return Path(from_env), f"${ASSETS_ENV}"
     raise planner.recipe.error(f"BehaviorMetrics' worlds are named here but the recipe has no `worlds: {{assets: "
                                f"DIR}}` (a folder like RoboticsInfrastructure/CustomRobots/f1) and ${ASSETS_ENV} "
                                "is not set", where)
@@ -41,12 +42,13 @@ def world_param(planner, name: str, where: list) -> tuple[dict, dict]:
     cache = planner.worlds_read
     if name not in cache:
         from pilotlab.worlds.world import circuit_of, world_inputs
-        assets = assets_folder(planner, where)
+        assets, from_env = assets_folder(planner, where)
         try:
             path, parsed, digest = world_inputs(name, assets)
             circuit = circuit_of(name, path)
-        except MatrixError as error:
-            raise planner.recipe.error(str(error), where) from None
+        except MatrixError as error:   # (an outside test's bad $PILOTLAB_BM_ASSETS was said without its source)
+            said = f"{error} (the assets folder is {from_env})" if from_env else str(error)
+            raise planner.recipe.error(said, where) from None
         inputs = {"world": InputFile(str(path), digest)}
         if circuit.endswith(".csv"):   # the world's own centreline: by its stem, read through an input (as
             inputs["circuit_csv"] = input_file(circuit)   # a recipe's CSV), so moving BM's assets reruns nothing

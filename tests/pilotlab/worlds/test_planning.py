@@ -105,3 +105,14 @@ def test_recipe_errors_name_the_key(tmp_path, oval_assets, monkeypatch, edit, me
     with pytest.raises(RecipeError, match=message) as error:
         plan(tmp_path, oval_assets, RECIPE.replace(*edit))
     assert where in str(error.value)
+
+
+def test_a_bad_assets_folder_from_the_environment_says_so(tmp_path, oval_assets, monkeypatch):
+    """Outside test: $PILOTLAB_BM_ASSETS standing in for a recipe's missing folder, itself wrong, was said as
+    "BehaviorMetrics assets folder /nonexist: no such folder", a path the recipe does not hold."""
+    monkeypatch.setenv("PILOTLAB_BM_ASSETS", str(tmp_path / "nonexist"))
+    with pytest.raises(RecipeError, match=r"no such folder .*\(the assets folder is \$PILOTLAB_BM_ASSETS, standing in "
+                                          r"for worlds.assets: \.\./missing, which does not exist\)"):
+        plan(tmp_path, oval_assets, RECIPE.replace("worlds: {{assets: {assets}}}\n", "worlds: {{assets: ../missing}}\n"))
+    with pytest.raises(RecipeError, match=r"no such folder .*\(the assets folder is \$PILOTLAB_BM_ASSETS\)"):
+        plan(tmp_path, oval_assets, RECIPE.replace("worlds: {{assets: {assets}}}\n", ""))
