@@ -92,3 +92,16 @@ def test_an_inputs_parts_are_in_its_record_not_its_key_and_plan_names_the_part_t
     assert own_changes(edited, before) == ["input changed: source (helper.py, new.py)"]
     before["inputs"]["source"].pop("parts")    # stored before inputs had parts: its path, as it was
     assert own_changes(edited, before) == ["input changed: source (net.py)"]
+
+
+def test_a_dependency_added_or_removed_is_said_so():
+    """Outside test: a lap that lost a dependency (a recipe setting dropped it) was planned as "not in the
+    store: the last run did not finish it", and one that gained one as "dependency changed"."""
+    from matrix.stale import dependency_changes
+    a, b = Job("source", "source a", {"value": 1}), Job("source", "source b", {"value": 2})
+    with_hint = Job("power", "p", {"power": 2}, deps={"base": a, "hint": b})
+    plain = Job("power", "p", {"power": 2}, deps={"base": a})
+    assert dependency_changes(plain, with_hint.spec()) == ["dependency removed: hint"]
+    assert dependency_changes(with_hint, plain.spec()) == ["dependency added: hint (source b)"]
+    assert dependency_changes(Job("power", "p", {"power": 2}, deps={"base": b}), plain.spec()) == \
+        ["dependency changed: source b"]
