@@ -66,7 +66,8 @@ def tolerance_scope(planner):
         tolerance = planner.config.online.tolerance
         if tolerance is None or tolerance.only is None:
             return tolerance
-        first = {value: values[0] for axis in ("model", "strategy") for values in planner.recipe.grid.members.get(axis, ())
+        members = planner.recipe.grid.members
+        first = {value: values[0] for axis in ("model", "strategy") for values in members.get(axis, ())
                  for value in values}
         only = [{axis: [first.get(name, name) if axis in ("model", "strategy") else name for name in names]
                  for axis, names in entry.items()} for entry in tolerance.only]
@@ -81,7 +82,8 @@ def check_tolerance_scope(planner) -> None:
     tolerance = tolerance_scope(planner)
     if tolerance is None or tolerance.only is None:
         return
-    seen, matched = planner.remembered(("lap cell names",), dict), planner.remembered(("tolerance entries matched",), set)
+    seen = planner.remembered(("lap cell names",), dict)
+    matched = planner.remembered(("tolerance entries matched",), set)
     for i, (entry, given) in enumerate(zip(tolerance.only, planner.config.online.tolerance.only)):
         for axis, names in entry.items():
             for name, said in zip(names, given[axis]):
@@ -89,7 +91,8 @@ def check_tolerance_scope(planner) -> None:
                     known = sorted(seen.get(axis, ()))
                     raise planner.recipe.error(
                         f"{axis} {said!r} names no lap of the matrix{did_you_mean(said, known)}; its laps' {axis} "
-                        f"names: {', '.join(known) or 'none'}{_naming_hint(axis, seen)}", ["online", "tolerance", "only", i, axis])
+                        f"names: {', '.join(known) or 'none'}{_naming_hint(axis, seen)}",
+                        ["online", "tolerance", "only", i, axis])
         if i not in matched:
             said = ", ".join(f"{axis}: {'|'.join(names)}" for axis, names in given.items())
             raise planner.recipe.error(f"{{{said}}} names no lap cell of the matrix (no lap has all of it); name "

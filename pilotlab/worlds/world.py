@@ -245,9 +245,9 @@ def _normals(points: np.ndarray) -> np.ndarray:
 def measure_road_width(grid: Grid, labels: np.ndarray, centreline: np.ndarray, layers: list[Layer]) -> float:
     """Median width, across the centreline, of what is neither the void nor the surrounding ground: the
     largest layer besides the road's own (the grass), where it is one of the world's large layers
-    (LARGE_SHARE; BM's white_road has none: its road lies in the void). The car's centre must stay within it. (Not merely
-    the largest layer: many_curves' asphalt is larger than its grass, and its road measured 0.175 m, the
-    red line alone.)"""
+    (LARGE_SHARE; BM's white_road has none: its road lies in the void). The car's centre must stay within
+    it. (Not merely the largest layer: many_curves' asphalt is larger than its grass, and its road
+    measured 0.175 m, the red line alone.)"""
     normal, points = _normals(centreline)[::5], centreline[::5]
     road = beside_the_line(grid, labels, points, normal)
     others = [i + 1 for i in range(len(layers)) if i + 1 != road]
