@@ -157,9 +157,16 @@ def render_at(world, pose, *, view: bool = False, renderer: str = "ground", own:
 
 
 def _renderer(world, camera, name: str, own: bool):
-    if own:
+    if own and name == "ground":
         from pilotlab.sim.render import GroundRenderer
         return GroundRenderer(world.circuit(), camera)
+    if own:   # pilotlab's own world in pybullet, as a lap with `renderer: pybullet` sees it (it was ignored)
+        from pilotlab.sim.render import PybulletRenderer
+        from pilotlab.sim.world import World
+        own_world = World(world.circuit().directed("cw"))
+        renderer = PybulletRenderer(own_world.client, camera)
+        renderer.world = own_world   # its client lives as long as the renderer
+        return renderer
     if name == "ground":
         from pilotlab.worlds.render import WorldRenderer
         return WorldRenderer(world, camera)

@@ -48,6 +48,18 @@ def test_show_writes_the_frame_the_view_and_pilotlab_s_own_world(oval_assets, tm
     assert "640×480 camera frame written" in capsys.readouterr().out
 
 
+def test_show_of_pilotlab_s_own_world_follows_the_renderer(oval_assets, tmp_path):
+    """Outside test: `--own --renderer pybullet` wrote the ground renderer's picture, byte for byte."""
+    ground, bullet = tmp_path / "ground.png", tmp_path / "bullet.png"
+    for renderer, out in (("ground", ground), ("pybullet", bullet)):
+        assert main(["world", "show", "oval", "--assets", str(oval_assets), "--pose", "0,8,0", "--own",
+                     "--renderer", renderer, "-o", str(out)]) == 0
+    first, second = cv2.imread(str(ground)), cv2.imread(str(bullet))
+    assert first.shape == second.shape == (480, 640, 3) and not (first == second).all()
+    red = second[240:, :, ::-1]
+    assert ((red[..., 0] > 150) & (red[..., 1] < 80)).sum() > 1000     # the red line, drawn by pybullet
+
+
 def test_show_without_a_pose_uses_the_spawn_pose(oval_assets, tmp_path):
     assert main(["world", "show", "oval", "--assets", str(oval_assets), "-o", str(tmp_path / "f.png")]) == 0
 
