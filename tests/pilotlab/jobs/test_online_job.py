@@ -1,6 +1,7 @@
 """The `online` job kind through its registered handler, with hand-made JobContexts as the engine makes
 them: an optimized artifact's brain, the reference brains, the files, and the report row it feeds."""
 import json
+import re
 
 import numpy as np
 
@@ -158,7 +159,10 @@ def test_a_lap_on_this_host_s_clock_beside_other_processes_is_marked_unstable():
     cores = len(timing.our_cpus())
     busy = replace(now, wall=now.wall - 1.0, process=now.process - 1.0, busy=now.busy - 1.0 - cores)
     reason = disturbed_lap(busy, profile, "measured")
-    assert reason.startswith(f"other processes used {cores:.2f}") and "beside the 1 its measured timing needs" in reason
+    # a measured figure: the real machine's own load between the two snapshots adds to the faked one
+    # (`.ci/run`'s slow stream beside it read 2.02 of 2)
+    used = re.match(r"other processes used ([\d.]+) of \d+ cores during this lap", reason)
+    assert used and abs(float(used.group(1)) - cores) < 0.5 and "beside the 1 its measured timing needs" in reason
     assert ReportRow(model="m", strategy="s", hardware="cpu", kind="online", unstable={"latency_ms": reason}) \
         .unstable_reason("latency_ms") == reason
     quiet = replace(now, wall=now.wall - 1.0, process=now.process - 1.0, busy=now.busy - 1.0)
