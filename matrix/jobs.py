@@ -260,7 +260,7 @@ class Job:
                 for role, dep in self.deps.items()}
 
     def dep_jobs(self) -> list[Job]:
-        return [d for dep in self.deps.values() for d in (dep if isinstance(dep, tuple) else (dep,))]
+        return [d for dep in self.deps.values() for d in role_jobs(dep)]
 
     def spec(self) -> dict[str, Any]:
         """What `spec.json` holds: everything that went into the key, readable."""
@@ -268,3 +268,8 @@ class Job:
                 "deps": self.dep_keys(), "dep_names": {d.key: d.name for d in self.dep_jobs()},
                 "inputs": {role: f.record() for role, f in self.inputs.items()},
                 "code": self.code, "labels": dict(self.labels)}
+
+
+def role_jobs(dep: Job | tuple[Job, ...]) -> tuple[Job, ...]:
+    """The jobs of one dependency role: a group as it is, one job as a group of one."""
+    return dep if isinstance(dep, tuple) else (dep,)

@@ -17,7 +17,7 @@ from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from matrix.jobs import Job, canonical_json
+from matrix.jobs import Job, canonical_json, role_jobs
 from matrix.store import CHANGED, INTACT, Store, outputs_token, result_token
 
 FRESH, STALE, NEW = "fresh", "stale", "new"
@@ -160,22 +160,18 @@ def _changed_files(now, before: dict) -> str:
 def dependency_changes(job: Job, before: dict) -> list[str]:
     old = before.get("deps", {})
     # a role the job has now and had not, or had and has no more (an outside test read "not in the store")
-    added = [f"{role} ({', '.join(d.name for d in _jobs(job.deps[role]))})" for role in job.deps if role not in old]
+    added = [f"{role} ({', '.join(d.name for d in role_jobs(job.deps[role]))})" for role in job.deps if role not in old]
     removed = [role for role in old if role not in job.deps]
     reasons = ([f"dependency added: {', '.join(added)}"] if added else []) + \
         ([f"dependency removed: {', '.join(removed)}"] if removed else [])
     changed = [d.name for role, dep in job.deps.items() if role in old
-               for d in _jobs(dep) if d.key not in _flat(old.get(role))]
+               for d in role_jobs(dep) if d.key not in _flat(old.get(role))]
     if changed or reasons:
         return reasons + ([f"dependency changed: {', '.join(dict.fromkeys(changed))}"] if changed else [])
     # the same jobs in another order: a group's order is part of what a job is made from (a training's recordings)
     reordered = [role for role, dep in job.deps.items() if isinstance(dep, tuple)
                  and [d.key for d in dep] != _flat(old.get(role))]
     return [f"dependencies reordered: {', '.join(reordered)} (a group's order is part of the job)"] if reordered else []
-
-
-def _jobs(dep) -> tuple:
-    return dep if isinstance(dep, tuple) else (dep,)
 
 
 def _flat(value: Any) -> list:

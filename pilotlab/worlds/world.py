@@ -149,12 +149,10 @@ def world_inputs(name: str, assets=None) -> tuple[Path, WorldFile, str]:
 def load_world(name: str, assets=None) -> BMWorld:
     _, parsed, digest = world_inputs(name, assets)
     entry = cache_root() / f"{name}-{digest[:16]}-v{CACHE_VERSION}"
-    if not (entry / "meta.json").is_file():
-        _store(build_world(parsed, digest), entry)
     try:
         world = _read(entry)
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile):   # damaged from outside (a full disk, a partial copy)
-        shutil.rmtree(entry, ignore_errors=True)                  # (JSONDecodeError is a ValueError)
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile):   # absent, or damaged from outside (a full disk,
+        shutil.rmtree(entry, ignore_errors=True)                  # a partial copy; JSONDecodeError is a ValueError)
         _store(build_world(parsed, digest), entry)
         world = _read(entry)
     # where it was found this time (not part of the cached content)
