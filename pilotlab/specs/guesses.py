@@ -37,8 +37,9 @@ def guess_here(seconds_for: Callable[[Any], float]) -> Callable[[Any], float]:
     return lambda params: NOT_HERE_S if not_applicable_here(params) else seconds_for(params)
 
 
-# record: a lap of simple_circuit at 640×480 took 4-6 s, other circuits by their length.
-RECORD_LAP_S = 5.0
+# record: a lap of simple_circuit at 640×480 took 2.7-3.5 s, other circuits by their length (the study's
+# cold run of f6cb60d, 2026-12-02: many_curves 5.3-5.6 s, Montreal 7.8 s, 2.4-2.8 s a simple_circuit lap's worth)
+RECORD_LAP_S = 2.8
 
 
 def record_seconds(params) -> float:
@@ -83,18 +84,22 @@ def prepare_seconds(params) -> float:
 # timing: about 2 s, most of it the measuring itself; offline: a test set of a few hundred frames.
 TIMING_S, OFFLINE_S = 2.0, 1.0
 
-# online: as measured in the study's cold run (2026-11-28): a network's lap of simple_circuit (replayed
-# timing, driving on its view) 0.65 s after 0.5 s of setting up, other circuits by their length
-# (Montreal 3.3 times); a tolerance search drives a lap per fixed latency above 0 and the bisection's,
-# each 0.9 of the plain lap on average: the completed ones take longer (the car slows as latency grows:
-# up to twice the plain lap's simulated time), the lost ones end where the car leaves the road. A
-# search from a neighbour's hint (pilotlab.online.tolerance) drives fewer, which the params do not say:
-# the study's Montreal cells are guessed at 12.9 s and take ~9.5.
-SETUP_S, LAP_S, SEARCH_SHARE = 0.5, 0.65, 0.9
+# online: as measured in the study's cold run of f6cb60d (2026-12-02; laps have grown dearer since the
+# 0.65 s of 2026-11-28: BehaviorMetrics' metrics and the trajectory picture of every lap): a network's
+# lap of Montreal with replayed timing, driving on its view, 3.8-8.9 s (6.2 on average), simple_circuit's
+# 2-4.6 s in the quickstart (its first lap in a worker pays the imports), other circuits by their length
+# (Montreal 3.3 times). A tolerance search drives a lap per fixed latency above 0 and the bisection's, each
+# 0.55 of a plain lap's job time on average (the study's searched cells on simple_circuit: 4-12 s, 6.4 on
+# average): the completed ones take longer (the car slows as latency grows), the lost ones end where the
+# car leaves the road, and the cell's setting up and metrics are paid once. A search from a neighbour's
+# hint (pilotlab.online.tolerance) drives fewer, which the params do not say. Guessed 2.6 times short, the
+# quickstart's explicit lap (guessed 1.2 s, took 4.1) was started beside the last recording, and the
+# training waited 2.8 s for it.
+SETUP_S, LAP_S, SEARCH_SHARE = 1.0, 1.5, 0.55
 
 
 def search_laps(tolerance: ToleranceSpec) -> float:
-    """Plain laps' worth of driving a tolerance search adds to its cell."""
+    """Plain laps' worth of job time a tolerance search adds to its cell."""
     fixed = len({ms for ms in tolerance.fixed_ms if ms > 0})
     return SEARCH_SHARE * (fixed + tolerance.bisection_laps)
 

@@ -315,19 +315,19 @@ def test_shipped_recipes_plan(tmp_path, monkeypatch):
 
 def test_a_cold_store_guesses_a_lap_with_a_tolerance_search_as_several_laps(tmp_path):
     """The scheduler's first guesses (matrix.times): a lap cell with its latency-tolerance search drives a
-    lap per fixed latency above 0 and log2(widest bracket / step) to bisect, each 0.9 of a plain lap (the
+    lap per fixed latency above 0 and log2(widest bracket / step) to bisect, each a share of a plain lap (the
     completed ones longer, the lost ones cut short); a training's time follows its epochs."""
     laps = [job for job in engine.plan_jobs(load_recipe(ROOT / "recipes/study2022.yaml", DOMAIN), DOMAIN)
             if job.kind == "online"]
     searched = [job.params for job in laps if job.params["tolerance"] is not None]
     assert searched
     online, plain = KINDS.get("online"), dict(searched[0], tolerance=None)
-    from pilotlab.specs.guesses import SETUP_S as setup   # setting up the simulator, whatever the laps
+    from pilotlab.specs.guesses import SEARCH_SHARE, SETUP_S as setup   # setup: the simulator's, whatever the laps
     ratio = (online.typical(searched[0]) - setup) / (online.typical(plain) - setup)
     from pilotlab.specs.online import ToleranceSpec
     tolerance = ToleranceSpec.model_validate(searched[0]["tolerance"])   # the fixed laps above 0 and log2(100/10)
     assert tolerance.bisection_laps == pytest.approx(math.log2(10))       # to bisect, lost laps cut short
-    assert ratio == pytest.approx(1 + 0.9 * (2 + math.log2(10)))
+    assert 0 < SEARCH_SHARE < 1 and ratio == pytest.approx(1 + SEARCH_SHARE * (2 + math.log2(10)))
     assert abs(online.typical(dict(plain, laps=3)) - setup - 3 * (online.typical(plain) - setup)) < 1e-9
     # a lap of Montreal is about three of simple_circuit (by BehaviorMetrics' timeouts); a user's circuit, one
     simple, montreal = (online.typical(dict(plain, circuit=name)) - setup for name in ("simple_circuit", "montreal"))
