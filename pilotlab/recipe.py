@@ -15,9 +15,9 @@ so the recipe, the job and the CLI share one set of names and defaults.
 """
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import BeforeValidator, Field, field_validator, model_validator
 
 from matrix.errors import did_you_mean
 from pilotlab.hardware import HardwareOptions
@@ -102,38 +102,6 @@ class OfflineSection(OfflineSettings):
 CELL_AXES = ("model", "strategy", "hardware", "circuit", "world", "direction")
 
 
-class ToleranceSection(ToleranceSpec):
-    """The recipe's tolerance search: the search's settings (the laps' own, ToleranceSpec) and the lap
-    cells it is made for. Each searched cell drives its lap again and again (the study's Montreal
-    searches were two thirds of its laps' time), so a recipe can keep it to the cells whose tolerance it
-    reads: `only: [{circuit: simple_circuit}, {circuit: montreal, strategy: baseline}]`."""
-    only: list[dict[str, list[str]]] | None = Field(
-        None, description="the lap cells searched: a cell is searched when it has every value one entry names "
-                          "(each a name or a list of names, by model, strategy, hardware, circuit, world or "
-                          "direction; the reference brains are model `reference`); default: every lap cell")
-
-    @field_validator("only", mode="before")
-    @classmethod
-    def _entries_name_cells(cls, only: Any) -> Any:
-        if only is None:
-            return only
-        if not isinstance(only, list) or not only:
-            raise ValueError(f"only is a list of partial cells, e.g. [{{circuit: simple_circuit}}]; got {only!r}")
-        return [_cell_entry(entry) for entry in only]
-
-    @property
-    def search(self) -> ToleranceSpec:
-        """The settings a searched lap runs with (its key: `only` is the planner's, not the lap's)."""
-        return ToleranceSpec(**self.model_dump(exclude={"only"}))
-
-    def matches(self, cell: dict[str, str]) -> list[int]:
-        """The indices of the `only` entries `cell` ({axis: name}) has every value of; [-1] without `only`."""
-        if self.only is None:
-            return [-1]
-        return [i for i, entry in enumerate(self.only)
-                if all(cell.get(axis) in names for axis, names in entry.items())]
-
-
 def _cell_entry(entry: Any) -> dict[str, list[str]]:
     """{axis: [names]} from a partial cell whose values are names or lists of names."""
     if not isinstance(entry, dict) or not entry:
@@ -147,6 +115,42 @@ def _cell_entry(entry: Any) -> dict[str, list[str]]:
         if not names or not all(isinstance(name, str) and name for name in names):
             raise ValueError(f"{axis}: {value!r}: give a name or a list of names")
     return {axis: list(value) if isinstance(value, list) else [value] for axis, value in entry.items()}
+
+
+CellEntry = Annotated[dict[str, list[str]], BeforeValidator(_cell_entry)]
+
+
+class ToleranceSection(ToleranceSpec):
+    """The recipe's tolerance search: the search's settings (the laps' own, ToleranceSpec) and the lap
+    cells it is made for. Each searched cell drives its lap again and again (the study's Montreal
+    searches were two thirds of its laps' time), so a recipe can keep it to the cells whose tolerance it
+    reads: `only: [{circuit: simple_circuit}, {circuit: montreal, strategy: baseline}]`."""
+    only: list[CellEntry] | None = Field(
+        None, description="the lap cells searched: a cell is searched when it has every value one entry names "
+                          "(each a name or a list of names, by model, strategy, hardware, circuit, world or "
+                          "direction; the reference brains are model `reference`); default: every lap cell")
+
+    @field_validator("only", mode="before")
+    @classmethod
+    def _entries_name_cells(cls, only: Any) -> Any:
+        if only is None:
+            return only
+        if not isinstance(only, list) or not only:
+            raise ValueError(f"only is a list of partial cells, e.g. [{{circuit: simple_circuit}}]; got {only!r}")
+        return only     # each entry checked by CellEntry: an error names its index (only.1) and its line
+
+    @property
+    def search(self) -> ToleranceSpec:
+        """The settings a searched lap runs with (its key: `only` is the planner's, not the lap's)."""
+        return ToleranceSpec(**self.model_dump(exclude={"only"}))
+
+    def matches(self, cell: dict[str, str]) -> list[int]:
+        """The indices of the `only` entries `cell` ({axis: name}) has every value of; [-1] without `only`."""
+        if self.only is None:
+            return [-1]
+        return [i for i, entry in enumerate(self.only)
+                if all(cell.get(axis) in names for axis, names in entry.items())]
+
 
 
 class OnlineSection(LapSettings):

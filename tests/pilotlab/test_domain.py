@@ -203,7 +203,11 @@ def test_cuda_profiles_drive_no_reference_laps_and_are_planned(tmp_path):
     (("matrix:", "online: {timing: lockstep, tolerance: true}\nmatrix:"),
      ":11: online: a latency tolerance search means nothing in the lockstep timing mode"),
     (("matrix:", "online: {tolerance: {only: [{circut: simple_circuit}]}}\nmatrix:"),
-     ":11: online.tolerance.only: 'circut' is not an axis of a lap cell (did you mean 'circuit'?)"),
+     ":11: online.tolerance.only.0: 'circut' is not an axis of a lap cell (did you mean 'circuit'?)"),
+    # outside test: a malformed entry was said at the `only:` line, whichever entry it was
+    (("matrix:", "online:\n  tolerance:\n    only:\n      - {circuit: simple_circuit}\n      - simple_circuit\nmatrix:"),
+     ":15: online.tolerance.only.1: each entry of only is a partial cell, e.g. {circuit: montreal, strategy: "
+     "baseline}; got 'simple_circuit'"),
     (("matrix:", "online: {tolerance: {only: [{circuit: simple_circuit}, {strategy: prune_mor}]}}\nmatrix:"),
      ":11: online.tolerance.only.1.strategy: strategy 'prune_mor' names no lap of the matrix (did you mean "
      "'prune_more'?); its laps' strategy names: baseline, expert, explicit, local_prune, prune_more"),
