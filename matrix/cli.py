@@ -17,6 +17,7 @@ from pathlib import Path
 from matrix import engine
 from matrix.errors import MatrixError
 from matrix.grid import describe_alike
+from matrix.kinds import job_note
 from matrix.recipe import Domain, load_recipe
 from matrix.runs import default_jobs
 from matrix.times import recipe_records
@@ -78,7 +79,7 @@ def cmd_plan(args, domain: Domain) -> int:
         print(f"note: --store {args.store}: no such folder yet, so every job is new (`run` makes it)", file=sys.stderr)
     if args.json:
         rows = [{"key": s.job.key, "kind": s.job.kind, "name": s.job.name, "status": s.state,
-                 "reason": s.reason} for s in plan.statuses]
+                 "reason": s.reason, "note": job_note(s.job)} for s in plan.statuses]
         print(json.dumps(rows, indent=1))
         return 0
     from matrix import display

@@ -28,6 +28,7 @@ from rich.progress import BarColumn, Progress, TaskID, TextColumn
 from rich.table import Table
 
 from matrix.errors import MatrixError
+from matrix.kinds import job_note
 from matrix.runs import RunSummary
 from matrix.store import ARTIFACTS, LOG, RUNS_LOCK, Store
 from matrix.times import KindStats, kind_times, recipe_keys, recipe_records
@@ -79,11 +80,13 @@ def summary_line(summary: RunSummary, tool: str) -> str:
 
 
 def _jobs_table(statuses: Iterable) -> Table:
-    table = Table("status", "kind", "job", "reason", "key", box=None, pad_edge=False)
+    table = Table("status", "kind", "job", "reason", "key", "note", box=None, pad_edge=False)
     for s in statuses:
         style = STATE_STYLE[s.state]
-        table.add_row(f"[{style}]{s.state}[/]", s.job.kind, escape(s.job.name), escape(s.reason), s.job.key[:10])
+        table.add_row(f"[{style}]{s.state}[/]", s.job.kind, escape(s.job.name), escape(s.reason), s.job.key[:10],
+                      f"[dim]{escape(job_note(s.job))}[/]")
     return table
+
 
 
 def _kinds_table(counts: Mapping[str, Counter]) -> Table:

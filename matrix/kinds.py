@@ -126,6 +126,8 @@ class JobKind:
     # seconds): outside its outputs token, so a rerun (--force) that made the same outputs leaves the jobs
     # that stand on it fresh
     measured: tuple[str, ...] = ()
+    # A few words the plan shows beside a job (what its params make of it: "tolerance search"), never in a key
+    note_for: Callable[[Mapping[str, Any]], str | None] | None = None
 
     def runs_alone(self, params: Mapping[str, Any]) -> bool:
         """Whether a job with `params` must have its host to itself (it measures time there)."""
@@ -137,6 +139,16 @@ class JobKind:
             return self.typical_s
         seconds = self.typical_for(params)
         return None if seconds is None else float(seconds)
+
+    def note(self, params: Mapping[str, Any]) -> str:
+        """What the plan says of a job with `params` beside its state ('' when nothing; a note that trips
+        on odd params is left out: it never stops a plan)."""
+        if self.note_for is None:
+            return ""
+        try:
+            return self.note_for(params) or ""
+        except Exception:
+            return ""
 
     @property
     def module(self) -> str:
@@ -246,6 +258,17 @@ def measured_keys(name: str, *keys: str) -> JobKind:
     """Tell registered kind `name` which keys of its results measure how the run went (as register_kind's
     `measured`), from a module apart from its code, as `guess_kind`: they change nothing a job makes."""
     return KINDS.replace(name, replace(KINDS.get(name), measured=tuple(keys)))
+
+
+def note_kind(name: str, note_for: Callable[[Mapping[str, Any]], str | None]) -> JobKind:
+    """Give registered kind `name` the note the plan shows beside its jobs, from a module apart from its
+    code (as `guess_kind`: a note is never in a key)."""
+    return KINDS.replace(name, replace(KINDS.get(name), note_for=note_for))
+
+
+def job_note(job) -> str:
+    """What the job's kind says of it in a plan (JobKind.note); '' for a kind not registered here."""
+    return KINDS.get(job.kind).note(job.params) if job.kind in KINDS else ""
 
 
 def _check_typical(name: str, typical_s: float | None) -> None:

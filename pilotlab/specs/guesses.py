@@ -1,6 +1,8 @@
 """What a job of each kind typically takes, for the scheduler and the time left of a store that has not
-run it yet (matrix.times: once a store has run a kind, its own figures scale these); and, at the end,
-which keys of its results measure how the run went (wall-clock time), not what it made.
+run it yet (matrix.times: once a store has run a kind, its own figures scale these); what `plan` says
+of a job beside its state (a lap's tolerance search, a CUDA job that ends at once on a host without a
+GPU); and, at the end, which keys of its results measure how the run went (wall-clock time), not what it
+made.
 
 A guess is never part of a job's key, and here it is not part of any kind's code either: no handler
 and no params model imports this module (a test checks it), so tuning a guess re-keys no job. Written
@@ -15,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from matrix.kinds import guess_kind, measured_keys
+from matrix.kinds import guess_kind, measured_keys, note_kind
 from pilotlab.circuits.registry import lap_scale
 from pilotlab.specs.online import LapSettings, ToleranceSpec
 from pilotlab.specs.record import RecordSpec
@@ -119,6 +121,22 @@ guess_kind("optimize", typical_for=guess_here(optimize_seconds))
 guess_kind("timing", typical_for=guess_here(lambda params: TIMING_S))
 guess_kind("offline", typical_for=guess_here(lambda params: OFFLINE_S))
 guess_kind("online", typical_for=guess_here(online_seconds))
+
+NO_GPU_NOTE = "not applicable here: no GPU on this host"
+
+
+def cuda_note(params) -> str | None:
+    return NO_GPU_NOTE if not_applicable_here(params) else None
+
+
+def lap_note(params) -> str | None:
+    """A lap's tolerance search (several laps' worth of driving), or that it will not run here."""
+    return cuda_note(params) or ("latency tolerance search" if params.get("tolerance") is not None else None)
+
+
+for kind in ("optimize", "timing", "offline"):
+    note_kind(kind, cuda_note)
+note_kind("online", lap_note)
 
 # Measured, not made: left out of a result's outputs token (matrix.store), so a job run again (--force) that
 # made the same recording, frames, network or artifact leaves what stands on it fresh.

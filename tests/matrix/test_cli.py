@@ -34,8 +34,26 @@ def test_plan_json_lists_key_kind_status_reason(recipe, tmp_path, capsys):
     code, out, _ = cli(capsys, "plan", str(recipe), "--json", "--store", str(tmp_path / "s"))
     rows = json.loads(out)
     assert code == 0 and len(rows) == 5
-    assert {tuple(sorted(r)) for r in rows} == {("key", "kind", "name", "reason", "status")}
-    assert {r["status"] for r in rows} == {"new"}
+    assert {tuple(sorted(r)) for r in rows} == {("key", "kind", "name", "note", "reason", "status")}
+    assert {r["status"] for r in rows} == {"new"} and {r["note"] for r in rows} == {""}
+
+
+def test_plan_shows_what_a_kind_says_of_its_jobs(recipe, tmp_path, capsys):
+    """note_kind: a few words beside a job in the plan, from its params (a lap's tolerance search); a note that
+    trips on odd params is left out, never stopping the plan."""
+    from matrix.kinds import KINDS, note_kind
+    before = {name: KINDS.get(name) for name in ("power", "source")}
+    try:
+        note_kind("power", lambda params: f"to the power {params['power']}" if params["power"] > 1 else None)
+        note_kind("source", lambda params: params["no such param"])
+        code, out, _ = cli(capsys, "plan", str(recipe), "--json", "--store", str(tmp_path / "s"))
+        notes = {row["kind"]: row["note"] for row in json.loads(out)}
+        assert code == 0 and notes["power"] == "to the power 2" and notes["source"] == ""
+        code, out, _ = cli(capsys, "plan", str(recipe), "--store", str(tmp_path / "s"))
+        assert code == 0 and sum("to the power 2" in line for line in out.splitlines()) == 2
+    finally:
+        for name, kind in before.items():
+            KINDS.replace(name, kind)
 
 
 def test_a_plan_written_to_a_pipe_keeps_each_job_on_its_line(tmp_path, capsys, monkeypatch):

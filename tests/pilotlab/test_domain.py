@@ -361,6 +361,19 @@ def test_a_cold_store_guesses_a_lap_with_a_tolerance_search_as_several_laps(tmp_
     assert KINDS.get("prepare").typical(longer) > KINDS.get("prepare").typical(prepare)
 
 
+def test_the_plan_notes_searched_laps_and_cuda_jobs_that_end_at_once():
+    """Outside tests: the plan did not say which laps drive a tolerance search (a dozen laps' worth each),
+    and showed the CUDA cells as new work on a host without a GPU."""
+    jobs = engine.plan_jobs(load_recipe(ROOT / "recipes/study2022.yaml", DOMAIN), DOMAIN)
+    notes = {job.name: KINDS.get(job.kind).note(job.params) for job in jobs}
+    assert notes["online pilotnet/baseline on cpu at montreal cw"] == "latency tolerance search"
+    assert notes["online pilotnet/qat on cpu at montreal cw"] == ""        # the study searches Montreal's baseline only
+    assert notes["record train/many_curves cw"] == ""
+    cuda = next(job for job in jobs if job.kind == "timing" and job.params["hardware"]["device"] == "cuda")
+    assert KINDS.get("timing").note(dict(cuda.params, host={"gpu": None})) == "not applicable here: no GPU on this host"
+    assert KINDS.get("timing").note(dict(cuda.params, host={"gpu": "NVIDIA H200"})) == ""
+
+
 def network_laps(jobs):
     return [job for job in jobs if job.kind == "online" and job.params.get("brain") == "network"]
 
