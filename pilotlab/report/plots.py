@@ -312,13 +312,14 @@ def draw_world_shift(data: ReportData):
     handles = [Patch(color=colours[s], label=s) for s in shown]
     handles.append(Patch(facecolor="white", edgecolor="0.3", hatch="///", label="lap not completed"))
     handles.append(Line2D([], [], marker="x", ls="", ms=9, mew=2, color="0.3",
-                          label="a lap lost: no deviation ratio"))
+                          label="a lap lost: no deviation ratio (at the top)"))
     figure.legend(handles=handles, loc="outside right upper", frameon=False)
     figure.suptitle("World shift: each world against the training world (above 1× is worse)", x=0.01, ha="left")
     return figure
 
 
 DEVIATION = "bm_position_deviation_mae"
+LOST_AT = 0.95   # where a lost lap's cross sits, as a fraction of the panel's height
 
 
 def _shift_bars(ax, chosen: list[WorldCell], cells: list[WorldCell], worlds, strategies, colours, metric) -> None:
@@ -333,8 +334,10 @@ def _shift_bars(ax, chosen: list[WorldCell], cells: list[WorldCell], worlds, str
             lost = cell.metric("lap_completed") is False
             x = j + (i - (len(strategies) - 1) / 2) * width
             if metric == DEVIATION and not cell.training and (lost or base.metric("lap_completed") is False):
-                # as the table: a lost lap's deviation grows without bound, a ratio to it says nothing
-                ax.plot(x, 1.0, marker="x", ls="", ms=9, mew=2, color=colours[strategy])
+                # as the table: a lost lap's deviation grows without bound, a ratio to it says nothing; the
+                # cross sits at the top of the panel (at 1.0 it read "as in the training world")
+                ax.plot(x, LOST_AT, marker="x", ls="", ms=9, mew=2, color=colours[strategy],
+                        transform=ax.get_xaxis_transform(), clip_on=False)
                 continue
             ax.bar(x, value, width, color=colours[strategy],
                    hatch="///" if lost else None, edgecolor="0.3" if lost else colours[strategy])
@@ -361,6 +364,6 @@ CAPTIONS = {
                          "tolerance was not searched (online.tolerance.only) are not drawn.",
     "training": "Training and validation loss per epoch for each model.",
     "world_shift": "World shift: each strategy's offline MSE and BehaviorMetrics deviation in each world over its "
-                   "value in the training world; a hatched bar is a lap that was not completed.",
+                   "value in the training world; a hatched bar is a lap that was not completed; a cross at the top of the deviation panel, a lost lap (a ratio to its deviation says nothing)."
 }
 

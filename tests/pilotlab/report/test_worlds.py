@@ -82,14 +82,16 @@ def test_no_section_without_a_shifted_world():
 
 def test_the_plot_draws_no_deviation_ratio_to_a_lost_lap():
     """Outside test: the table refused a lost lap's deviation ratio ("says nothing"), the plot drew it as a
-    bar (0.44×, reading better than the training world): now a cross marks it, as the table's "lap lost"."""
-    from pilotlab.report.plots import draw_world_shift
+    bar (0.44×, reading better than the training world): now a cross marks it, as the table's "lap lost", at
+    the top of the panel (at 1.0 it read "as in the training world")."""
+    from pilotlab.report.plots import LOST_AT, draw_world_shift
     figure = draw_world_shift(data(int8_completes=False))
     mse_axis, deviation_axis = figure.axes[:2]
     assert len(mse_axis.patches) == 4                              # every MSE ratio, the lost lap's hatched
     assert len(deviation_axis.patches) == 3                        # not the lost lap's deviation ratio
     crosses = [line for line in deviation_axis.get_lines() if line.get_marker() == "x"]
-    assert len(crosses) == 1 and list(crosses[0].get_ydata()) == [1.0]
+    assert len(crosses) == 1 and list(crosses[0].get_ydata()) == [LOST_AT]
+    assert crosses[0].get_transform() == deviation_axis.get_xaxis_transform()   # y in the panel's height
 
 
 def test_the_simulation_tables_of_laps_in_a_world_are_headed_by_the_world():
