@@ -364,6 +364,7 @@ CAPTIONS = {
                          "tolerance was not searched (online.tolerance.only) are not drawn.",
     "training": "Training and validation loss per epoch for each model.",
     "world_shift": "World shift: each strategy's offline MSE and BehaviorMetrics deviation in each world over its "
-                   "value in the training world; a hatched bar is a lap that was not completed; a cross at the top of the deviation panel, a lost lap (a ratio to its deviation says nothing)."
+                   "value in the training world; a hatched bar is a lap that was not completed; a cross at the top "
+                   "of the deviation panel, a lost lap (a ratio to its deviation says nothing)."
 }
 
