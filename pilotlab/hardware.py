@@ -136,6 +136,33 @@ def check_available(profile: HardwareProfile) -> None:
                             f"this host has {cpu_count()} cores")
 
 
+def check_on_its_machine(profile: HardwareProfile, job: str) -> None:
+    """A profile that stands for another machine (`worker_resource`) is timed only on the Dask worker that
+    declares that resource: anywhere else its figures would be this host's, stored under the profile's key
+    as that machine's, and a later run on the cluster would find them fresh (an outside test: a local
+    run timed a JETSON profile on the laptop)."""
+    if not profile.worker_resource:
+        return
+    held = dask_worker_resources()
+    if held is not None and profile.worker_resource in held:
+        return
+    where = "outside Dask (the local executor)" if held is None else "on a Dask worker without that resource"
+    raise PilotlabError(f"{job}: hardware {profile.name!r} stands for the machine of the Dask worker resource "
+                        f"{profile.worker_resource!r}, and this job times it {where}: its figures would be this "
+                        f"host's. Run the recipe with --executor dask --scheduler ADDRESS, with a worker started "
+                        f"with --resources {profile.worker_resource}=1 on that machine")
+
+
+def dask_worker_resources() -> dict[str, float] | None:
+    """The resources of the Dask worker running this code; None outside one (or without Dask)."""
+    try:
+        from distributed import get_worker
+        worker = get_worker()
+    except (ImportError, ValueError):    # ValueError: not in a worker's task
+        return None
+    return dict(worker.state.total_resources)
+
+
 def apply_profile(profile: HardwareProfile) -> None:
     """Set torch's thread count for this process (ONNX Runtime sessions take theirs from the profile)."""
     import torch

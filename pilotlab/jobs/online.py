@@ -36,7 +36,7 @@ from matrix.hostlock import host_name
 from matrix.kinds import JobContext
 from pilotlab import predictor, timing, usercode
 from pilotlab.errors import PilotlabError
-from pilotlab.hardware import check_available, check_host, profile_from_dict, within_share
+from pilotlab.hardware import check_available, check_host, check_on_its_machine, profile_from_dict, within_share
 from pilotlab.online import brains, evaluate
 from pilotlab.online.latency import TimingSource, describe
 from pilotlab.online.perfect_lap import perfect_lap
@@ -138,6 +138,8 @@ def run_online(ctx: JobContext) -> dict[str, Any]:
     spec: OnlineSpec = with_circuit_file(ctx.spec, ctx.inputs)
     profile = profile_from_dict(spec.hardware)
     check_available(profile)
+    if timed_live(ctx.params):   # a replayed lap replays that machine's timings anywhere
+        check_on_its_machine(profile, ctx.name)
     # a lap not timed on this host's clock runs beside another job: its brain keeps to its share of cores
     compute = profile if timed_live(ctx.params) else within_share(profile)
     cv2.setNumThreads(compute.cpu_threads)  # the explicit brain's and preprocessing's OpenCV calls

@@ -21,7 +21,7 @@ from matrix.kinds import JobContext
 from pilotlab import offline
 from pilotlab.data.frames import FrameSet
 from pilotlab.errors import PilotlabError
-from pilotlab.hardware import check_available, check_host, profile_from_dict
+from pilotlab.hardware import check_available, check_host, check_on_its_machine, profile_from_dict
 from pilotlab.specs.timing import TimingSpec
 
 
@@ -36,6 +36,7 @@ def run_timing(ctx: JobContext) -> dict:
     spec: TimingSpec = ctx.spec
     profile = profile_from_dict(spec.hardware)
     check_available(profile)
+    check_on_its_machine(profile, ctx.name)
     host = check_host(ctx.name, spec.host)
     # the first recording's first frames are inputs enough (memory-mapped: the rest is never read)
     frames = FrameSet.load(ctx.dep_group("frames")[0].artifacts)

@@ -129,3 +129,21 @@ def test_a_profile_can_name_the_dask_worker_resource_of_its_machine():
     assert make_profile("two", {"threads": 2}).as_dict() == {"name": "two", "device": "cpu", "threads": 2}
     with pytest.raises(PilotlabError, match="hardware.jetson.worker_resource"):
         make_profile("jetson", {"worker_resource": "JETSON=1"})
+
+
+def test_a_profile_of_another_machine_is_timed_only_on_the_dask_worker_that_has_its_resource():
+    """Outside test: a local run timed a `worker_resource: JETSON` profile on the laptop and stored the
+    figures under the profile's key as the Jetson's (a later run on the cluster found them fresh)."""
+    from pilotlab.hardware import HardwareProfile, check_on_its_machine
+    jetson = HardwareProfile("jetson", threads=1, worker_resource="JETSON")
+    check_on_its_machine(HardwareProfile("cpu1", threads=1), "timing x")     # a profile of this host: anywhere
+    with pytest.raises(PilotlabError, match=r"timing x: hardware 'jetson' stands for the machine of the Dask worker "
+                                            r"resource 'JETSON', and this job times it outside Dask .*--resources JETSON=1"):
+        check_on_its_machine(jetson, "timing x")
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None,
+                                  resources={"JETSON": 1}) as cluster, distributed.Client(cluster) as client:
+        assert client.submit(check_on_its_machine, jetson, "timing x", resources={"JETSON": 1}).result() is None
+        other = HardwareProfile("nano", threads=1, worker_resource="NANO")
+        with pytest.raises(PilotlabError, match="on a Dask worker without that resource"):
+            client.submit(check_on_its_machine, other, "timing y").result()
