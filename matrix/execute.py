@@ -172,7 +172,7 @@ class Schedule:
         self.started.pop(key, None)
         for other in self.needed_by.get(key, ()):
             self.waiting[other].discard(key)
-            if not self.waiting[other]:
+            if not self.waiting[other] and other not in self.settled:   # settled: not to start (blocked_by)
                 self._make_ready(other)
 
     def retry_later(self, key: str) -> None:
@@ -185,8 +185,9 @@ class Schedule:
         self.started.pop(key, None)
         blocked = dependents(self.graph, [key]) - self.settled
         self.settled |= blocked
-        self.alone = [entry for entry in self.alone if entry[1] not in blocked]
-        self.beside = [entry for entry in self.beside if entry[1] not in blocked]
+        # `key` itself too: a job settled before it started (on Dask, one that no worker can take)
+        self.alone = [entry for entry in self.alone if entry[1] not in self.settled]
+        self.beside = [entry for entry in self.beside if entry[1] not in self.settled]
         heapq.heapify(self.alone)
         heapq.heapify(self.beside)
         return [self.jobs[k] for k in self.graph if k in blocked]

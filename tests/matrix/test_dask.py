@@ -111,6 +111,24 @@ def test_a_failure_on_dask_skips_dependents(tmp_path, client):
     assert status["power a^3"] == "ok"
 
 
+def test_a_job_no_worker_can_take_is_not_started_saying_which_resource(tmp_path, client):
+    """Outside test: a profile's timing jobs needing a resource no worker declared waited for ever, the
+    run showing "about 0:00:04 left"; now they are not started, saying which resource and how to add it,
+    the jobs standing on them are skipped and the rest runs."""
+    from matrix.dask_executor import run_dask
+    path = tmp_path / "r.yaml"
+    path.write_text((RECIPE % "0").replace("{value: 2}", "{value: 2, worker: ON_A}") + "measures: true\n")
+    store = Store(tmp_path / "s")
+    plan = engine.make_plan(load_recipe(path, TOY), TOY, store)
+    summary = run_dask(plan.statuses, store, client, kind_modules=TOY.kind_modules)
+    outcomes = {o.name: o for o in summary.outcomes}
+    assert outcomes["measure power a^2"].status == "not_started"
+    assert "no worker of the Dask cluster declares the resource 'ON_A'" in outcomes["measure power a^2"].reason
+    assert '--resources "ON_A=1"' in outcomes["measure power a^2"].reason
+    assert outcomes["measure power b^2"].status == outcomes["total"].status == "ok"
+    assert summary.failed and len(summary.outcomes) == len(plan.statuses)
+
+
 def test_a_worker_killed_mid_job_is_survived(tmp_path, client):
     from matrix.dask_executor import run_dask
     store = Store(tmp_path / "s")
