@@ -242,7 +242,9 @@ def _not_applicable_dep(deps: dict) -> DepResult | None:
 
 
 RUNNING = "running"   # what a job's line says once the host it waited for is free, until the job says more
-HOST_BUSY = "waiting for this host: another run is using it, and this job or one of its jobs must run alone"
+# short enough for the progress line's 30 characters (an outside test read "waiting for this host: anothe…"):
+# another job has the host to itself (a timing, of this run or another), or this one must and others run
+HOST_BUSY = "waiting for this host's lock"
 MESSAGE_LIMIT, BUG_LIMIT = 2000, 300   # characters of a failure's line: the domain's own message, anything else
 
 
