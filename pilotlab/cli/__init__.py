@@ -71,7 +71,12 @@ def os_problem(error: OSError) -> str:
 
 def _stopped(args: argparse.Namespace) -> str:
     """What a stopped `run` leaves (Ctrl-C said only "interrupted", SIGTERM this: outside test)."""
-    return ": the jobs that finished are kept; run again to go on" if args.command == "run" else ""
+    if args.command != "run":
+        return ""
+    on_dask = getattr(args, "executor", "local") == "dask"   # dask-local's cluster closes with the run
+    return ": the jobs that finished are kept" + (
+        "; the jobs already running on the Dask workers run to their end there (Dask cannot stop a running task), "
+        "and their results are kept too" if on_dask else "") + "; run again to go on"
 
 
 def main(argv: list[str] | None = None) -> int:

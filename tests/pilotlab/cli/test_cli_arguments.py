@@ -175,6 +175,9 @@ def test_a_run_stopped_by_ctrl_c_says_what_is_kept_as_at_sigterm(monkeypatch, ca
     monkeypatch.setattr(engine_cli, "cmd_run", stopped)
     assert main(["run", "recipes/quickstart.yaml"]) == 130
     assert capsys.readouterr().err == "pilotlab: interrupted: the jobs that finished are kept; run again to go on\n"
+    # outside test: on a Dask cluster the jobs already running went on, the message said nothing of them
+    assert main(["run", "recipes/quickstart.yaml", "--executor", "dask", "--scheduler", "tcp://h:8786"]) == 130
+    assert "the jobs already running on the Dask workers run to their end there" in capsys.readouterr().err
     monkeypatch.setattr(engine_cli, "cmd_plan", stopped)
     assert main(["plan", "recipes/quickstart.yaml"]) == 130
     assert capsys.readouterr().err == "pilotlab: interrupted\n"
