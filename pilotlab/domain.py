@@ -93,9 +93,10 @@ def unstable_line(recipe: Recipe, plan, store) -> str | None:
         return None
     kinds = sorted({job.kind for job in disturbed})
     again = " ".join(f"--force {kind}" for kind in kinds)
-    return (f"⚠ {len(disturbed)} of {len(timed)} timings stayed disturbed (other processes used the cores): the "
-            f"report marks them and draws no conclusion from them; on a quiet machine, `pilotlab run "
-            f"{recipe.file} {again}` measures them again")
+    # not "other processes used the cores": a timing on a Dask worker was disturbed by the worker's own threads
+    return (f"⚠ {len(disturbed)} of {len(timed)} timings stayed disturbed (the machine was busy while they were "
+            f"measured): the report marks them, with each one's reason, and draws no conclusion from them; on a "
+            f"quiet machine, `pilotlab run {recipe.file} {again}` measures them again")
 
 
 DOMAIN = Domain(

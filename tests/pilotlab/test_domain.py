@@ -731,7 +731,7 @@ def test_the_run_says_how_many_timings_stayed_disturbed_and_how_to_measure_them_
     plan = SimpleNamespace(statuses=[SimpleNamespace(job=job) for job in jobs])
     store = SimpleNamespace(result=results.get)
     assert unstable_line(recipe, plan, store) == (
-        f"⚠ 2 of {len(timings)} timings stayed disturbed (other processes used the cores): the report marks them "
-        f"and draws no conclusion from them; on a quiet machine, `pilotlab run {recipe.file} --force timing` "
-        "measures them again")
+        f"⚠ 2 of {len(timings)} timings stayed disturbed (the machine was busy while they were measured): the report "
+        f"marks them, with each one's reason, and draws no conclusion from them; on a quiet machine, `pilotlab run "
+        f"{recipe.file} --force timing` measures them again")
     assert unstable_line(recipe, plan, SimpleNamespace(result=lambda key: None)) is None
