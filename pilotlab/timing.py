@@ -154,9 +154,13 @@ class Measurement:
             f"; other processes used {load['others_cores']:.2f} of {self.cores} cores"
             + (f" (steal {load['steal_cores']:.2f})" if (load["steal_cores"] or 0) >= 0.005 else "")
             + f" beside the {self.needed_cores} this timing needs")
+        # a single-thread figure falls back to CPU time only from min_calls calls (outside test: its throughput,
+        # 7 calls of a batch, was left unstable without a word of why)
+        few = (f"; too few calls ({self.calls}) for a CPU-time figure either (it needs {self.min_calls})"
+               if self.cpu_clock and self.calls < self.min_calls else "")
         return (f"only {self.clean_calls} of {self.calls} calls ({share_text} %) ran with no thread of this "
                 f"process waiting for a CPU (a stable figure needs {self.min_calls} such calls, and "
-                f"{self.limits.min_clean_share:.0%} of all) in {seconds:.1f} s of measuring and re-measuring{others}")
+                f"{self.limits.min_clean_share:.0%} of all) in {seconds:.1f} s of measuring and re-measuring{others}{few}")
 
     def summary(self) -> dict:
         """How the figure was measured: blocks, calls set aside, this process's CPU time over wall time,

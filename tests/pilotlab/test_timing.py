@@ -84,6 +84,8 @@ def test_a_disturbed_single_thread_figure_is_its_thread_cpu_time_with_the_reason
         [3_000_000], [False], BUSY, cpu_ns=[1_000_000], waited_ns=[2_000_000])], cpu_clock=True)
     assert one.clock == "wall" and not one.stable
     assert "(a stable figure needs 4 such calls, and 25% of all)" in one.reason()
+    assert one.reason().endswith("; too few calls (1) for a CPU-time figure either (it needs 4)")   # outside test K10
+    assert "too few calls" not in elsewhere.reason()
 
 
 def spin(microseconds: int):
