@@ -89,10 +89,15 @@ def _fastest(data: ReportData, rows: list[ReportRow]) -> list[Finding]:
                                         "pilotlab run --force timing", "when the machine is quieter"))
                 continue
             text = f"{method_label(row, data)}{_within_spread(data, here, row, metric)} — " \
-                f"{format_value(metric, row.get(metric))} {unit}"
+                f"{format_value(metric, row.get(metric))} {unit}{_clock(row, metric)}"
             versus = _versus(data, row, metric, "faster") if metric == "latency_ms" else ""
             findings.append(Finding(f"{label} on {hardware}", text + versus))
     return findings
+
+
+def _clock(row: ReportRow, metric: str) -> str:
+    """" (CPU time)" where the figure is the thread's CPU time of a busy machine (the tables label it so)."""
+    return " (CPU time)" if row.cpu_time_reason(metric) else ""
 
 
 def _fastest_accurate(data: ReportData, offline: list[ReportRow], online: list[ReportRow]) -> list[Finding]:
@@ -123,6 +128,7 @@ def _accurate_text(data: ReportData, row: ReportRow, online: list[ReportRow]) ->
     completed = sum(bool(r.get("lap_completed")) for r in laps)
     lost = f" (the baseline lost the other {len(laps) - completed} too)" if completed < len(laps) else ""
     return (f"{method_label(row, data)} — {format_value('latency_ms', row.get('latency_ms'))} ms per image"
+            f"{_clock(row, 'latency_ms')}"
             f"{_versus(data, row, 'latency_ms', 'faster')}, MSE {row.get('mse') / base.get('mse'):.2f}× "
             f"{data.baseline}'s" + (f", {completed} of {len(laps)} laps completed{lost}" if laps else ""))
 

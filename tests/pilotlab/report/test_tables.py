@@ -136,6 +136,12 @@ def test_a_timing_in_thread_cpu_time_is_labelled_with_the_reason_and_its_speed_u
     stored = row_from_result({"status": "ok", "value": {"latency_ms": 2.3, "cpu_time": {"latency_ms": busy,
                                                                                        "bogus": "x"}}}, Path("."))
     assert stored["cpu_time"] == {"latency_ms": busy}
+    # outside test K11: the summary's "Fastest on cpu1" said its CPU-time figure as a plain one
+    from pilotlab.report.summary import summarise
+    rows = timed_rows()
+    rows[1]["cpu_time"] = {"latency_ms": busy}
+    fastest = next(f for f in summarise(ReportData.from_dict(small_dict(rows))) if f.label.startswith("Fastest on"))
+    assert "0.400 ms per image (CPU time)" in fastest.text
 
 
 def test_an_old_result_with_a_reference_kernel_time_still_reports():
