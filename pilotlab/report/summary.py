@@ -86,13 +86,18 @@ def _fastest(data: ReportData, rows: list[ReportRow]) -> list[Finding]:
                 continue
             if issue := timing_issue(here, metric):
                 findings.append(Finding(f"{label} on {hardware}", f"not drawn: {issue}; rerun",
-                                        "pilotlab run --force timing", "when the machine is quieter"))
+                                        _rerun_timing(data), "when the machine is quieter"))
                 continue
             text = f"{method_label(row, data)}{_within_spread(data, here, row, metric)} — " \
                 f"{format_value(metric, row.get(metric))} {unit}{_clock(row, metric)}"
             versus = _versus(data, row, metric, "faster") if metric == "latency_ms" else ""
             findings.append(Finding(f"{label} on {hardware}", text + versus))
     return findings
+
+
+def _rerun_timing(data: ReportData) -> str:
+    """The command that measures the timings again (the report knows its recipe by name, not its path)."""
+    return f"pilotlab run {data.recipe_name}.yaml --force timing"
 
 
 def _clock(row: ReportRow, metric: str) -> str:
@@ -115,7 +120,7 @@ def _fastest_accurate(data: ReportData, offline: list[ReportRow], online: list[R
                                                f"baseline's and the laps the baseline completes"))
             continue
         if issue := timing_issue(here, "latency_ms"):
-            findings.append(Finding(label, f"not drawn: {issue}; rerun", "pilotlab run --force timing",
+            findings.append(Finding(label, f"not drawn: {issue}; rerun", _rerun_timing(data),
                                     "when the machine is quieter"))
             continue
         findings.append(Finding(label, _accurate_text(data, row, online)))

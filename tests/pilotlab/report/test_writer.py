@@ -212,11 +212,11 @@ def test_an_unstable_timing_is_marked_in_the_results_files_and_both_pages(tmp_pa
     assert f"⚠ baseline: inference time unstable: {reason}." in readme
     assert "Timings on 2 thread(s), one method at a time: inference time is the median of 24–900" in readme
     assert "**Fastest on cpu1**: not drawn: baseline (cpu1): unstable" in readme
-    assert "; rerun `pilotlab run --force timing` when the machine is quieter" in readme   # code, not \`
+    assert "; rerun `pilotlab run small.yaml --force timing` when the machine is quieter" in readme   # code, not \`
     assert "\\`" not in readme
     page = paths.html.read_text()
     assert "2.30 (2.20–9.50) ⚠" in page
-    assert "; rerun <code>pilotlab run --force timing</code> when the machine is quieter" in page and "`pilotlab" not in page
+    assert "; rerun <code>pilotlab run small.yaml --force timing</code> when the machine is quieter" in page and "`pilotlab" not in page
 
 
 def test_a_lap_replaying_an_unstable_timing_is_marked_and_draws_no_verdict(tmp_path):
