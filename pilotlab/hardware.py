@@ -4,7 +4,7 @@ A profile is pure data, so it can travel in job params:
 
     {"name": "cpu1", "device": "cpu", "threads": 1}
 
-Built in: `cpu` (all cores), `cpu1` (one thread), `cuda` (the first GPU). A recipe may define more
+Built in: `cpu` (all cores), `cpu1` (one thread), `cuda` (the first GPU). A recipe may define more (a built-in name only with its own settings)
 under `hardware:` with the options of `HardwareOptions` (their one home: the recipe, the job params and
 the profiles are made from it): `device` ("cpu" | "cuda"), `threads` (CPU threads; omitted = all cores)
 and `worker_resource`, the Dask worker resource of the machine the profile stands for (its timing jobs
@@ -115,7 +115,16 @@ def make_profile(name: str, options: dict[str, Any] | None = None) -> HardwarePr
         first = error.errors(include_url=False)[0]
         field, message = ".".join(map(str, first["loc"])), first["msg"].removeprefix("Value error, ")
         raise PilotlabError(f"hardware.{name}.{field}: {message} (got {first.get('input')!r:.60})") from None
-    return HardwareProfile(name, **valid.model_dump())
+    profile = HardwareProfile(name, **valid.model_dump())
+    if name in BUILTIN and profile != BUILTIN[name]:   # its tables would say "cpu1" of 2 threads (outside test K9)
+        raise PilotlabError(f"hardware.{name}: {name!r} is a built-in profile ({describe_profile(BUILTIN[name])}); "
+                            f"give a profile of other settings a name of its own, e.g. {name}_mine")
+    return profile
+
+
+def describe_profile(profile: HardwareProfile) -> str:
+    threads = "every core" if profile.threads is None else f"{profile.threads} thread{'s' * (profile.threads > 1)}"
+    return f"{profile.device}, {threads}"
 
 
 def profile_from_dict(data: dict[str, Any]) -> HardwareProfile:
