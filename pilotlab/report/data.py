@@ -78,6 +78,9 @@ class Host(_Frozen):
     cores: int | None = None
     gpu: str | None = None          # None: no GPU was used or present
     os: str = ""
+    # profiles that stand for another machine (worker_resource) -> the host that timed them (an outside test:
+    # the report named only the planning host, never the Jetson its jetson rows were timed on)
+    elsewhere: dict[str, str] = Field(default_factory=dict)
 
     @classmethod
     def detect(cls) -> Host:
@@ -86,7 +89,8 @@ class Host(_Frozen):
 
     def describe(self) -> str:
         cores = f", {self.cores} cores" if self.cores else ""
-        return f"{self.cpu}{cores}; GPU: {self.gpu or 'none'}"
+        others = "".join(f"; {profile} timed on {host}" for profile, host in self.elsewhere.items())
+        return f"{self.cpu}{cores}; GPU: {self.gpu or 'none'}{others}"
 
 
 class HistoryPoint(BaseModel):

@@ -339,15 +339,20 @@ def _history(job, store: Store) -> list[dict]:
 
 
 def _host(jobs: list, store: Store) -> Host:
-    """The host the timings were measured on (from the timing jobs), else this machine. A timing job's
-    host record (its fingerprint, in its key) has no OS: it is this machine's when the record is."""
-    for job in jobs:
-        result = store.result(job.key) if job.kind == "timing" else None
-        host = (result or {}).get("value", {}).get("host")
-        if host:
+    """The host the timings were measured on (from the timing jobs), else this machine; and the host that
+    timed each profile standing for another machine (worker_resource). A timing job's host record (its
+    fingerprint, in its key) has no OS: it is this machine's when the record is."""
+    found, elsewhere = None, {}
+    for job in (job for job in jobs if job.kind == "timing"):
+        value = (store.result(job.key) or {}).get("value", {})
+        host, profile = value.get("host"), value.get("hardware") or {}
+        if host and profile.get("worker_resource"):
+            cores = f", {host['cores']} cores" if host.get("cores") else ""
+            elsewhere[profile["name"]] = f"{value.get('hostname', '?')} ({host.get('cpu') or 'unknown CPU'}{cores})"
+        elif host and found is None:
             here = platform.platform(terse=True) if host == host_fingerprint() else ""
-            return Host(cpu=host.get("cpu") or "unknown CPU", cores=host.get("cores"), gpu=host.get("gpu"), os=here)
-    return Host.detect()
+            found = Host(cpu=host.get("cpu") or "unknown CPU", cores=host.get("cores"), gpu=host.get("gpu"), os=here)
+    return (found or Host.detect()).model_copy(update={"elsewhere": elsewhere})
 
 
 def _stamp(recipe: Recipe, jobs: list, store: Store) -> dict:

@@ -47,3 +47,19 @@ def test_a_cell_not_run_whose_optimize_job_did_not_apply_says_why_not_not_run_ye
     assert row["status"] == "not_applicable" and row["reason"] == "subsample_stem 5 needs a network whose ..."
     store.result = {}.get
     assert (_row(offline, store)["status"], _row(offline, store)["reason"]) == ("not_run", "not run yet")
+
+
+def test_the_report_names_the_host_that_timed_a_profile_of_another_machine():
+    """Outside test K8: a jetson profile (worker_resource) timed on the Dask worker `jetsonbox` was reported
+    under the planning host's line only; the host line names where each such profile was timed."""
+    from types import SimpleNamespace
+    from pilotlab.report.recipe import _host
+    here = {"cpu": "AMD EPYC", "cores": 2, "gpu": None}
+    values = {"t1": {"host": here, "hardware": {"name": "cpu1", "device": "cpu", "threads": 1}, "hostname": "vm"},
+              "t2": {"host": {"cpu": "ARMv8 Processor rev 1 (v8l)", "cores": 8, "gpu": None}, "hostname": "jetsonbox",
+                     "hardware": {"name": "jetson", "device": "cpu", "threads": 4, "worker_resource": "JETSON"}}}
+    jobs = [SimpleNamespace(kind="timing", key=key) for key in ("t2", "t1")]
+    host = _host(jobs, SimpleNamespace(result=lambda key: {"value": values[key]}))
+    assert host.cpu == "AMD EPYC" and host.elsewhere == {"jetson": "jetsonbox (ARMv8 Processor rev 1 (v8l), 8 cores)"}
+    assert host.describe() == ("AMD EPYC, 2 cores; GPU: none; jetson timed on jetsonbox (ARMv8 Processor rev 1 (v8l), "
+                               "8 cores)")
