@@ -182,9 +182,8 @@ def run_dask(statuses: list[JobStatus], store: Store, client, *, keep_going: boo
     finally:
         events.close()
     for job in schedule.pending():
-        record_outcome(Outcome(job.key, job.name, job.kind, NOT_STARTED,
-                        "not started: the run stopped at the first failure (use --keep-going)"),
-                schedule, summary, display)
+        record_outcome(Outcome(job.key, job.name, job.kind, NOT_STARTED, not_finished_reason(client)),
+                       schedule, summary, display)
     summary.wall_s = time.monotonic() - started
     return summary
 
@@ -202,7 +201,7 @@ def _drive(schedule: Schedule, submit, client, summary: RunSummary, keep_going: 
             continue
         job = running.pop(future.key)
         events.job_finished(job.key)
-        outcome = _outcome(job, future)
+        outcome = _outcome(job, future, client)
         record_outcome(outcome, schedule, summary, display)
         stopping = stopping or (outcome.status == FAILED and not keep_going)
 
@@ -302,10 +301,22 @@ def _resources(job: Job, timing_resource: str | None) -> dict[str, float]:
     return resources
 
 
-def _outcome(job: Job, future) -> Outcome:
+STOPPED = "not started: the run stopped at the first failure (use --keep-going)"
+
+
+def not_finished_reason(client) -> str:
+    """Why a job of the run did not finish: the run stopped at a failure, or (an outside test: every job
+    said that, with no failure anywhere) the connection to the scheduler was lost."""
+    if getattr(client, "status", "running") == "running":
+        return STOPPED
+    address = getattr(getattr(client, "scheduler", None), "address", None) or "its address"
+    return (f"not finished: the connection to the Dask scheduler ({address}) was lost; a job that finished on a "
+            "worker meanwhile is in the store (run again: it is fresh)")
+
+
+def _outcome(job: Job, future, client=None) -> Outcome:
     if future.cancelled():
-        return Outcome(job.key, job.name, job.kind, NOT_STARTED,
-                       "not started: the run stopped at the first failure (use --keep-going)")
+        return Outcome(job.key, job.name, job.kind, NOT_STARTED, not_finished_reason(client))
     try:
         answer = future.result()
     except Exception as error:  # the task itself broke (for example a worker died too often)

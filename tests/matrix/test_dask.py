@@ -251,3 +251,17 @@ def test_dask_local_workers_get_their_share_of_the_cores_as_the_local_pool_s(mon
         local.cluster.close()
     share = worker_threads(2)
     assert seen == {None if share is None else str(share)}
+
+
+def test_jobs_cut_off_by_a_lost_scheduler_say_so():
+    """Outside test K4: the scheduler killed mid-run, every job said "the run stopped at the first failure
+    (use --keep-going)", with no failure anywhere."""
+    from types import SimpleNamespace
+    from matrix.dask_executor import STOPPED, _outcome, not_finished_reason
+    lost = SimpleNamespace(status="closed", scheduler=SimpleNamespace(address="tcp://lab:8786"))
+    assert not_finished_reason(SimpleNamespace(status="running")) == STOPPED
+    assert not_finished_reason(lost).startswith("not finished: the connection to the Dask scheduler (tcp://lab:8786) "
+                                                "was lost")
+    job = SimpleNamespace(key="k", name="timing x", kind="timing")
+    outcome = _outcome(job, SimpleNamespace(cancelled=lambda: True), lost)
+    assert outcome.status == "not_started" and "was lost" in outcome.reason
