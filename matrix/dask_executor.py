@@ -135,15 +135,16 @@ def missing_resources(client, jobs: list[Job], timing_resource: str | None) -> d
 def _not_placeable(missing: dict[str, str], schedule: Schedule, summary: RunSummary, display) -> None:
     """Record the jobs no worker can take as not started (and the jobs that stand on them as skipped)."""
     for key, resource in missing.items():
-        if key in schedule.settled:
+        if key in schedule.settled:   # skipped already: it stands on another such job
             continue
         job = schedule.jobs[key]
         blocked = schedule.blocked_by(key)
-        for outcome in [Outcome(key, job.name, job.kind, NOT_STARTED,
-                                f"not started: no worker of the Dask cluster declares the resource {resource!r} "
-                                f"(start one with `dask worker ADDRESS --nthreads 1 --resources \"{resource}=1\"`)")] + [
-                Outcome(other.key, other.name, other.kind, SKIPPED, f"dependency not started: {job.name}")
-                for other in blocked]:
+        why = (f"not started: no worker of the Dask cluster declares the resource {resource!r} (start one with "
+               f"`dask worker ADDRESS --nthreads 1 --resources \"{resource}=1\"`)")
+        outcomes = [Outcome(key, job.name, job.kind, NOT_STARTED, why)]
+        outcomes += [Outcome(other.key, other.name, other.kind, SKIPPED, f"dependency not started: {job.name}")
+                     for other in blocked]
+        for outcome in outcomes:
             summary.outcomes.append(outcome)
             display.job_finished(outcome)
 

@@ -90,7 +90,6 @@ def _jobs_table(statuses: Iterable) -> Table:
     return table
 
 
-
 def _plain_rows(statuses: Sequence) -> str:
     """The jobs table as aligned plain text, a line a job (no colours: meant for a pager or a file)."""
     rows = [("status", "kind", "job", "reason", "key", "note")] + [

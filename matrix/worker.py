@@ -61,10 +61,11 @@ def init_worker(kind_modules: Iterable[str], progress_queue: Any = None, threads
 
 
 def _exit_now() -> None:
-    """The worker's last atexit handler to be registered, so the first to run: it ends the process
-    without the interpreter's teardown (each loaded module's, torch's and TensorFlow's: 0.7-1.9 s that
-    the run waited for at its end, with nothing left to do). Everything a job wrote is on disk when its
-    result returns, and multiprocessing has flushed its queues before the interpreter exits."""
+    """Registered as the worker starts, this atexit handler runs after those of the modules its jobs
+    imported later (atexit runs the last registered first), then ends the process without the
+    interpreter's teardown (each loaded module's, torch's and TensorFlow's: 0.7-1.9 s that the run waited
+    for at its end, with nothing left to do). Everything a job wrote is on disk when its result returns,
+    and multiprocessing has flushed its queues before the interpreter exits."""
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(0)
