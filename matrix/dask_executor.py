@@ -128,7 +128,8 @@ def _malloc_as_a_plain_process() -> None:
 def missing_resources(client, jobs: list[Job], timing_resource: str | None) -> dict[str, str]:
     """{job key: a resource it needs that no worker of the cluster declares}: such a job would wait for
     ever, the run showing "about 0:00:04 left" (an outside test); it is not started, saying why."""
-    held = {name for info in client.scheduler_info().get("workers", {}).values() for name in info.get("resources") or {}}
+    workers = client.scheduler_info().get("workers", {}).values()
+    held = {name for info in workers for name in info.get("resources") or {}}
     return {job.key: name for job in jobs for name in _resources(job, timing_resource) if name not in held}
 
 

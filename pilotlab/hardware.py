@@ -5,8 +5,9 @@ A profile is pure data, so it can travel in job params:
     {"name": "cpu1", "device": "cpu", "threads": 1}
 
 Built in: `cpu` (all cores), `cpu1` (one thread), `cuda` (the first GPU). A recipe may define more
-(a built-in's name only with its own settings) under `hardware:` with the options of `HardwareOptions` (their one home: the recipe, the job params and
-the profiles are made from it): `device` ("cpu" | "cuda"), `threads` (CPU threads; omitted = all cores)
+(a built-in's name only with its own settings) under `hardware:` with the options of `HardwareOptions`
+(their one home: the recipe, the job params and the profiles are made from it): `device` ("cpu" |
+"cuda"), `threads` (CPU threads; omitted = all cores)
 and `worker_resource`, the Dask worker resource of the machine the profile stands for (its timing jobs
 run only on workers started with `--resources NAME=1`, and are keyed by the profile, not by the planning
 host's fingerprint; their results record the host that ran them).

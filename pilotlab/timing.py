@@ -160,7 +160,8 @@ class Measurement:
                if self.cpu_clock and self.calls < self.min_calls else "")
         return (f"only {self.clean_calls} of {self.calls} calls ({share_text} %) ran with no thread of this "
                 f"process waiting for a CPU (a stable figure needs {self.min_calls} such calls, and "
-                f"{self.limits.min_clean_share:.0%} of all) in {seconds:.1f} s of measuring and re-measuring{others}{few}")
+                f"{self.limits.min_clean_share:.0%} of all) in {seconds:.1f} s of measuring and re-measuring"
+                f"{others}{few}")
 
     def summary(self) -> dict:
         """How the figure was measured: blocks, calls set aside, this process's CPU time over wall time,
