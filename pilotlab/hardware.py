@@ -116,8 +116,15 @@ def make_profile(name: str, options: dict[str, Any] | None = None) -> HardwarePr
         first = error.errors(include_url=False)[0]
         field, message = ".".join(map(str, first["loc"])), first["msg"].removeprefix("Value error, ")
         raise PilotlabError(f"hardware.{name}.{field}: {message} (got {first.get('input')!r:.60})") from None
-    profile = HardwareProfile(name, **valid.model_dump())
-    if name in BUILTIN and profile != BUILTIN[name]:   # its tables would say "cpu1" of 2 threads (outside test K9)
+    return HardwareProfile(name, **valid.model_dump())
+
+
+def recipe_profile(name: str, options: dict[str, Any] | None = None) -> HardwareProfile:
+    """A profile as a recipe defines it: `make_profile`, and a built-in's name only with the built-in's
+    settings (`cpu1: {threads: 2}` was taken, every table saying "cpu1" of two threads: outside test K9).
+    Job params may narrow a built-in (a lap's share of the cores), so this is the recipe's check only."""
+    profile = make_profile(name, options)
+    if name in BUILTIN and profile != BUILTIN[name]:
         raise PilotlabError(f"hardware.{name}: {name!r} is a built-in profile ({describe_profile(BUILTIN[name])}); "
                             f"give a profile of other settings a name of its own, e.g. {name}_mine")
     return profile

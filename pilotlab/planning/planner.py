@@ -303,9 +303,9 @@ class Planner:
             raise self.recipe.error(message + (f" ({name} uses {base})" if base != name else ""), where) from None
 
     def profile(self, name: str):
-        from pilotlab.hardware import make_profile
+        from pilotlab.hardware import recipe_profile
         options = self.config.hardware.get(name)
-        return self.remembered(("profile", name), lambda: make_profile(
+        return self.remembered(("profile", name), lambda: recipe_profile(
             name, options.model_dump(exclude_none=True, exclude={"latency_file"}) if options else None))
 
     def latency_file(self, hardware: str) -> Path | None:
