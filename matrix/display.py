@@ -81,8 +81,11 @@ def summary_line(summary: RunSummary, tool: str) -> str:
     return f"{verdict}: {', '.join(parts)}; {summary.fresh} were fresh — {summary.wall_s:.1f} s" + hint
 
 
+JOB_COLUMNS = ("status", "kind", "job", "reason", "key", "note")   # a plan's jobs, as a table or plain lines
+
+
 def _jobs_table(statuses: Iterable) -> Table:
-    table = Table("status", "kind", "job", "reason", "key", "note", box=None, pad_edge=False)
+    table = Table(*JOB_COLUMNS, box=None, pad_edge=False)
     for s in statuses:
         style = STATE_STYLE[s.state]
         table.add_row(f"[{style}]{s.state}[/]", s.job.kind, escape(s.job.name), escape(s.reason), s.job.key[:10],
@@ -92,7 +95,7 @@ def _jobs_table(statuses: Iterable) -> Table:
 
 def _plain_rows(statuses: Sequence) -> str:
     """The jobs table as aligned plain text, a line a job (no colours: meant for a pager or a file)."""
-    rows = [("status", "kind", "job", "reason", "key", "note")] + [
+    rows = [JOB_COLUMNS] + [
         (s.state, s.job.kind, s.job.name, s.reason, s.job.key[:10], job_note(s.job)) for s in statuses]
     widths = [max(len(row[i]) for row in rows) for i in range(5)]
     return "".join("  ".join(cell.ljust(width) for cell, width in zip(row, widths)) + "  " + row[5] + "\n"
