@@ -21,6 +21,7 @@ from matrix.kinds import guess_kind, measured_keys, note_kind
 from pilotlab.circuits.registry import lap_scale
 from pilotlab.specs.online import LapSettings, ToleranceSpec
 from pilotlab.specs.record import RecordSpec
+from pilotlab.specs.timing import planned_without_gpu
 from pilotlab.specs.train import TrainSpec
 from pilotlab.strategies import PREPARATIONS, STRATEGIES
 
@@ -28,15 +29,9 @@ from pilotlab.strategies import PREPARATIONS, STRATEGIES
 NOT_HERE_S = 0.1
 
 
-def not_applicable_here(params) -> bool:
-    """A job for a CUDA profile whose planned host has no GPU (it is "not applicable" when it runs)."""
-    host = params.get("host")
-    return (params.get("hardware") or {}).get("device") == "cuda" and isinstance(host, dict) and not host.get("gpu")
-
-
 def guess_here(seconds_for: Callable[[Any], float]) -> Callable[[Any], float]:
     """A kind's guess that knows a job that cannot run on its planned host ends at once."""
-    return lambda params: NOT_HERE_S if not_applicable_here(params) else seconds_for(params)
+    return lambda params: NOT_HERE_S if planned_without_gpu(params) else seconds_for(params)
 
 
 # record: a lap of simple_circuit at 640×480 took 2.7-3.5 s, other circuits by their length (the study's
@@ -61,8 +56,14 @@ def train_seconds(params) -> float:
 
 
 # optimize and prepare, on one core: a conversion 1-4 s, a calibration ~2 s more, and each epoch of
-# fine-tuning (pruning, QAT, clustering; a strategy's *epochs options) 3-4 s on a thousand frames.
-BASE_S, CALIBRATION_S, EPOCH_S = 3.0, 2.0, 3.5
+# fine-tuning (pruning, clustering; a strategy's *epochs options) 3-4 s on the study's 3,000 frames in
+# bf16. A QAT epoch fine-tunes in fp32 with fake quantization (pilotlab.strategies.common.finetune): 9-13 s
+# in the study's cold run of 70b1105 (Intel host, 2026-12-02), where every guess at 3.5 s had its CQAT
+# fine-tune (31 s, guessed 15) hold a timing up while a core idled. A channel-pruned network's epoch costs
+# about its share of channels kept: 1.1 s at amount 0.65 (its stem subsampled), 2.2 s at 0.3.
+BASE_S, CALIBRATION_S, EPOCH_S, QAT_EPOCH_S = 3.0, 2.0, 3.5, 10.5
+FAKE_QUANT_EPOCHS = "qat_epochs"       # and the `qat` strategy's finetune_epochs: its fine-tune is QAT
+CHANNEL_PRUNING = ("channel_pruning", "structured_prune")
 
 
 def prepared_options(strategy: str | None) -> dict:
@@ -71,16 +72,27 @@ def prepared_options(strategy: str | None) -> dict:
     return PREPARATIONS.get(entry.prepared_by).defaults if entry is not None and entry.prepared_by else {}
 
 
+def epochs_seconds(options: dict, method: str | None, skip: dict | None = None) -> float:
+    """Seconds of the *epochs options of a strategy or preparation (`method`), but for those in `skip`."""
+    seconds = 0.0
+    for name, value in options.items():
+        if not name.endswith("epochs") or not isinstance(value, int) or name in (skip or {}):
+            continue
+        fake_quant = name == FAKE_QUANT_EPOCHS or (method == "qat" and name == "finetune_epochs")
+        kept = 1.0 - float(options.get("amount", 0.0)) if method in CHANNEL_PRUNING else 1.0
+        seconds += value * (QAT_EPOCH_S if fake_quant else EPOCH_S * kept)
+    return seconds
+
+
 def optimize_seconds(params) -> float:
     """The epochs of a shared preparation are its prepare job's, not this job's."""
-    options, prepared = params.get("options") or {}, prepared_options(params.get("strategy"))
-    epochs = sum(value for name, value in options.items()
-                 if name.endswith("epochs") and isinstance(value, int) and name not in prepared)
-    return BASE_S + (CALIBRATION_S if options.get("calibration_frames") else 0.0) + EPOCH_S * epochs
+    options, strategy = params.get("options") or {}, params.get("strategy")
+    return (BASE_S + (CALIBRATION_S if options.get("calibration_frames") else 0.0)
+            + epochs_seconds(options, strategy, skip=prepared_options(strategy)))
 
 
 def prepare_seconds(params) -> float:
-    return BASE_S + EPOCH_S * int((params.get("options") or {}).get("finetune_epochs", 0))
+    return BASE_S + epochs_seconds(params.get("options") or {}, params.get("preparation"))
 
 
 # timing: about 2 s, most of it the measuring itself; offline: a test set of a few hundred frames.
@@ -126,7 +138,7 @@ NO_GPU_NOTE = "not applicable here: no GPU on this host"
 
 
 def cuda_note(params) -> str | None:
-    return NO_GPU_NOTE if not_applicable_here(params) else None
+    return NO_GPU_NOTE if planned_without_gpu(params) else None
 
 
 def lap_note(params) -> str | None:

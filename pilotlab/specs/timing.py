@@ -1,6 +1,7 @@
 """The `timing` job: how fast one optimized artifact runs on one hardware profile (batch-1 latency with
 its samples, throughput, peak memory), measured once whatever test set or world it is evaluated in.
-Exclusive: a timing job has the host to itself.
+Exclusive: a timing job has the host to itself (but for one that will not time: a CUDA profile's on a
+host without a GPU).
 
 deps: `artifact` (the optimize job) and `frames` (a group of frames jobs: the training frames the
 optimize job was made from, which only feed the network inputs; the test set is the offline jobs').
@@ -41,5 +42,17 @@ def timing_resources(params) -> dict[str, float]:
     return gpu_resources(params) | ({machine: 1} if machine else {})
 
 
-register_kind("timing", "pilotlab.jobs.timing:run_timing", params=TimingSpec, exclusive=True,
+def planned_without_gpu(params) -> bool:
+    """A job for a CUDA profile whose planned host has no GPU: it says "not applicable" as it starts."""
+    host = params.get("host")
+    return (params.get("hardware") or {}).get("device") == "cuda" and isinstance(host, dict) and not host.get("gpu")
+
+
+def times_its_host(params) -> bool:
+    """Whether the job measures time on its host, so runs alone there: not one that will not time at all
+    (the study's 24 CUDA timings on a host without a GPU each held both cores for a tenth of a second)."""
+    return not planned_without_gpu(params)
+
+
+register_kind("timing", "pilotlab.jobs.timing:run_timing", params=TimingSpec, exclusive_for=times_its_host,
               resources_for=timing_resources)

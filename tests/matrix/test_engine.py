@@ -405,9 +405,11 @@ def test_an_exclusive_job_waiting_for_the_host_lets_only_work_that_ends_before_i
     timing = Job("alone_toy", "timing", {}, deps={"data": recording})
     trainings = [Job("power", f"training {i}", {"power": i}, deps={"source": timing}) for i in (2, 3)]
     fits, too_long = Job("source", "reference lap", {"value": 3}), Job("source", "search", {"value": 4})
+    conversion = Job("power", "conversion", {"power": 2}, deps={"source": fits})
     seconds = {fine_tune.key: 60.0, recording.key: 40.0, timing.key: 3.0, fits.key: 20.0, too_long.key: 50.0,
-               **{t.key: 100.0 for t in trainings}}
-    schedule = Schedule([fine_tune, recording, timing, *trainings, fits, too_long], lambda job: seconds[job.key])
+               conversion.key: 5.0, **{t.key: 100.0 for t in trainings}}
+    schedule = Schedule([fine_tune, recording, timing, *trainings, fits, too_long, conversion],
+                        lambda job: seconds[job.key])
     assert schedule.take(False, 0, 3) == recording          # 143 s of work wait on it
     assert schedule.take(False, 1, 3) == fine_tune          # then the longest (the timing is 40 s away)
     schedule.done(recording.key)                            # the timing is ready: it waits for the host
@@ -415,8 +417,10 @@ def test_an_exclusive_job_waiting_for_the_host_lets_only_work_that_ends_before_i
     assert schedule.take(False, 1, 3) == fits               # 20 s ends before; the 50 s search would not
     assert schedule.take(False, 2, 3) is None
     schedule.done(fits.key)
-    schedule.started[fine_tune.key] -= 60                   # past its estimate: nothing is known to fit
-    assert schedule.take(False, 1, 3) is None
+    schedule.started[fine_tune.key] -= 60                   # 90 s in, past its estimate: a quarter of that
+    assert schedule.take(False, 1, 3) == conversion         # again is expected (22.5 s), so 5 s fit
+    schedule.done(conversion.key)
+    assert schedule.take(False, 1, 3) is None              # the 50 s search does not
     schedule.done(fine_tune.key)
     assert schedule.take(False, 0, 3) == timing             # an idle host: the timing runs alone
     assert schedule.take(True, 1, 3) is None

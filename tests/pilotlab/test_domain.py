@@ -359,6 +359,26 @@ def test_a_cold_store_guesses_a_lap_with_a_tolerance_search_as_several_laps(tmp_
     assert guess["structured_prune_int8"] == guess["onnxruntime_int8"]     # both calibrate and convert
     longer = dict(prepare, options=dict(prepare["options"], finetune_epochs=8))
     assert KINDS.get("prepare").typical(longer) > KINDS.get("prepare").typical(prepare)
+    # a QAT epoch (fp32, fake quantization) is about three of another fine-tune's (the study's CQAT ran 31 s
+    # where its guess said 15); a channel-pruned network's epochs cost its share of channels kept
+    study = engine.plan_jobs(load_recipe(ROOT / "recipes/study2022.yaml", DOMAIN), DOMAIN)
+    cpu = {job.name.removeprefix("optimize pilotnet/"): job for job in study if job.kind == "optimize"}
+    fit = {name: KINDS.get("optimize").typical(cpu[name].params) for name in ("qat", "qat_litert_int8", "global_prune")}
+    assert fit["qat"] == fit["qat_litert_int8"] > fit["global_prune"]     # one QAT epoch > two pruning ones
+    channels = {job.params["options"]["amount"]: KINDS.get("prepare").typical(job.params) for job in study
+                if job.kind == "prepare" and job.params["preparation"] == "channel_pruning"}
+    from pilotlab.specs.guesses import BASE_S, EPOCH_S
+    assert channels == {0.3: pytest.approx(BASE_S + 2 * 0.7 * EPOCH_S), 0.65: pytest.approx(BASE_S + 12 * 0.35 * EPOCH_S)}
+
+
+def test_a_timing_that_will_not_time_does_not_hold_the_host():
+    """The study's 24 CUDA timings on a host without a GPU each ran alone, holding both cores for the
+    tenth of a second they take to say "not applicable"; on a host with a GPU (or any worker's), they time."""
+    timing = KINDS.get("timing")
+    params = {"hardware": {"name": "cuda", "device": "cuda"}}
+    assert not timing.runs_alone(dict(params, host={"gpu": None}))
+    assert timing.runs_alone(dict(params, host={"gpu": "NVIDIA H200"})) and timing.runs_alone(dict(params, host=None))
+    assert timing.runs_alone({"hardware": {"name": "cpu", "device": "cpu"}, "host": {"gpu": None}})
 
 
 def test_the_plan_notes_searched_laps_and_cuda_jobs_that_end_at_once():
