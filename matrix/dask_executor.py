@@ -150,14 +150,16 @@ def _not_placeable(missing: dict[str, str], schedule: Schedule, summary: RunSumm
             display.job_finished(outcome)
 
 
-def run_task(store_root: str, spec: dict, kind_modules: tuple, replaces: str | None, topic: str | None = None) -> dict:
+def run_task(store_root: str, spec: dict, kind_modules: tuple, replaces: str | None, topic: str | None = None,
+             run: str | None = None) -> dict:
     """The Dask task: run the job (locked, atomic); wait while another run holds it. With `topic`, the
-    job's start and its progress go to the driver as events on it (its display shows what runs)."""
+    job's start and its progress go to the driver as events on it (its display shows what runs); `run`
+    names the run (matrix.worker.execute_job)."""
     _malloc_as_a_plain_process()
     if topic is not None:
         _send_progress_to(topic, spec["key"])
     while True:
-        answer = execute_job(store_root, spec, kind_modules, replaces)
+        answer = execute_job(store_root, spec, kind_modules, replaces, run)
         if answer["status"] != "busy":  # another run holds the job: wait for it, then read its result
             return {**answer, "name": spec["name"]}
         time.sleep(0.2)
@@ -282,7 +284,7 @@ class _Submitter:
 
     def __call__(self, job: Job):
         return self.client.submit(run_task, self.root, job.spec(), self.kind_modules, self.replacing.get(job.key),
-                                  self.topic, key=_task_key(job, self.run), pure=False,
+                                  self.topic, self.run, key=_task_key(job, self.run), pure=False,
                                   resources=_resources(job, self.timing_resource) or None)
 
 

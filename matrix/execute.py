@@ -15,6 +15,7 @@ import os
 import signal
 import threading
 import time
+import uuid
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -334,6 +335,7 @@ class _Pool:
     def __init__(self, store: Store, slots: int, kind_modules: tuple, display: Display, replacing: dict[str, str]):
         self.store, self.slots, self.kind_modules, self.display = store, slots, kind_modules, display
         self.replacing = replacing   # forced jobs: key -> the stored result to run again
+        self.run = uuid.uuid4().hex[:12]   # what this run hashed in full is not hashed again (matrix.store)
         self.context = multiprocessing.get_context("spawn")
         self.progress = self.context.Queue()
         self.executor = self._new_executor()
@@ -343,7 +345,7 @@ class _Pool:
                                    initargs=(self.kind_modules, self.progress, worker_threads(self.slots)))
 
     def submit(self, job: Job) -> Future:
-        arguments = (execute_job, str(self.store.root), job.spec(), (), self.replacing.get(job.key))
+        arguments = (execute_job, str(self.store.root), job.spec(), (), self.replacing.get(job.key), self.run)
         try:
             return self.executor.submit(*arguments)
         except BrokenProcessPool:

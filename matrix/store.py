@@ -13,10 +13,13 @@ A job is done exactly when `jobs/<key>/result.json` exists: the folder appears b
 killed run loses only the jobs it had in flight, and readers never see half a job.
 
 result.json lists every artifact with its size and sha256 ("manifest"). Checking that an entry is
-intact costs a stat per file: verified.json keeps (size, mtime, inode) of each file as last hashed,
-and a file whose stat differs is hashed again; a job about to read its dependencies' artifacts
-hashes them in full (`outputs_state(..., full=True)`). A file that no longer has its sha256 makes
-the entry "changed": it is never read, and the next run rebuilds it.
+intact costs a stat per file: verified.json keeps (size, mtime, inode, ctime) of each file as last
+hashed, and a file whose stat differs is hashed again; a job about to read its dependencies' artifacts
+hashes them in full (`outputs_state(..., full=True)`), once per run: verified.json names the run that
+last hashed every file in full (the one that made them, at their commit), and within that run the stat
+check stands for it (the study's jobs hashed 14 GB of their dependencies, the training frames 48 times
+over). A file that no longer has its sha256 makes the entry "changed": it is never read, and the next
+run rebuilds it.
 """
 from __future__ import annotations
 
@@ -43,6 +46,7 @@ _KEY, _SHARD = re.compile(r"[0-9a-f]{64}"), re.compile(r"[0-9a-f]{2}")
 INTACT, MISSING, CHANGED = "", "missing", "changed"
 # verified.json's record of the file last found changed: a name no artifact has (theirs are relative paths)
 CHANGED_MARK = "/changed"
+RUN_MARK = "/hashed in full by run"   # in verified.json: the run that last hashed every file in full
 
 
 class StoreError(MatrixError):
@@ -133,15 +137,17 @@ class Store:
     def outputs_intact(self, key: str, result: dict) -> bool:
         return self.outputs_state(key, result) == INTACT
 
-    def outputs_state(self, key: str, result: dict, full: bool = False) -> str:
+    def outputs_state(self, key: str, result: dict, full: bool = False, run: str | None = None) -> str:
         """INTACT, MISSING (a file gone or of another size, or spec.json gone) or CHANGED (not the sha256 recorded).
-        Hashes only files whose stat changed since they were last hashed, or every file if `full`."""
+        Hashes only files whose stat changed since they were last hashed, or every file if `full`, but for
+        a `run` that hashed them all in full already (its stat check stands for it: see the module)."""
         folder, verified_path = self.artifacts(key), self.job_dir(key) / VERIFIED
         spec = self.spec(key)
         if not isinstance(spec, dict) or spec.get("key", key) != key:   # what the entry is of: part of it
             return MISSING
         verified = read_json(verified_path)
         verified = verified if isinstance(verified, dict) else {}
+        full = full and not (run is not None and verified.get(RUN_MARK) == run)
         rehashed = False
         if verified.get(CHANGED_MARK):   # known changed: hashed again only once its stat moved (put back as it was?)
             restored = self._changed_file_restored(folder, result, verified)
@@ -165,6 +171,8 @@ class Store:
                 _try_write(verified_path, {**verified, CHANGED_MARK: name})
                 return CHANGED
             verified[name], rehashed = _signature(stat), True
+        if full and run is not None:
+            verified[RUN_MARK], rehashed = run, True
         if rehashed:
             _try_write(verified_path, verified)
         return INTACT
@@ -223,14 +231,16 @@ class Store:
         (work / ARTIFACTS).mkdir()
         return work
 
-    def commit(self, key: str, workdir: Path, spec: dict, result: dict, measured: Collection[str] = ()) -> None:
+    def commit(self, key: str, workdir: Path, spec: dict, result: dict, measured: Collection[str] = (),
+               run: str | None = None) -> None:
         """Write spec and result into `workdir`, then move it into place in one rename; `measured`: the
-        value's keys that say how the run went, not what it made (outside its outputs token).
+        value's keys that say how the run went, not what it made (outside its outputs token); `run`: the
+        run that makes it (its files, hashed here, are not hashed in full again within that run).
 
         Call with the job's lock held: an existing (corrupt or stale) entry is replaced."""
         result = dict(result, manifest=_manifest(workdir / ARTIFACTS))
         result["outputs"] = outputs_hash(result, measured)
-        write_json_atomic(workdir / VERIFIED, _signatures(workdir / ARTIFACTS))
+        write_json_atomic(workdir / VERIFIED, _signatures(workdir / ARTIFACTS) | ({RUN_MARK: run} if run else {}))
         write_json_atomic(workdir / SPEC, spec)
         write_json_atomic(workdir / RESULT, result)
         final = self.job_dir(key)

@@ -98,13 +98,15 @@ def _die_with_parent() -> None:
         os._exit(1)
 
 
-def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = (), replaces: str | None = None) -> dict:
+def execute_job(store_root: str, spec: dict, kind_modules: Iterable[str] = (), replaces: str | None = None,
+                run: str | None = None) -> dict:
     """Run the job described by `spec` (see Job.spec) unless it is done or running elsewhere.
     `replaces` (a forced rerun) names the stored result to run again: that one does not count as done.
+    `run` names the run it belongs to: its dependencies' files are hashed in full once per run (matrix.store).
 
     Returns {"status": ok | not_applicable | failed | busy | done_elsewhere | kept, "reason", "duration_s"}."""
     with _interruptible():
-        return _execute(store_root, spec, kind_modules, replaces)
+        return _execute(store_root, spec, kind_modules, replaces, run)
 
 
 @contextlib.contextmanager
@@ -122,7 +124,7 @@ def _interruptible():
         signal.signal(signal.SIGTERM, _sigterm_when_idle)
 
 
-def _execute(store_root: str, spec: dict, kind_modules: Iterable[str], replaces: str | None) -> dict:
+def _execute(store_root: str, spec: dict, kind_modules: Iterable[str], replaces: str | None, run: str | None) -> dict:
     for module in kind_modules:
         importlib.import_module(module)
     store, key = Store(store_root), spec["key"]
@@ -138,7 +140,7 @@ def _execute(store_root: str, spec: dict, kind_modules: Iterable[str], replaces:
         with host_slot(exclusive=KINDS.get(spec["kind"]).runs_alone(spec["params"]),   # timings: alone
                        waiting=lambda: _progress_for(key)(completed=0, total=None, description=HOST_BUSY),
                        resumed=lambda: _progress_for(key)(completed=0, total=None, description=RUNNING)):
-            return _run_locked(store, spec)
+            return _run_locked(store, spec, run)
 
 
 def _still_stands(store: Store, spec: dict, done: dict, replaces: str | None) -> bool | str:
@@ -158,12 +160,12 @@ def _dependency_outputs(store: Store, spec: dict) -> dict[str, str | None]:
             for key in spec_dep_keys(spec["deps"])}
 
 
-def _run_locked(store: Store, spec: dict) -> dict:
+def _run_locked(store: Store, spec: dict, run: str | None) -> dict:
     key, started = spec["key"], time.time()
     workdir = store.new_workdir(key)
     try:
         used: dict[str, str] = {}
-        deps = _dep_results(store, spec, used)
+        deps = _dep_results(store, spec, used, run)
         blocker = _not_applicable_dep(deps)
         if blocker:
             status, reason, value = NOT_APPLICABLE, blocker.reason, {}
@@ -175,7 +177,7 @@ def _run_locked(store: Store, spec: dict) -> dict:
               "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "deps_used": used}
     if blocker:   # the reason stays the dependency's own, so cells blocked for one cause group together
         result["blocked_by"] = blocker.name
-    store.commit(key, workdir, spec, result, measured=KINDS.get(spec["kind"]).measured)
+    store.commit(key, workdir, spec, result, measured=KINDS.get(spec["kind"]).measured, run=run)
     shown = f"{reason} ({blocker.name})" if blocker else reason
     return {"status": status, "reason": shown, "duration_s": result["duration_s"]}
 
@@ -214,15 +216,17 @@ def non_finite(value: Any, path: str = "") -> str | None:
     return None
 
 
-def _dep_results(store: Store, spec: dict, used: dict[str, str]) -> dict[str, DepResult | tuple[DepResult, ...]]:
+def _dep_results(store: Store, spec: dict, used: dict[str, str],
+                 run: str | None = None) -> dict[str, DepResult | tuple[DepResult, ...]]:
     """The dependencies' results as the handler sees them; `used` gets the outputs token of each (the
-    job's result records them: a dependency that runs again later with other outputs makes it stale)."""
+    job's result records them: a dependency that runs again later with other outputs makes it stale).
+    Their files are hashed in full first, but for what `run` made or hashed in full already."""
     def one(key: str) -> DepResult:
         result, dep_spec = store.result(key), store.spec(key) or {}
         if result is None:
             raise RuntimeError(f"dependency {key[:12]} has no result in {store.root}")
         used[key] = outputs_token(result)
-        outputs = store.outputs_state(key, result, full=True)   # hashed before the handler reads them
+        outputs = store.outputs_state(key, result, full=True, run=run)   # hashed before the handler reads them
         if outputs != INTACT:
             raise RuntimeError(f"dependency {dep_spec.get('name', key[:12])}: output {outputs} since its job "
                                "wrote it (a file in its artifacts is not the one recorded); the next run "

@@ -154,3 +154,38 @@ def test_an_artifact_named_changed_is_checked_as_any_other(tmp_path):
     assert store.outputs_state(key, result, full=True) == "changed"
     (store.artifacts(key) / "changed").write_text("x")
     assert store.outputs_state(key, result) == ""
+
+
+def test_a_dependency_is_hashed_in_full_once_per_run(tmp_path):
+    """The study's jobs hashed 14 GB of their dependencies' files before reading them, the training
+    frames 48 times over. A run hashes a dependency's files in full once (none that it made itself: their
+    commit hashed them); the stat check stands for it afterwards, within that run only."""
+    _, store, key = setup(tmp_path)
+    result = store.result(key)
+    calls = []
+    hashing = mock.patch("matrix.store.file_sha256", side_effect=lambda p: calls.append(p) or
+                         result["manifest"]["value.json"]["sha256"])
+    with hashing:
+        assert store.outputs_state(key, result, full=True, run="next") == ""
+        assert len(calls) == 1                                               # made by an earlier run
+        assert store.outputs_state(key, result, full=True, run="next") == ""
+        assert len(calls) == 1                                               # hashed in full by this one
+        assert store.outputs_state(key, result, full=True) == "" and len(calls) == 2   # no run: every time
+    made = json.loads((store.job_dir(key) / "verified.json").read_text())["/hashed in full by run"]
+    assert made == "next"
+    target = store.artifacts(key) / "value.json"
+    target.write_text("7")                                                   # changed within the run: its
+    assert store.outputs_state(key, result, full=True, run="next") == "changed"   # stat tells
+
+
+def test_what_a_run_commits_is_not_hashed_in_full_again_in_that_run(tmp_path):
+    store = Store(tmp_path / "store")
+    spec = {"key": "ab" * 32, "kind": "source", "name": "made", "params": {}, "deps": {}, "inputs": {}}
+    workdir = store.new_workdir(spec["key"])
+    (workdir / "artifacts").mkdir(exist_ok=True)
+    (workdir / "artifacts" / "frames.npy").write_bytes(b"x" * 1000)
+    store.commit(spec["key"], workdir, spec, {"status": "ok", "value": {}}, run="this run")
+    result = store.result(spec["key"])
+    with mock.patch("matrix.store.file_sha256") as hashed:
+        assert store.outputs_state(spec["key"], result, full=True, run="this run") == ""
+    assert not hashed.called
