@@ -58,7 +58,7 @@ def train_seconds(params) -> float:
 # optimize and prepare, on one core: a conversion 1-4 s, a calibration ~2 s more, and each epoch of
 # fine-tuning (pruning, clustering; a strategy's *epochs options) 3-4 s on the study's 3,000 frames in
 # bf16. A QAT epoch fine-tunes in fp32 with fake quantization (pilotlab.strategies.common.finetune): 9-13 s
-# in the study's cold run of 70b1105 (Intel host, 2026-12-02), where every guess at 3.5 s had its CQAT
+# in the study's cold run of 70b1105 (Intel host, 2026-12-02), where, guessed at 3.5 s, they had the CQAT
 # fine-tune (31 s, guessed 15) hold a timing up while a core idled. A channel-pruned network's epoch costs
 # about its share of channels kept: 1.1 s at amount 0.65 (its stem subsampled), 2.2 s at 0.3.
 BASE_S, CALIBRATION_S, EPOCH_S, QAT_EPOCH_S = 3.0, 2.0, 3.5, 10.5
