@@ -1,5 +1,6 @@
-"""`structured_prune`: remove whole channels (conv) and neurons (hidden linear layers) with the
-smallest L1 norm, so the network really gets smaller and faster on dense kernels, then fine-tune.
+"""`structured_prune`: remove whole channels (conv) and neurons (hidden linear layers), those whose
+output reaches the next layer least on the training frames (`criterion: activation`; `l1`: those of
+smallest weight L1 norm), so the network really gets smaller and faster on dense kernels, then fine-tune.
 The kept counts are rounded to multiples of 8 (`multiple_of`): ONNX Runtime's fp32 NCHWc and int8
 kernels work on 8/16-channel blocks, so 17 channels cost as much as 24 (PilotNet pruned by 30% with
 rounding runs ~25% faster in int8 than without, for 7% fewer MACs).

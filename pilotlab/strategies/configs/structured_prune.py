@@ -10,7 +10,7 @@ from pilotlab.strategies.registry import register_strategy
 
 @dataclass(frozen=True)
 class StructuredPruneConfig:
-    version: int = 3                 # 2: kept counts rounded to multiples of 8; 3: fine-tunes 4 epochs at 1e-3
+    version: int = 4                 # 2: kept counts to multiples of 8; 3: 4 epochs at 1e-3; 4: criterion
     amount: float = 0.3              # fraction of each layer's channels / neurons removed
     finetune_epochs: int = 4         # a third of the channels gone is a new network: it needs real training
     lr: float = 1e-3                 # (2 epochs at 1e-4 left the quickstart's MSE 10x the baseline's)
@@ -18,6 +18,7 @@ class StructuredPruneConfig:
     format: Literal["torchscript", "onnx"] = "torchscript"   # the shapes change: no checkpoint
     multiple_of: int = 8             # round kept counts to a multiple of this: whole SIMD blocks (1: exact)
     subsample_stem: int = 0          # the first N convs at twice their stride, each next at its even taps (stem.py)
+    criterion: Literal["activation", "l1"] = "activation"   # channels kept: most output on training frames / largest L1
     distill: float = 0.0             # knowledge distillation: weight of the trained baseline's outputs (0-1)
 
     def __post_init__(self) -> None:

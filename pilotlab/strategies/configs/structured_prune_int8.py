@@ -10,10 +10,11 @@ from pilotlab.strategies.registry import register_strategy
 
 @dataclass(frozen=True)
 class StructuredPruneInt8Config:
-    version: int = 2                 # 2: fine-tunes 4 epochs at 1e-3 (was 2 at 1e-4)
+    version: int = 3                 # 2: fine-tunes 4 epochs at 1e-3 (was 2 at 1e-4); 3: criterion
     amount: float = 0.3              # fraction of each layer's channels / neurons removed
     multiple_of: int = 8             # kept counts rounded to whole 8-wide SIMD blocks
     subsample_stem: int = 0          # the first N convs at twice their stride, each next at its even taps (stem.py)
+    criterion: Literal["activation", "l1"] = "activation"   # channels kept: most output on training frames / largest L1
     finetune_epochs: int = 4         # in fp32, before quantization
     lr: float = 1e-3
     batch_size: int = 64

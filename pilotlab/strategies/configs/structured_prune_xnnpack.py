@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 from pilotlab.strategies.configs.checks import check_distill, check_fraction, check_multiple, check_subsample
 from pilotlab.strategies.edge import EXTRA, LITERT_CONVERTER
@@ -10,10 +11,11 @@ from pilotlab.strategies.registry import register_strategy
 
 @dataclass(frozen=True)
 class StructuredPruneXnnpackConfig:
-    version: int = 1
+    version: int = 2                 # 2: criterion (the channels kept were the largest by L1 norm)
     amount: float = 0.3              # fraction of each layer's channels / neurons removed
     multiple_of: int = 8             # kept counts rounded to whole 8-wide SIMD blocks
     subsample_stem: int = 0          # the first N convs at twice their stride, each next at its even taps (stem.py)
+    criterion: Literal["activation", "l1"] = "activation"   # channels kept: most output on training frames / largest L1
     finetune_epochs: int = 4         # in fp32, before quantization (as structured_prune_int8)
     lr: float = 1e-3
     batch_size: int = 64
