@@ -28,13 +28,13 @@ from matrix.registry import Registry
 class ChannelPruning:
     """Whole channels and neurons removed (pilotlab.strategies.channels), the stem subsampled if asked
     (pilotlab.strategies.stem), then fine-tuned."""
-    version: int = 2                 # 2: channels ranked by `criterion` (1: by their weights' L1 norm)
+    version: int = 2                 # 2: ranked by `criterion`, lr 3e-4 (1: by their weights' L1 norm, 1e-3)
     amount: float = 0.3
     multiple_of: int = 8
     subsample_stem: int = 0
     criterion: str = "activation"
     finetune_epochs: int = 4
-    lr: float = 1e-3
+    lr: float = 3e-4
     batch_size: int = 64
     distill: float = 0.0
 

@@ -10,13 +10,13 @@ from pilotlab.strategies.registry import register_strategy
 
 @dataclass(frozen=True)
 class StructuredPruneInt8Config:
-    version: int = 3                 # 2: fine-tunes 4 epochs at 1e-3 (was 2 at 1e-4); 3: criterion
+    version: int = 3                 # 2: fine-tunes 4 epochs at 1e-3 (was 2 at 1e-4); 3: criterion, lr 3e-4
     amount: float = 0.3              # fraction of each layer's channels / neurons removed
     multiple_of: int = 8             # kept counts rounded to whole 8-wide SIMD blocks
     subsample_stem: int = 0          # the first N convs at twice their stride, each next at its even taps (stem.py)
     criterion: Literal["activation", "l1"] = "activation"   # channels kept: most output on training frames / largest L1
     finetune_epochs: int = 4         # in fp32, before quantization
-    lr: float = 1e-3
+    lr: float = 3e-4                 # as structured_prune's
     batch_size: int = 64
     calibration_frames: int = 512    # training frames fed to ONNX Runtime's calibrator
     calibrate_method: Literal["minmax", "entropy", "percentile"] = "minmax"   # checked at plan (a typo failed after the fine-tune)
