@@ -22,7 +22,7 @@ def remove_channels(model: nn.Module, amount: float, input_shape: tuple, multipl
     as pruned so far) × the L1 norm of the next layer's weights on it. A unit that never fires on the
     data scores 0 however large its weights. Without, a layer keeps the channels of largest L1 weight norm
     (Li et al. 2017), which on the study's PilotNet kept units dead on every frame (3 of the 8 kept in its
-    last hidden layer) and its fine-tune collapsed in 2 of 4 frame orders (docs/strategies.md)."""
+    last hidden layer) and its fine-tune collapsed in 3 of 7 frame orders (docs/strategies.md)."""
     check_chain(model)
     layers = weight_layers(model)
     masked = copy.deepcopy(model)
